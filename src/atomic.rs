@@ -1,0 +1,70 @@
+//! Crash-safe writes: everything is written beside its destination and renamed into place,
+//! so a reader never sees a half-written file or model folder.
+
+use std::io::{self, Write};
+use std::path::Path;
+
+/// Writes `bytes` to `path` through a temporary file in the same folder and a rename.
+pub fn write_file(path: &Path, bytes: &[u8]) -> io::Result<()> {
+    let dir = parent_of(path);
+    std::fs::create_dir_all(dir)?;
+    let mut tmp = tempfile::Builder::new().prefix(".tmp-").tempfile_in(dir)?;
+    tmp.write_all(bytes)?;
+    tmp.as_file().sync_all()?;
+    tmp.persist(path).map_err(|e| e.error)?;
+    Ok(())
+}
+
+/// Builds a folder with `fill` in a temporary sibling, then swaps it in for `target`
+/// (an existing `target` is replaced only once the new one is complete).
+pub fn replace_dir<E: From<io::Error>>(target: &Path, fill: impl FnOnce(&Path) -> Result<(), E>) -> Result<(), E> {
+    let parent = parent_of(target);
+    std::fs::create_dir_all(parent)?;
+    let tmp = tempfile::Builder::new().prefix(".tmp-").tempdir_in(parent)?;
+    fill(tmp.path())?;
+    let staged = tmp.keep();
+    if target.exists() {
+        let old = tempfile::Builder::new().prefix(".old-").tempdir_in(parent)?.keep();
+        std::fs::remove_dir(&old)?;
+        std::fs::rename(target, &old)?;
+        if let Err(e) = std::fs::rename(&staged, target) {
+            std::fs::rename(&old, target)?;
+            return Err(e.into());
+        }
+        std::fs::remove_dir_all(&old)?;
+    } else {
+        std::fs::rename(&staged, target)?;
+    }
+    Ok(())
+}
+
+fn parent_of(path: &Path) -> &Path {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn failed_fill_leaves_the_old_folder_untouched() {
+        let root = tempfile::tempdir().unwrap();
+        let target = root.path().join("model");
+        replace_dir::<io::Error>(&target, |d| std::fs::write(d.join("a"), "1")).unwrap();
+        let failed = replace_dir::<io::Error>(&target, |d| {
+            std::fs::write(d.join("a"), "2")?;
+            Err(io::Error::other("crash"))
+        });
+        assert!(failed.is_err());
+        assert_eq!(std::fs::read_to_string(target.join("a")).unwrap(), "1");
+        replace_dir::<io::Error>(&target, |d| std::fs::write(d.join("b"), "3")).unwrap();
+        assert!(!target.join("a").exists());
+        assert_eq!(std::fs::read_to_string(target.join("b")).unwrap(), "3");
+        let left: Vec<_> = std::fs::read_dir(root.path()).unwrap().collect();
+        // The failed attempt's temporary folder is removed when its guard drops.
+        assert_eq!(left.len(), 1, "{left:?}");
+    }
+}

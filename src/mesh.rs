@@ -1,0 +1,247 @@
+//! Triangulation of the mean shape and the reference frame the appearance model lives in:
+//! a mask of the pixels inside the mesh, each with its triangle and barycentric coordinates,
+//! computed once so a warp is a gather with no per-pixel search (DESIGN §2, §10).
+
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+use crate::shape::Point;
+
+/// Triangle vertex indices into a landmark list.
+pub type Triangle = [u32; 3];
+
+#[derive(Debug, Error)]
+pub enum MeshError {
+    #[error("cannot triangulate: {0}")]
+    Degenerate(String),
+    #[error("triangle {index} refers to landmark {vertex}, but there are only {count} landmarks")]
+    IndexOutOfRange { index: usize, vertex: u32, count: usize },
+    #[error("triangle {index} {triangle:?} has (near) zero area {area:.3e}")]
+    ZeroArea { index: usize, triangle: Triangle, area: f64 },
+    #[error("reference frame of {0} pixels is too small (need at least 100)")]
+    TooFewPixels(usize),
+}
+
+/// Delaunay triangulation of the points (counter-clockwise in x-right/y-down pixel axes
+/// is not guaranteed; use [`signed_area`] where orientation matters).
+pub fn delaunay(points: &[Point]) -> Result<Vec<Triangle>, MeshError> {
+    if points.len() < 3 {
+        return Err(MeshError::Degenerate(format!("{} points (need at least 3)", points.len())));
+    }
+    for (i, p) in points.iter().enumerate() {
+        if let Some(j) = points[..i].iter().position(|q| q == p) {
+            return Err(MeshError::Degenerate(format!("landmarks {j} and {i} coincide at {p:?}")));
+        }
+    }
+    let pts: Vec<delaunator::Point> = points.iter().map(|p| delaunator::Point { x: p[0], y: p[1] }).collect();
+    let t = delaunator::triangulate(&pts);
+    if t.triangles.is_empty() {
+        return Err(MeshError::Degenerate("all landmarks are collinear".into()));
+    }
+    let triangles: Vec<Triangle> =
+        t.triangles.chunks_exact(3).map(|c| [c[0] as u32, c[1] as u32, c[2] as u32]).collect();
+    validate(points, &triangles)?;
+    Ok(triangles)
+}
+
+/// Twice the signed area of a triangle.
+pub fn signed_area(a: Point, b: Point, c: Point) -> f64 {
+    (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1])
+}
+
+/// Checks indices and that no triangle is degenerate relative to the whole mesh.
+pub fn validate(points: &[Point], triangles: &[Triangle]) -> Result<(), MeshError> {
+    if triangles.is_empty() {
+        return Err(MeshError::Degenerate("no triangles".into()));
+    }
+    for (index, t) in triangles.iter().enumerate() {
+        if let Some(&vertex) = t.iter().find(|&&v| v as usize >= points.len()) {
+            return Err(MeshError::IndexOutOfRange { index, vertex, count: points.len() });
+        }
+    }
+    let area = |t: &Triangle| 0.5 * signed_area(points[t[0] as usize], points[t[1] as usize], points[t[2] as usize]).abs();
+    let total: f64 = triangles.iter().map(area).sum();
+    let floor = 1e-9 * total.max(f64::MIN_POSITIVE);
+    for (index, t) in triangles.iter().enumerate() {
+        let a = area(t);
+        if a <= floor {
+            return Err(MeshError::ZeroArea { index, triangle: *t, area: a });
+        }
+    }
+    Ok(())
+}
+
+/// One pixel of the reference-frame mask.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MaskPixel {
+    pub x: u32,
+    pub y: u32,
+    pub triangle: u32,
+    /// Barycentric coordinates of the pixel centre in its triangle (sum to 1).
+    pub bary: [f32; 3],
+}
+
+/// How a reference frame was placed: `pixel = scale · x̄ + offset` for the mean shape `x̄`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Placement {
+    pub scale: f64,
+    pub offset: Point,
+}
+
+/// The shape-normalised image domain: the mesh at the mean shape, its mask and the
+/// precomputed per-pixel triangle and barycentric map.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ReferenceFrame {
+    pub width: usize,
+    pub height: usize,
+    /// The mesh vertices in reference-frame pixels.
+    pub landmarks: Vec<Point>,
+    pub triangles: Vec<Triangle>,
+    /// Mask pixels, in row-major order; appearance vectors follow this order.
+    pub pixels: Vec<MaskPixel>,
+    /// Pixels just outside the mask and the mask pixel that fills them, nearest rings
+    /// first, so bilinear sampling at the mesh edge never reads undefined texture.
+    pub padding: Vec<(u32, u32)>,
+}
+
+/// Margin in pixels kept around the mesh inside the reference frame.
+const MARGIN: f64 = 2.0;
+
+impl ReferenceFrame {
+    /// Scales the (normalised) mean shape so the mesh covers about `target_pixels` pixels.
+    pub fn fit_mean(mean: &[Point], triangles: Vec<Triangle>, target_pixels: usize) -> Result<(Self, Placement), MeshError> {
+        if target_pixels < 100 {
+            return Err(MeshError::TooFewPixels(target_pixels));
+        }
+        validate(mean, &triangles)?;
+        let area: f64 = triangles
+            .iter()
+            .map(|t| 0.5 * signed_area(mean[t[0] as usize], mean[t[1] as usize], mean[t[2] as usize]).abs())
+            .sum();
+        let scale = (target_pixels as f64 / area).sqrt();
+        let min = mean.iter().fold([f64::INFINITY; 2], |m, p| [m[0].min(p[0]), m[1].min(p[1])]);
+        let placement = Placement { scale, offset: [MARGIN - scale * min[0], MARGIN - scale * min[1]] };
+        Ok((Self::place(mean, triangles, placement)?, placement))
+    }
+
+    /// Rebuilds a frame from a stored placement (bit-identical to the one it was saved from).
+    pub fn place(mean: &[Point], triangles: Vec<Triangle>, placement: Placement) -> Result<Self, MeshError> {
+        let landmarks: Vec<Point> = mean
+            .iter()
+            .map(|p| [placement.scale * p[0] + placement.offset[0], placement.scale * p[1] + placement.offset[1]])
+            .collect();
+        let max = landmarks.iter().fold([0f64; 2], |m, p| [m[0].max(p[0]), m[1].max(p[1])]);
+        let width = (max[0] + MARGIN).ceil() as usize + 1;
+        let height = (max[1] + MARGIN).ceil() as usize + 1;
+        Self::from_landmarks(landmarks, triangles, width, height)
+    }
+
+    /// A frame from explicit vertex positions and size (for warps onto any target shape).
+    pub fn from_landmarks(landmarks: Vec<Point>, triangles: Vec<Triangle>, width: usize, height: usize) -> Result<Self, MeshError> {
+        validate(&landmarks, &triangles)?;
+        let mut owner = vec![u32::MAX; width * height];
+        let mut bary = vec![[0f32; 3]; width * height];
+        for (ti, t) in triangles.iter().enumerate() {
+            let [a, b, c] = t.map(|v| landmarks[v as usize]);
+            let Some(to_bary) = BarycentricMap::new(a, b, c) else { continue };
+            let x0 = a[0].min(b[0]).min(c[0]).floor().max(0.0) as usize;
+            let x1 = (a[0].max(b[0]).max(c[0]).ceil() as usize).min(width.saturating_sub(1));
+            let y0 = a[1].min(b[1]).min(c[1]).floor().max(0.0) as usize;
+            let y1 = (a[1].max(b[1]).max(c[1]).ceil() as usize).min(height.saturating_sub(1));
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    let i = y * width + x;
+                    if owner[i] != u32::MAX {
+                        continue;
+                    }
+                    let l = to_bary.at([x as f64, y as f64]);
+                    if l.iter().all(|&v| v >= -1e-9) {
+                        owner[i] = ti as u32;
+                        bary[i] = l.map(|v| v as f32);
+                    }
+                }
+            }
+        }
+        let pixels: Vec<MaskPixel> = (0..width * height)
+            .filter(|&i| owner[i] != u32::MAX)
+            .map(|i| MaskPixel { x: (i % width) as u32, y: (i / width) as u32, triangle: owner[i], bary: bary[i] })
+            .collect();
+        let padding = padding_rings(width, height, &pixels, 2);
+        Ok(ReferenceFrame { width, height, landmarks, triangles, pixels, padding })
+    }
+
+    /// Number of mask pixels.
+    pub fn n_pixels(&self) -> usize {
+        self.pixels.len()
+    }
+
+    /// The mask as a `height × width` image: 255 inside the mesh, 0 outside.
+    pub fn mask_image(&self) -> Vec<u8> {
+        let mut m = vec![0u8; self.width * self.height];
+        for p in &self.pixels {
+            m[p.y as usize * self.width + p.x as usize] = 255;
+        }
+        m
+    }
+}
+
+/// Maps a point to barycentric coordinates of a fixed triangle.
+#[derive(Clone, Copy, Debug)]
+pub struct BarycentricMap {
+    origin: Point,
+    inv: [[f64; 2]; 2],
+}
+
+impl BarycentricMap {
+    /// `None` for a degenerate triangle.
+    pub fn new(a: Point, b: Point, c: Point) -> Option<Self> {
+        let (e1, e2) = ([b[0] - a[0], b[1] - a[1]], [c[0] - a[0], c[1] - a[1]]);
+        let det = e1[0] * e2[1] - e2[0] * e1[1];
+        if det.abs() <= f64::EPSILON * (e1[0].abs() + e1[1].abs() + e2[0].abs() + e2[1].abs()).powi(2) {
+            return None;
+        }
+        Some(BarycentricMap { origin: a, inv: [[e2[1] / det, -e2[0] / det], [-e1[1] / det, e1[0] / det]] })
+    }
+
+    pub fn at(&self, p: Point) -> [f64; 3] {
+        let (dx, dy) = (p[0] - self.origin[0], p[1] - self.origin[1]);
+        let l1 = self.inv[0][0] * dx + self.inv[0][1] * dy;
+        let l2 = self.inv[1][0] * dx + self.inv[1][1] * dy;
+        [1.0 - l1 - l2, l1, l2]
+    }
+}
+
+/// Rings of pixels around the mask, each filled from an already-defined 8-neighbour.
+fn padding_rings(width: usize, height: usize, pixels: &[MaskPixel], rings: usize) -> Vec<(u32, u32)> {
+    // source[i] = mask index whose value pixel i takes, for mask and padded pixels.
+    let mut source = vec![u32::MAX; width * height];
+    for (k, p) in pixels.iter().enumerate() {
+        source[p.y as usize * width + p.x as usize] = k as u32;
+    }
+    let mut padding = Vec::new();
+    for _ in 0..rings {
+        let mut ring = Vec::new();
+        for y in 0..height {
+            for x in 0..width {
+                if source[y * width + x] != u32::MAX {
+                    continue;
+                }
+                let neighbours = [(0i64, -1i64), (-1, 0), (1, 0), (0, 1), (-1, -1), (1, -1), (-1, 1), (1, 1)];
+                let found = neighbours.iter().find_map(|&(dx, dy)| {
+                    let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+                    (nx >= 0 && ny >= 0 && (nx as usize) < width && (ny as usize) < height)
+                        .then(|| source[ny as usize * width + nx as usize])
+                        .filter(|&s| s != u32::MAX)
+                });
+                if let Some(s) = found {
+                    ring.push(((y * width + x) as u32, s));
+                }
+            }
+        }
+        for &(i, s) in &ring {
+            source[i as usize] = s;
+        }
+        padding.extend(ring);
+    }
+    padding
+}

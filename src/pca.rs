@@ -1,0 +1,242 @@
+//! Principal component analysis shared by the shape and appearance models.
+//!
+//! With fewer samples than dimensions (the appearance case: ~30 images, ~120 000 values)
+//! the eigenvectors come from the n×n Gram matrix (the snapshot method, Sirovich 1987);
+//! otherwise from the d×d covariance. Both accumulate in f64; the model stores f32.
+
+use nalgebra::{DMatrix, SymmetricEigen};
+use rayon::prelude::*;
+use thiserror::Error;
+
+/// How many components to keep.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub enum Components {
+    /// Exactly this many (fewer if the data has lower rank).
+    Count(usize),
+    /// The fewest that explain `fraction` of the variance, at most `max`.
+    Variance { fraction: f64, max: Option<usize> },
+}
+
+impl Components {
+    /// Checks the request once, at the API entry.
+    pub fn validate(self) -> Result<Self, PcaError> {
+        match self {
+            Components::Count(0) => Err(PcaError::BadComponents("a count of 0 components".into())),
+            Components::Variance { fraction, .. } if !(fraction > 0.0 && fraction <= 1.0) => {
+                Err(PcaError::BadComponents(format!("variance fraction {fraction} (must be in (0, 1])")))
+            }
+            Components::Variance { max: Some(0), .. } => {
+                Err(PcaError::BadComponents("a maximum of 0 components".into()))
+            }
+            ok => Ok(ok),
+        }
+    }
+}
+
+#[derive(Debug, Error)]
+pub enum PcaError {
+    #[error("PCA needs at least 2 samples, got {0}")]
+    TooFewSamples(usize),
+    #[error("sample {index} has {found} values, sample 0 has {expected}")]
+    Ragged { index: usize, expected: usize, found: usize },
+    #[error("sample {index} holds a non-finite value at position {position}")]
+    NotFinite { index: usize, position: usize },
+    #[error("the samples do not vary: every sample equals the mean")]
+    NoVariance,
+    #[error("invalid component request: {0}")]
+    BadComponents(String),
+}
+
+/// A linear model `x ≈ mean + componentsᵀ b`.
+///
+/// `components` holds one orthonormal component per row (row-major, `n_components × dim`),
+/// sorted by `variances`, descending. `total_variance` is the variance of the training data
+/// about `mean`, so `variance_ratio` tells how much the kept components explain.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PcaModel {
+    pub mean: Vec<f32>,
+    pub components: Vec<f32>,
+    pub variances: Vec<f32>,
+    pub total_variance: f64,
+}
+
+impl PcaModel {
+    /// Fits a model about the samples' own mean.
+    pub fn fit(samples: &[&[f32]], keep: Components) -> Result<Self, PcaError> {
+        keep.validate()?;
+        let d = check_samples(samples)?;
+        let mut mean = vec![0f64; d];
+        for s in samples {
+            mean.iter_mut().zip(s.iter()).for_each(|(m, &x)| *m += x as f64);
+        }
+        let n = samples.len() as f64;
+        let mean: Vec<f32> = mean.iter().map(|m| (m / n) as f32).collect();
+        Self::fit_about(samples, &mean, keep)
+    }
+
+    /// Fits a model about a given mean (the Procrustes mean shape, for instance).
+    pub fn fit_about(samples: &[&[f32]], mean: &[f32], keep: Components) -> Result<Self, PcaError> {
+        let keep = keep.validate()?;
+        let d = check_samples(samples)?;
+        if mean.len() != d {
+            return Err(PcaError::Ragged { index: usize::MAX, expected: d, found: mean.len() });
+        }
+        let n = samples.len();
+        let centred: Vec<Vec<f64>> = samples
+            .par_iter()
+            .map(|s| s.iter().zip(mean).map(|(&x, &m)| x as f64 - m as f64).collect())
+            .collect();
+        let dof = (n - 1) as f64;
+        // Eigen-pairs of the covariance, as (variance, unit vector in data space).
+        let (values, vectors): (Vec<f64>, Vec<Vec<f64>>) = if n <= d {
+            let gram = DMatrix::from_fn(n, n, |i, j| dot(&centred[i], &centred[j]));
+            let (values, u) = sorted_eigen(gram);
+            let vectors = (0..values.len())
+                .into_par_iter()
+                .map(|k| {
+                    let mut v = vec![0f64; d];
+                    for (i, row) in centred.iter().enumerate() {
+                        let w = u[(i, k)];
+                        v.iter_mut().zip(row).for_each(|(vj, &x)| *vj += w * x);
+                    }
+                    normalise(&mut v);
+                    v
+                })
+                .collect();
+            (values.iter().map(|l| l / dof).collect(), vectors)
+        } else {
+            let mut cov = DMatrix::<f64>::zeros(d, d);
+            for row in &centred {
+                for i in 0..d {
+                    for j in 0..=i {
+                        cov[(i, j)] += row[i] * row[j];
+                    }
+                }
+            }
+            cov.fill_upper_triangle_with_lower_triangle();
+            let (values, v) = sorted_eigen(cov);
+            let vectors = (0..values.len()).map(|k| v.column(k).iter().copied().collect()).collect();
+            (values.iter().map(|l| l / dof).collect(), vectors)
+        };
+        let total_variance: f64 = centred.iter().map(|r| dot(r, r)).sum::<f64>() / dof;
+        if total_variance <= 0.0 {
+            return Err(PcaError::NoVariance);
+        }
+        // Eigenvalues below this are round-off: the data's rank ends there.
+        let rank = values.iter().take_while(|&&l| l > values[0] * 1e-10).count();
+        let kept = match keep {
+            Components::Count(k) => k.min(rank),
+            Components::Variance { fraction, max } => {
+                let mut sum = 0.0;
+                let k = values[..rank]
+                    .iter()
+                    .position(|l| {
+                        sum += l;
+                        sum >= fraction * total_variance * (1.0 - 1e-12)
+                    })
+                    .map_or(rank, |i| i + 1);
+                k.min(max.unwrap_or(usize::MAX))
+            }
+        };
+        Ok(PcaModel {
+            mean: mean.to_vec(),
+            components: vectors[..kept].iter().flatten().map(|&x| x as f32).collect(),
+            variances: values[..kept].iter().map(|&l| l as f32).collect(),
+            total_variance,
+        })
+    }
+
+    pub fn dim(&self) -> usize {
+        self.mean.len()
+    }
+
+    pub fn n_components(&self) -> usize {
+        self.variances.len()
+    }
+
+    /// Component `k` as a slice of length `dim`.
+    pub fn component(&self, k: usize) -> &[f32] {
+        &self.components[k * self.dim()..(k + 1) * self.dim()]
+    }
+
+    /// Fraction of the training variance the kept components explain.
+    pub fn variance_ratio(&self) -> f64 {
+        self.variances.iter().map(|&v| v as f64).sum::<f64>() / self.total_variance
+    }
+
+    /// `b = P (x − mean)`.
+    pub fn project(&self, x: &[f32]) -> Vec<f32> {
+        assert_eq!(x.len(), self.dim(), "project: sample length differs from the model's");
+        (0..self.n_components())
+            .into_par_iter()
+            .map(|k| {
+                let c = self.component(k);
+                let mut acc = 0f64;
+                for ((&xi, &mi), &ci) in x.iter().zip(&self.mean).zip(c) {
+                    acc += (xi - mi) as f64 * ci as f64;
+                }
+                acc as f32
+            })
+            .collect()
+    }
+
+    /// `x = mean + Pᵀ b`.
+    pub fn reconstruct(&self, b: &[f32]) -> Vec<f32> {
+        let mut out = vec![0f32; self.dim()];
+        self.reconstruct_into(b, &mut out);
+        out
+    }
+
+    /// `x = mean + Pᵀ b`, written into `out` (length `dim`).
+    pub fn reconstruct_into(&self, b: &[f32], out: &mut [f32]) {
+        assert_eq!(b.len(), self.n_components(), "reconstruct: parameter count differs from the model's");
+        assert_eq!(out.len(), self.dim(), "reconstruct: output length differs from the model's");
+        const CHUNK: usize = 4096;
+        out.par_chunks_mut(CHUNK).enumerate().for_each(|(ci, chunk)| {
+            let start = ci * CHUNK;
+            chunk.copy_from_slice(&self.mean[start..start + chunk.len()]);
+            for (k, &bk) in b.iter().enumerate() {
+                let c = &self.component(k)[start..start + chunk.len()];
+                chunk.iter_mut().zip(c).for_each(|(o, &ck)| *o += bk * ck);
+            }
+        });
+    }
+}
+
+fn check_samples(samples: &[&[f32]]) -> Result<usize, PcaError> {
+    if samples.len() < 2 {
+        return Err(PcaError::TooFewSamples(samples.len()));
+    }
+    let d = samples[0].len();
+    for (index, s) in samples.iter().enumerate() {
+        if s.len() != d {
+            return Err(PcaError::Ragged { index, expected: d, found: s.len() });
+        }
+        if let Some(position) = s.iter().position(|x| !x.is_finite()) {
+            return Err(PcaError::NotFinite { index, position });
+        }
+    }
+    Ok(d)
+}
+
+/// Eigen-decomposition of a symmetric matrix, eigenvalues descending (negatives from
+/// round-off clamped to 0), eigenvectors as the matching columns.
+fn sorted_eigen(m: DMatrix<f64>) -> (Vec<f64>, DMatrix<f64>) {
+    let eig = SymmetricEigen::new(m);
+    let mut order: Vec<usize> = (0..eig.eigenvalues.len()).collect();
+    order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
+    let values = order.iter().map(|&i| eig.eigenvalues[i].max(0.0)).collect();
+    let vectors = DMatrix::from_fn(eig.eigenvectors.nrows(), order.len(), |r, c| eig.eigenvectors[(r, order[c])]);
+    (values, vectors)
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+fn normalise(v: &mut [f64]) {
+    let norm = dot(v, v).sqrt();
+    if norm > 0.0 {
+        v.iter_mut().for_each(|x| *x /= norm);
+    }
+}

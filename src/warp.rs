@@ -1,0 +1,191 @@
+//! Piecewise affine warps between an image and the reference frame, bilinear sampling,
+//! parallel with rayon (DESIGN §2, §10).
+//!
+//! * [`to_reference`]: image at its landmarks → shape-normalised texture. Each mask pixel's
+//!   precomputed triangle and barycentric coordinates give its source point directly.
+//! * [`from_reference_into`]: texture → image at new landmarks. Each destination triangle is
+//!   rasterised and every covered pixel samples the reference frame through the triangle's
+//!   affine map.
+//!
+//! Textures are `n_pixels × 3` interleaved RGB `f32` in grey levels (0–255), in mask order.
+
+use image::RgbImage;
+use rayon::prelude::*;
+use thiserror::Error;
+
+use crate::mesh::{BarycentricMap, ReferenceFrame};
+use crate::shape::Point;
+
+#[derive(Debug, Error)]
+pub enum WarpError {
+    #[error("{found} landmarks given, the mesh has {expected}")]
+    LandmarkCount { expected: usize, found: usize },
+    #[error("landmark {index} is not finite")]
+    NotFinite { index: usize },
+    #[error("texture has {found} values, the reference frame needs {expected} (pixels × 3)")]
+    TextureLength { expected: usize, found: usize },
+    #[error("image is empty ({width}×{height})")]
+    EmptyImage { width: u32, height: u32 },
+}
+
+/// Bilinear sample of an RGB image at `(x, y)` (pixel centres at integers), clamped to
+/// the border.
+#[inline]
+pub fn sample_bilinear(image: &RgbImage, x: f64, y: f64) -> [f32; 3] {
+    let (w, h) = (image.width() as usize, image.height() as usize);
+    let data = image.as_raw();
+    sample(data, w, h, x, y, |v: u8| v as f32)
+}
+
+#[inline(always)]
+fn sample<T: Copy>(data: &[T], w: usize, h: usize, x: f64, y: f64, to_f32: impl Fn(T) -> f32) -> [f32; 3] {
+    let xc = x.clamp(0.0, (w - 1) as f64);
+    let yc = y.clamp(0.0, (h - 1) as f64);
+    let (x0, y0) = (xc.floor() as usize, yc.floor() as usize);
+    let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
+    let (fx, fy) = ((xc - x0 as f64) as f32, (yc - y0 as f64) as f32);
+    let (i00, i01, i10, i11) = ((y0 * w + x0) * 3, (y0 * w + x1) * 3, (y1 * w + x0) * 3, (y1 * w + x1) * 3);
+    let mut out = [0f32; 3];
+    for (c, o) in out.iter_mut().enumerate() {
+        let top = to_f32(data[i00 + c]) * (1.0 - fx) + to_f32(data[i01 + c]) * fx;
+        let bottom = to_f32(data[i10 + c]) * (1.0 - fx) + to_f32(data[i11 + c]) * fx;
+        *o = top * (1.0 - fy) + bottom * fy;
+    }
+    out
+}
+
+fn check_landmarks(frame: &ReferenceFrame, landmarks: &[Point]) -> Result<(), WarpError> {
+    if landmarks.len() != frame.landmarks.len() {
+        return Err(WarpError::LandmarkCount { expected: frame.landmarks.len(), found: landmarks.len() });
+    }
+    match landmarks.iter().position(|p| !(p[0].is_finite() && p[1].is_finite())) {
+        Some(index) => Err(WarpError::NotFinite { index }),
+        None => Ok(()),
+    }
+}
+
+/// Warps `image`, whose face has `landmarks`, into the reference frame.
+pub fn to_reference(frame: &ReferenceFrame, image: &RgbImage, landmarks: &[Point]) -> Result<Vec<f32>, WarpError> {
+    let mut out = vec![0f32; frame.n_pixels() * 3];
+    to_reference_into(frame, image, landmarks, &mut out)?;
+    Ok(out)
+}
+
+/// [`to_reference`] into a caller's buffer of `n_pixels × 3` values.
+pub fn to_reference_into(frame: &ReferenceFrame, image: &RgbImage, landmarks: &[Point], out: &mut [f32]) -> Result<(), WarpError> {
+    check_landmarks(frame, landmarks)?;
+    if image.width() == 0 || image.height() == 0 {
+        return Err(WarpError::EmptyImage { width: image.width(), height: image.height() });
+    }
+    if out.len() != frame.n_pixels() * 3 {
+        return Err(WarpError::TextureLength { expected: frame.n_pixels() * 3, found: out.len() });
+    }
+    const CHUNK: usize = 2048;
+    out.par_chunks_mut(CHUNK * 3).zip(frame.pixels.par_chunks(CHUNK)).for_each(|(out, pixels)| {
+        for (o, p) in out.chunks_exact_mut(3).zip(pixels) {
+            let [a, b, c] = frame.triangles[p.triangle as usize].map(|v| landmarks[v as usize]);
+            let l = p.bary.map(|v| v as f64);
+            let x = l[0] * a[0] + l[1] * b[0] + l[2] * c[0];
+            let y = l[0] * a[1] + l[1] * b[1] + l[2] * c[1];
+            o.copy_from_slice(&sample_bilinear(image, x, y));
+        }
+    });
+    Ok(())
+}
+
+/// A full `width × height × 3` reference image from a texture: mask pixels plus the padding
+/// rings, so bilinear samples at the mesh edge read defined values.
+pub fn texture_to_image(frame: &ReferenceFrame, texture: &[f32]) -> Result<Vec<f32>, WarpError> {
+    if texture.len() != frame.n_pixels() * 3 {
+        return Err(WarpError::TextureLength { expected: frame.n_pixels() * 3, found: texture.len() });
+    }
+    let mut img = vec![0f32; frame.width * frame.height * 3];
+    for (p, t) in frame.pixels.iter().zip(texture.chunks_exact(3)) {
+        let i = (p.y as usize * frame.width + p.x as usize) * 3;
+        img[i..i + 3].copy_from_slice(t);
+    }
+    for &(dst, src) in &frame.padding {
+        let i = dst as usize * 3;
+        img[i..i + 3].copy_from_slice(&texture[src as usize * 3..src as usize * 3 + 3]);
+    }
+    Ok(img)
+}
+
+/// The texture as an 8-bit image of the reference frame (outside the mask: black).
+pub fn texture_to_rgb(frame: &ReferenceFrame, texture: &[f32]) -> Result<RgbImage, WarpError> {
+    if texture.len() != frame.n_pixels() * 3 {
+        return Err(WarpError::TextureLength { expected: frame.n_pixels() * 3, found: texture.len() });
+    }
+    let mut img = RgbImage::new(frame.width as u32, frame.height as u32);
+    for (p, t) in frame.pixels.iter().zip(texture.chunks_exact(3)) {
+        img.put_pixel(p.x, p.y, image::Rgb([to_u8(t[0]), to_u8(t[1]), to_u8(t[2])]));
+    }
+    Ok(img)
+}
+
+/// Rounds a grey level to the nearest 8-bit value.
+#[inline]
+pub fn to_u8(v: f32) -> u8 {
+    (v + 0.5).clamp(0.0, 255.0) as u8
+}
+
+/// Draws a texture onto `canvas` with the mesh at `landmarks`. Pixels outside the mesh are
+/// left as they were, so the face can be drawn over a background frame.
+pub fn from_reference_into(frame: &ReferenceFrame, texture: &[f32], landmarks: &[Point], canvas: &mut RgbImage) -> Result<(), WarpError> {
+    check_landmarks(frame, landmarks)?;
+    let source = texture_to_image(frame, texture)?;
+    let (w, h) = (canvas.width() as usize, canvas.height() as usize);
+    if w == 0 || h == 0 {
+        return Ok(());
+    }
+    struct Tri {
+        to_bary: BarycentricMap,
+        src: [Point; 3],
+        x0: usize,
+        x1: usize,
+        y0: usize,
+        y1: usize,
+    }
+    let tris: Vec<Tri> = frame
+        .triangles
+        .iter()
+        .filter_map(|t| {
+            let [a, b, c] = t.map(|v| landmarks[v as usize]);
+            let to_bary = BarycentricMap::new(a, b, c)?;
+            let (lo_x, hi_x) = (a[0].min(b[0]).min(c[0]), a[0].max(b[0]).max(c[0]));
+            let (lo_y, hi_y) = (a[1].min(b[1]).min(c[1]), a[1].max(b[1]).max(c[1]));
+            if hi_x < 0.0 || hi_y < 0.0 || lo_x > (w - 1) as f64 || lo_y > (h - 1) as f64 {
+                return None;
+            }
+            Some(Tri {
+                to_bary,
+                src: t.map(|v| frame.landmarks[v as usize]),
+                x0: lo_x.ceil().max(0.0) as usize,
+                x1: (hi_x.floor() as usize).min(w - 1),
+                y0: lo_y.ceil().max(0.0) as usize,
+                y1: (hi_y.floor() as usize).min(h - 1),
+            })
+        })
+        .collect();
+    const BAND: usize = 16;
+    let (fw, fh) = (frame.width, frame.height);
+    canvas.par_chunks_mut(BAND * w * 3).enumerate().for_each(|(band, rows)| {
+        let (r0, r1) = (band * BAND, (band * BAND + BAND).min(h) - 1);
+        for t in tris.iter().filter(|t| t.y1 >= r0 && t.y0 <= r1) {
+            for y in t.y0.max(r0)..=t.y1.min(r1) {
+                let row = &mut rows[(y - r0) * w * 3..(y - r0 + 1) * w * 3];
+                for x in t.x0..=t.x1 {
+                    let l = t.to_bary.at([x as f64, y as f64]);
+                    if l[0] < -1e-9 || l[1] < -1e-9 || l[2] < -1e-9 {
+                        continue;
+                    }
+                    let sx = l[0] * t.src[0][0] + l[1] * t.src[1][0] + l[2] * t.src[2][0];
+                    let sy = l[0] * t.src[0][1] + l[1] * t.src[1][1] + l[2] * t.src[2][1];
+                    let v = sample(&source, fw, fh, sx, sy, |v: f32| v);
+                    row[x * 3..x * 3 + 3].copy_from_slice(&v.map(to_u8));
+                }
+            }
+        }
+    });
+    Ok(())
+}

@@ -1,0 +1,97 @@
+//! PCA against analytic references: data of known rank, snapshot vs covariance method.
+mod common;
+
+use common::Rng;
+use facespace::pca::{Components, PcaError, PcaModel};
+
+/// `n` samples of `mean + Σ_k w_k e_k` with `rank` orthogonal directions of known spread.
+fn low_rank_data(n: usize, d: usize, rank: usize, seed: u64) -> (Vec<Vec<f32>>, Vec<Vec<f64>>) {
+    let mut rng = Rng::new(seed);
+    // Orthonormal directions by Gram–Schmidt.
+    let mut dirs: Vec<Vec<f64>> = Vec::new();
+    while dirs.len() < rank {
+        let mut v: Vec<f64> = (0..d).map(|_| rng.normal()).collect();
+        for u in &dirs {
+            let p: f64 = v.iter().zip(u).map(|(a, b)| a * b).sum();
+            v.iter_mut().zip(u).for_each(|(a, b)| *a -= p * b);
+        }
+        let norm = v.iter().map(|a| a * a).sum::<f64>().sqrt();
+        dirs.push(v.into_iter().map(|a| a / norm).collect());
+    }
+    let mean: Vec<f64> = (0..d).map(|_| rng.range(0.0, 100.0)).collect();
+    let data = (0..n)
+        .map(|_| {
+            let w: Vec<f64> = (0..rank).map(|k| rng.normal() * 10.0 / (k + 1) as f64).collect();
+            (0..d).map(|j| (mean[j] + (0..rank).map(|k| w[k] * dirs[k][j]).sum::<f64>()) as f32).collect()
+        })
+        .collect();
+    (data, dirs)
+}
+
+fn check_recovers_rank(n: usize, d: usize, rank: usize) {
+    let (data, dirs) = low_rank_data(n, d, rank, 3 + d as u64);
+    let rows: Vec<&[f32]> = data.iter().map(|r| r.as_slice()).collect();
+    let model = PcaModel::fit(&rows, Components::Variance { fraction: 1.0, max: None }).unwrap();
+    assert_eq!(model.n_components(), rank, "n={n} d={d}");
+    assert!((model.variance_ratio() - 1.0).abs() < 1e-5);
+    assert!(model.variances.windows(2).all(|w| w[0] >= w[1]), "variances sorted descending");
+    // Components are orthonormal and span the true subspace.
+    for a in 0..rank {
+        for b in 0..rank {
+            let dot: f64 = model.component(a).iter().zip(model.component(b)).map(|(x, y)| *x as f64 * *y as f64).sum();
+            assert!((dot - if a == b { 1.0 } else { 0.0 }).abs() < 1e-5, "components {a},{b}: {dot}");
+        }
+        let in_span: f64 = dirs
+            .iter()
+            .map(|u| u.iter().zip(model.component(a)).map(|(x, y)| x * *y as f64).sum::<f64>().powi(2))
+            .sum();
+        assert!((in_span - 1.0).abs() < 1e-4, "component {a} leaves the subspace: {in_span}");
+    }
+    // Every sample is reconstructed from its projection.
+    for r in &data {
+        let back = model.reconstruct(&model.project(r));
+        let err = back.iter().zip(r).map(|(a, b)| (a - b).abs()).fold(0f32, f32::max);
+        assert!(err < 1e-3, "reconstruction error {err}");
+    }
+}
+
+#[test]
+fn snapshot_method_recovers_known_rank() {
+    check_recovers_rank(12, 500, 4); // n < d: Gram matrix
+}
+
+#[test]
+fn covariance_method_recovers_known_rank() {
+    check_recovers_rank(200, 10, 3); // n > d: covariance matrix
+}
+
+#[test]
+fn truncation_by_fraction_count_and_cap() {
+    let (data, _) = low_rank_data(40, 30, 6, 5);
+    let rows: Vec<&[f32]> = data.iter().map(|r| r.as_slice()).collect();
+    let all = PcaModel::fit(&rows, Components::Count(30)).unwrap();
+    assert_eq!(all.n_components(), 6, "a count beyond the rank is capped at the rank");
+    let total: f64 = all.variances.iter().map(|&v| v as f64).sum();
+    let frac = (all.variances[0] as f64 + all.variances[1] as f64) / total;
+    let two = PcaModel::fit(&rows, Components::Variance { fraction: frac - 1e-6, max: None }).unwrap();
+    assert_eq!(two.n_components(), 2);
+    let three = PcaModel::fit(&rows, Components::Variance { fraction: frac + 1e-4, max: None }).unwrap();
+    assert_eq!(three.n_components(), 3);
+    let capped = PcaModel::fit(&rows, Components::Variance { fraction: 1.0, max: Some(4) }).unwrap();
+    assert_eq!(capped.n_components(), 4);
+    assert_eq!(PcaModel::fit(&rows, Components::Count(2)).unwrap().n_components(), 2);
+}
+
+#[test]
+fn bad_input_is_a_typed_error() {
+    let a = [1.0f32, 2.0, 3.0];
+    let b = [1.0f32, 2.0];
+    let nan = [1.0f32, f32::NAN, 3.0];
+    assert!(matches!(PcaModel::fit(&[&a], Components::Count(1)), Err(PcaError::TooFewSamples(1))));
+    assert!(matches!(PcaModel::fit(&[&a, &b], Components::Count(1)), Err(PcaError::Ragged { index: 1, .. })));
+    assert!(matches!(PcaModel::fit(&[&a, &nan], Components::Count(1)), Err(PcaError::NotFinite { index: 1, position: 1 })));
+    assert!(matches!(PcaModel::fit(&[&a, &a], Components::Count(1)), Err(PcaError::NoVariance)));
+    let bad = Components::Variance { fraction: 1.5, max: None };
+    assert!(matches!(PcaModel::fit(&[&a, &nan], bad), Err(PcaError::BadComponents(_))));
+    assert!(matches!(PcaModel::fit(&[&a, &b], Components::Count(0)), Err(PcaError::BadComponents(_))));
+}
