@@ -102,6 +102,9 @@ pub struct ReferenceFrame {
     /// Pixels just outside the mask and the mask pixel that fills them, nearest rings
     /// first, so bilinear sampling at the mesh edge never reads undefined texture.
     pub padding: Vec<(u32, u32)>,
+    /// Per triangle, whether the edge opposite each vertex lies on the mesh boundary
+    /// (belongs to no other triangle). Rendering dilates across these edges only.
+    pub hull_edges: Vec<[bool; 3]>,
 }
 
 /// Margin in pixels kept around the mesh inside the reference frame.
@@ -167,7 +170,8 @@ impl ReferenceFrame {
             .map(|i| MaskPixel { x: (i % width) as u32, y: (i / width) as u32, triangle: owner[i], bary: bary[i] })
             .collect();
         let padding = padding_rings(width, height, &pixels, 2);
-        Ok(ReferenceFrame { width, height, landmarks, triangles, pixels, padding })
+        let hull_edges = hull_edges(&triangles);
+        Ok(ReferenceFrame { width, height, landmarks, triangles, pixels, padding, hull_edges })
     }
 
     /// Number of mask pixels.
@@ -209,6 +213,18 @@ impl BarycentricMap {
         let l2 = self.inv[1][0] * dx + self.inv[1][1] * dy;
         [1.0 - l1 - l2, l1, l2]
     }
+}
+
+/// For each triangle, which of its edges (opposite vertex 0, 1, 2) no other triangle shares.
+fn hull_edges(triangles: &[Triangle]) -> Vec<[bool; 3]> {
+    let key = |a: u32, b: u32| (a.min(b), a.max(b));
+    let mut count = std::collections::BTreeMap::new();
+    for t in triangles {
+        for i in 0..3 {
+            *count.entry(key(t[(i + 1) % 3], t[(i + 2) % 3])).or_insert(0) += 1;
+        }
+    }
+    triangles.iter().map(|t| std::array::from_fn(|i| count[&key(t[(i + 1) % 3], t[(i + 2) % 3])] == 1)).collect()
 }
 
 /// Rings of pixels around the mask, each filled from an already-defined 8-neighbour.

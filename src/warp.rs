@@ -41,7 +41,9 @@ pub fn sample_bilinear(image: &RgbImage, x: f64, y: f64) -> [f32; 3] {
 fn sample<T: Copy>(data: &[T], w: usize, h: usize, x: f64, y: f64, to_f32: impl Fn(T) -> f32) -> [f32; 3] {
     let xc = x.clamp(0.0, (w - 1) as f64);
     let yc = y.clamp(0.0, (h - 1) as f64);
-    let (x0, y0) = (xc.floor() as usize, yc.floor() as usize);
+    // Truncation is floor here (both are ≥ 0) and, unlike f64::floor on baseline x86-64,
+    // needs no libm call.
+    let (x0, y0) = (xc as usize, yc as usize);
     let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
     let (fx, fy) = ((xc - x0 as f64) as f32, (yc - y0 as f64) as f32);
     let (i00, i01, i10, i11) = ((y0 * w + x0) * 3, (y0 * w + x1) * 3, (y1 * w + x0) * 3, (y1 * w + x1) * 3);
@@ -129,8 +131,13 @@ pub fn to_u8(v: f32) -> u8 {
     (v + 0.5).clamp(0.0, 255.0) as u8
 }
 
-/// Draws a texture onto `canvas` with the mesh at `landmarks`. Pixels outside the mesh are
-/// left as they were, so the face can be drawn over a background frame.
+/// How far (pixels) rendering extends the face beyond the mesh boundary, extrapolating the
+/// edge triangles' maps over the padded texture: a later warp back samples bilinearly at the
+/// boundary and must find face there, not background.
+pub const RENDER_DILATION: f64 = 1.0;
+
+/// Draws a texture onto `canvas` with the mesh at `landmarks`. Pixels outside the mesh (and
+/// its one-pixel dilation) are left as they were, so the face can be drawn over a background.
 pub fn from_reference_into(frame: &ReferenceFrame, texture: &[f32], landmarks: &[Point], canvas: &mut RgbImage) -> Result<(), WarpError> {
     check_landmarks(frame, landmarks)?;
     let source = texture_to_image(frame, texture)?;
@@ -138,30 +145,57 @@ pub fn from_reference_into(frame: &ReferenceFrame, texture: &[f32], landmarks: &
     if w == 0 || h == 0 {
         return Ok(());
     }
+    /// A destination triangle: barycentric coordinates and source position are affine in
+    /// the pixel position, `v(x, y) = v0 + vx·x + vy·y`, so each row is a span walked by
+    /// constant increments.
     struct Tri {
-        to_bary: BarycentricMap,
-        src: [Point; 3],
-        x0: usize,
-        x1: usize,
+        /// `λ_i = l0[i] + lx[i]·x + ly[i]·y`.
+        l0: [f64; 3],
+        lx: [f64; 3],
+        ly: [f64; 3],
+        /// Lowest barycentric value still drawn, per vertex: 0 inside, negative across a
+        /// hull edge (−dilation / height of the triangle over that edge).
+        floor: [f64; 3],
+        /// Source (reference-frame) position: `s = s0 + sx·x + sy·y`.
+        s0: Point,
+        sx: Point,
+        sy: Point,
         y0: usize,
         y1: usize,
     }
     let tris: Vec<Tri> = frame
         .triangles
         .iter()
-        .filter_map(|t| {
-            let [a, b, c] = t.map(|v| landmarks[v as usize]);
+        .zip(&frame.hull_edges)
+        .filter_map(|(t, hull)| {
+            let verts = t.map(|v| landmarks[v as usize]);
+            let [a, b, c] = verts;
             let to_bary = BarycentricMap::new(a, b, c)?;
-            let (lo_x, hi_x) = (a[0].min(b[0]).min(c[0]), a[0].max(b[0]).max(c[0]));
-            let (lo_y, hi_y) = (a[1].min(b[1]).min(c[1]), a[1].max(b[1]).max(c[1]));
+            let twice_area = crate::mesh::signed_area(a, b, c).abs();
+            let floor = std::array::from_fn(|i| {
+                let (p, q) = (verts[(i + 1) % 3], verts[(i + 2) % 3]);
+                if hull[i] { -RENDER_DILATION * (p[0] - q[0]).hypot(p[1] - q[1]) / twice_area } else { -1e-9 }
+            });
+            let d = RENDER_DILATION;
+            let (lo_y, hi_y) = (a[1].min(b[1]).min(c[1]) - d, a[1].max(b[1]).max(c[1]) + d);
+            let (lo_x, hi_x) = (a[0].min(b[0]).min(c[0]) - d, a[0].max(b[0]).max(c[0]) + d);
             if hi_x < 0.0 || hi_y < 0.0 || lo_x > (w - 1) as f64 || lo_y > (h - 1) as f64 {
                 return None;
             }
+            let (l00, l10, l01) = (to_bary.at([0.0, 0.0]), to_bary.at([1.0, 0.0]), to_bary.at([0.0, 1.0]));
+            let lx = std::array::from_fn(|i| l10[i] - l00[i]);
+            let ly = std::array::from_fn(|i| l01[i] - l00[i]);
+            let src = t.map(|v| frame.landmarks[v as usize]);
+            let at = |l: [f64; 3], k: usize| l[0] * src[0][k] + l[1] * src[1][k] + l[2] * src[2][k];
+            let s0 = [at(l00, 0), at(l00, 1)];
             Some(Tri {
-                to_bary,
-                src: t.map(|v| frame.landmarks[v as usize]),
-                x0: lo_x.ceil().max(0.0) as usize,
-                x1: (hi_x.floor() as usize).min(w - 1),
+                l0: l00,
+                lx,
+                ly,
+                floor,
+                s0,
+                sx: [at(l10, 0) - s0[0], at(l10, 1) - s0[1]],
+                sy: [at(l01, 0) - s0[0], at(l01, 1) - s0[1]],
                 y0: lo_y.ceil().max(0.0) as usize,
                 y1: (hi_y.floor() as usize).min(h - 1),
             })
@@ -173,16 +207,30 @@ pub fn from_reference_into(frame: &ReferenceFrame, texture: &[f32], landmarks: &
         let (r0, r1) = (band * BAND, (band * BAND + BAND).min(h) - 1);
         for t in tris.iter().filter(|t| t.y1 >= r0 && t.y0 <= r1) {
             for y in t.y0.max(r0)..=t.y1.min(r1) {
-                let row = &mut rows[(y - r0) * w * 3..(y - r0 + 1) * w * 3];
-                for x in t.x0..=t.x1 {
-                    let l = t.to_bary.at([x as f64, y as f64]);
-                    if l[0] < -1e-9 || l[1] < -1e-9 || l[2] < -1e-9 {
-                        continue;
+                // The row's span: every λ_i(x) = c_i + lx_i·x ≥ floor_i.
+                let (mut lo, mut hi) = (0f64, (w - 1) as f64);
+                for i in 0..3 {
+                    let c = t.l0[i] + t.ly[i] * y as f64 - t.floor[i];
+                    if t.lx[i] > 0.0 {
+                        lo = lo.max(-c / t.lx[i]);
+                    } else if t.lx[i] < 0.0 {
+                        hi = hi.min(-c / t.lx[i]);
+                    } else if c < 0.0 {
+                        hi = -1.0;
                     }
-                    let sx = l[0] * t.src[0][0] + l[1] * t.src[1][0] + l[2] * t.src[2][0];
-                    let sy = l[0] * t.src[0][1] + l[1] * t.src[1][1] + l[2] * t.src[2][1];
+                }
+                if hi < lo {
+                    continue;
+                }
+                let (x0, x1) = (lo.ceil() as usize, hi as usize);
+                let row = &mut rows[(y - r0) * w * 3..(y - r0 + 1) * w * 3];
+                let mut sx = t.s0[0] + t.sx[0] * x0 as f64 + t.sy[0] * y as f64;
+                let mut sy = t.s0[1] + t.sx[1] * x0 as f64 + t.sy[1] * y as f64;
+                for px in row[x0 * 3..(x1 + 1) * 3].chunks_exact_mut(3) {
                     let v = sample(&source, fw, fh, sx, sy, |v: f32| v);
-                    row[x * 3..x * 3 + 3].copy_from_slice(&v.map(to_u8));
+                    px.copy_from_slice(&v.map(to_u8));
+                    sx += t.sx[0];
+                    sy += t.sx[1];
                 }
             }
         }

@@ -1,0 +1,45 @@
+//! Subcommands, progress bars and human-readable reports.
+
+mod demo;
+mod model;
+
+use clap::{Parser, Subcommand};
+use facespace::Progress;
+use indicatif::{ProgressBar, ProgressStyle};
+
+#[derive(Parser)]
+#[command(name = "facespace", version, about = "Talking-face animation from independent shape and appearance models")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Build, inspect and test face models.
+    #[command(subcommand)]
+    Model(model::ModelCommand),
+    /// Build a model from the bundled faces and write reconstructions to out/demo.
+    Demo(demo::DemoArgs),
+}
+
+pub fn run() -> anyhow::Result<()> {
+    match Cli::parse().command {
+        Command::Model(c) => model::run(c),
+        Command::Demo(a) => demo::run(a),
+    }
+}
+
+/// A progress bar on stderr (hidden when stderr is not a terminal) and the callback that
+/// drives it.
+pub fn progress_bar() -> (ProgressBar, impl FnMut(Progress)) {
+    let bar = ProgressBar::new(1);
+    bar.set_style(ProgressStyle::with_template("{spinner} {msg:<18} [{bar:30}] {pos}/{len} {elapsed}").expect("valid template"));
+    let handle = bar.clone();
+    let callback = move |p: Progress| {
+        handle.set_length(p.total as u64);
+        handle.set_position(p.done as u64);
+        handle.set_message(p.stage);
+    };
+    (bar, callback)
+}

@@ -1,0 +1,183 @@
+//! `facespace model build | info | reconstruct`.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use clap::{Args, Subcommand};
+use facespace::mesh::Triangle;
+use facespace::model::{BuildOptions, FaceModel, load_training_set};
+use facespace::pca::Components;
+use facespace::shape::{Landmarks, read_pts};
+use facespace::warp;
+use image::RgbImage;
+
+#[derive(Subcommand)]
+pub enum ModelCommand {
+    /// Build a model from images with iBUG .pts landmarks of the same file stem.
+    Build(BuildArgs),
+    /// Print a model's counts, variance explained and sizes.
+    Info {
+        /// Model folder.
+        model: PathBuf,
+    },
+    /// Project an image to face-space, reconstruct it, and write original | reconstruction.
+    Reconstruct(ReconstructArgs),
+}
+
+#[derive(Args)]
+pub struct BuildArgs {
+    /// Folder of training images (png, jpg, ppm).
+    #[arg(long)]
+    images: PathBuf,
+    /// Folder of .pts files (default: the images folder).
+    #[arg(long)]
+    landmarks: Option<PathBuf>,
+    /// Approximate pixel count of the reference frame.
+    #[arg(long, default_value_t = 40_000)]
+    pixels: usize,
+    /// Fraction of shape variance to keep.
+    #[arg(long, default_value_t = 0.95)]
+    shape_var: f64,
+    /// Fraction of appearance variance to keep.
+    #[arg(long, default_value_t = 0.98)]
+    appearance_var: f64,
+    /// At most this many appearance parameters.
+    #[arg(long, default_value_t = 80)]
+    appearance_max: usize,
+    /// JSON file with a fixed triangle list `[[i, j, k], …]` instead of Delaunay.
+    #[arg(long)]
+    triangles: Option<PathBuf>,
+    /// Output model folder.
+    #[arg(short, long)]
+    output: PathBuf,
+}
+
+#[derive(Args)]
+pub struct ReconstructArgs {
+    /// Model folder.
+    model: PathBuf,
+    /// The image to reconstruct.
+    #[arg(long)]
+    image: PathBuf,
+    /// Its landmarks (default: the .pts beside the image).
+    #[arg(long)]
+    landmarks: Option<PathBuf>,
+    /// Output PNG: original and reconstruction side by side, cropped to the face.
+    #[arg(short, long)]
+    output: PathBuf,
+}
+
+pub fn run(command: ModelCommand) -> Result<()> {
+    match command {
+        ModelCommand::Build(a) => build(a),
+        ModelCommand::Info { model } => info(&model),
+        ModelCommand::Reconstruct(a) => reconstruct(a),
+    }
+}
+
+fn build(a: BuildArgs) -> Result<()> {
+    let triangles = match &a.triangles {
+        Some(path) => {
+            let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+            Some(serde_json::from_str::<Vec<Triangle>>(&text).with_context(|| format!("{}: expected [[i, j, k], …]", path.display()))?)
+        }
+        None => None,
+    };
+    let options = BuildOptions {
+        pixels: a.pixels,
+        shape: Components::Variance { fraction: a.shape_var, max: None },
+        appearance: Components::Variance { fraction: a.appearance_var, max: Some(a.appearance_max) },
+        triangles,
+    };
+    let examples = load_training_set(&a.images, a.landmarks.as_deref())
+        .with_context(|| format!("loading training images from {}", a.images.display()))?;
+    let (bar, mut progress) = super::progress_bar();
+    let model = FaceModel::build(&examples, &options, &mut progress).context("building the model")?;
+    bar.finish_and_clear();
+    model.save(&a.output).with_context(|| format!("saving the model to {}", a.output.display()))?;
+    println!("built {} from {} images", a.output.display(), examples.len());
+    print_summary(&model);
+    Ok(())
+}
+
+pub fn print_summary(model: &FaceModel) {
+    let f = &model.frame;
+    println!("  landmarks        {}", model.shape.n_landmarks());
+    println!("  triangles        {}", f.triangles.len());
+    println!("  reference frame  {}×{} px, {} pixels inside the mesh", f.width, f.height, f.n_pixels());
+    for (name, pca) in [("shape", &model.shape.pca), ("appearance", &model.appearance.pca)] {
+        let total = pca.total_variance;
+        let ratios: Vec<String> = pca.variances.iter().take(5).map(|v| format!("{:.1}%", 100.0 * *v as f64 / total)).collect();
+        println!(
+            "  {name:<16} {} parameters, {:.1}% of variance (first: {}{})",
+            pca.n_components(),
+            100.0 * pca.variance_ratio(),
+            ratios.join(", "),
+            if pca.n_components() > 5 { ", …" } else { "" }
+        );
+    }
+    println!("  face-space       {} values per frame (4 pose + shape + appearance)", model.n_params());
+}
+
+fn info(dir: &Path) -> Result<()> {
+    let model = FaceModel::load(dir).with_context(|| format!("loading model {}", dir.display()))?;
+    println!("model {}", dir.display());
+    print_summary(&model);
+    println!("  training images  {}", model.source.len());
+    let mut total = 0;
+    let mut files: Vec<_> = std::fs::read_dir(dir)?.filter_map(|e| e.ok()).collect();
+    files.sort_by_key(|e| e.file_name());
+    for e in files {
+        let len = e.metadata()?.len();
+        total += len;
+        println!("    {:<28} {:>10}", e.file_name().to_string_lossy(), human_bytes(len));
+    }
+    println!("  on disk          {}", human_bytes(total));
+    Ok(())
+}
+
+fn human_bytes(n: u64) -> String {
+    match n {
+        n if n >= 1 << 20 => format!("{:.1} MiB", n as f64 / (1u64 << 20) as f64),
+        n if n >= 1 << 10 => format!("{:.1} KiB", n as f64 / 1024.0),
+        n => format!("{n} B"),
+    }
+}
+
+/// Side-by-side original | reconstruction, cropped to the face, and the texture PSNR.
+pub fn reconstruct_pair(model: &FaceModel, image: &RgbImage, landmarks: &Landmarks) -> Result<(RgbImage, f64)> {
+    let params = model.project(image, landmarks)?;
+    let mut canvas = image.clone();
+    let r = model.render_into(&params, &mut canvas)?;
+    let original = warp::to_reference(&model.frame, image, &landmarks.points)?;
+    let mse = original.iter().zip(&r.texture).map(|(a, b)| ((a - b) as f64).powi(2)).sum::<f64>() / original.len() as f64;
+    let psnr = 10.0 * (255.0f64 * 255.0 / mse.max(1e-12)).log10();
+    let (lo, hi) = landmarks.bounds();
+    let margin = 0.25 * (hi[0] - lo[0]).max(hi[1] - lo[1]);
+    let clamp = |v: f64, max: u32| v.clamp(0.0, max as f64) as u32;
+    let (x0, y0) = (clamp(lo[0] - margin, image.width()), clamp(lo[1] - margin, image.height()));
+    let (x1, y1) = (clamp(hi[0] + margin, image.width()), clamp(hi[1] + margin, image.height()));
+    let (w, h) = ((x1 - x0).max(1), (y1 - y0).max(1));
+    let mut out = RgbImage::new(2 * w, h);
+    image::imageops::replace(&mut out, &image::imageops::crop_imm(image, x0, y0, w, h).to_image(), 0, 0);
+    image::imageops::replace(&mut out, &image::imageops::crop_imm(&canvas, x0, y0, w, h).to_image(), w as i64, 0);
+    Ok((out, psnr))
+}
+
+pub fn save_png(image: &RgbImage, path: &Path) -> Result<()> {
+    let mut bytes = Vec::new();
+    image.write_to(&mut std::io::Cursor::new(&mut bytes), image::ImageFormat::Png)?;
+    facespace::atomic::write_file(path, &bytes).with_context(|| format!("writing {}", path.display()))
+}
+
+fn reconstruct(a: ReconstructArgs) -> Result<()> {
+    let model = FaceModel::load(&a.model).with_context(|| format!("loading model {}", a.model.display()))?;
+    let image = image::open(&a.image).with_context(|| format!("reading image {}", a.image.display()))?.to_rgb8();
+    let pts = a.landmarks.clone().unwrap_or_else(|| a.image.with_extension("pts"));
+    let landmarks = read_pts(&pts).with_context(|| format!("reading landmarks for {}", a.image.display()))?;
+    let (pair, psnr) = reconstruct_pair(&model, &image, &landmarks)
+        .with_context(|| format!("reconstructing {} with {}", a.image.display(), pts.display()))?;
+    save_png(&pair, &a.output)?;
+    println!("wrote {} (original | reconstruction); texture PSNR {psnr:.1} dB", a.output.display());
+    Ok(())
+}
