@@ -17,13 +17,26 @@ fn setup() -> (RgbImage, Vec<[f64; 2]>, ReferenceFrame) {
     let frame = image::imageops::crop_imm(&big, 0, 70, 720.min(big.width()), 576).to_image();
     let mut canvas = RgbImage::new(720, 576);
     image::imageops::replace(&mut canvas, &frame, 0, 0);
-    let pts = read_pts(std::path::Path::new(&format!("{dir}/lenna.pts"))).unwrap().points;
+    let pts = read_pts(std::path::Path::new(&format!("{dir}/lenna.pts")))
+        .unwrap()
+        .points;
     let s = 717.0 / 512.0;
-    let landmarks: Vec<[f64; 2]> = pts.iter().map(|p| [(p[0] + 0.5) * s - 0.5, (p[1] + 0.5) * s - 0.5 - 70.0]).collect();
+    let landmarks: Vec<[f64; 2]> = pts
+        .iter()
+        .map(|p| [(p[0] + 0.5) * s - 0.5, (p[1] + 0.5) * s - 0.5 - 70.0])
+        .collect();
     let c = facespace::shape::centroid(&landmarks);
-    let norm = landmarks.iter().map(|p| (p[0] - c[0]).powi(2) + (p[1] - c[1]).powi(2)).sum::<f64>().sqrt();
-    let mean: Vec<[f64; 2]> = landmarks.iter().map(|p| [(p[0] - c[0]) / norm, (p[1] - c[1]) / norm]).collect();
-    let (reference, _) = ReferenceFrame::fit_mean(&mean, mesh::delaunay(&mean).unwrap(), 40_000).unwrap();
+    let norm = landmarks
+        .iter()
+        .map(|p| (p[0] - c[0]).powi(2) + (p[1] - c[1]).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    let mean: Vec<[f64; 2]> = landmarks
+        .iter()
+        .map(|p| [(p[0] - c[0]) / norm, (p[1] - c[1]) / norm])
+        .collect();
+    let (reference, _) =
+        ReferenceFrame::fit_mean(&mean, mesh::delaunay(&mean).unwrap(), 40_000).unwrap();
     (canvas, landmarks, reference)
 }
 
@@ -33,13 +46,36 @@ fn bench(c: &mut Criterion) {
     warp::to_reference_into(&frame, &image, &landmarks, &mut texture).unwrap();
     let mut out = RgbImage::new(720, 576);
     for threads in [1, 2] {
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-        c.bench_function(&format!("to_reference 720x576 -> {} px, {threads} thread(s)", frame.n_pixels()), |b| {
-            b.iter(|| pool.install(|| warp::to_reference_into(&frame, &image, &landmarks, &mut texture).unwrap()))
-        });
-        c.bench_function(&format!("from_reference {} px -> 720x576, {threads} thread(s)", frame.n_pixels()), |b| {
-            b.iter(|| pool.install(|| warp::from_reference_into(&frame, &texture, &landmarks, &mut out).unwrap()))
-        });
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        c.bench_function(
+            &format!(
+                "to_reference 720x576 -> {} px, {threads} thread(s)",
+                frame.n_pixels()
+            ),
+            |b| {
+                b.iter(|| {
+                    pool.install(|| {
+                        warp::to_reference_into(&frame, &image, &landmarks, &mut texture).unwrap()
+                    })
+                })
+            },
+        );
+        c.bench_function(
+            &format!(
+                "from_reference {} px -> 720x576, {threads} thread(s)",
+                frame.n_pixels()
+            ),
+            |b| {
+                b.iter(|| {
+                    pool.install(|| {
+                        warp::from_reference_into(&frame, &texture, &landmarks, &mut out).unwrap()
+                    })
+                })
+            },
+        );
     }
 }
 

@@ -14,7 +14,9 @@ impl AppearanceModel {
     /// Fits the model to textures (each `n_pixels × 3`, mask order).
     pub fn build(textures: &[Vec<f32>], keep: Components) -> Result<Self, PcaError> {
         let rows: Vec<&[f32]> = textures.iter().map(|t| t.as_slice()).collect();
-        Ok(AppearanceModel { pca: PcaModel::fit(&rows, keep)? })
+        Ok(AppearanceModel {
+            pca: PcaModel::fit(&rows, keep)?,
+        })
     }
 
     pub fn n_params(&self) -> usize {

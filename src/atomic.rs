@@ -17,14 +17,22 @@ pub fn write_file(path: &Path, bytes: &[u8]) -> io::Result<()> {
 
 /// Builds a folder with `fill` in a temporary sibling, then swaps it in for `target`
 /// (an existing `target` is replaced only once the new one is complete).
-pub fn replace_dir<E: From<io::Error>>(target: &Path, fill: impl FnOnce(&Path) -> Result<(), E>) -> Result<(), E> {
+pub fn replace_dir<E: From<io::Error>>(
+    target: &Path,
+    fill: impl FnOnce(&Path) -> Result<(), E>,
+) -> Result<(), E> {
     let parent = parent_of(target);
     std::fs::create_dir_all(parent)?;
-    let tmp = tempfile::Builder::new().prefix(".tmp-").tempdir_in(parent)?;
+    let tmp = tempfile::Builder::new()
+        .prefix(".tmp-")
+        .tempdir_in(parent)?;
     fill(tmp.path())?;
     let staged = tmp.keep();
     if target.exists() {
-        let old = tempfile::Builder::new().prefix(".old-").tempdir_in(parent)?.keep();
+        let old = tempfile::Builder::new()
+            .prefix(".old-")
+            .tempdir_in(parent)?
+            .keep();
         std::fs::remove_dir(&old)?;
         std::fs::rename(target, &old)?;
         if let Err(e) = std::fs::rename(&staged, target) {

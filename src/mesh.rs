@@ -15,9 +15,17 @@ pub enum MeshError {
     #[error("cannot triangulate: {0}")]
     Degenerate(String),
     #[error("triangle {index} refers to landmark {vertex}, but there are only {count} landmarks")]
-    IndexOutOfRange { index: usize, vertex: u32, count: usize },
+    IndexOutOfRange {
+        index: usize,
+        vertex: u32,
+        count: usize,
+    },
     #[error("triangle {index} {triangle:?} has (near) zero area {area:.3e}")]
-    ZeroArea { index: usize, triangle: Triangle, area: f64 },
+    ZeroArea {
+        index: usize,
+        triangle: Triangle,
+        area: f64,
+    },
     #[error("reference frame of {0} pixels is too small (need at least 100)")]
     TooFewPixels(usize),
 }
@@ -26,20 +34,31 @@ pub enum MeshError {
 /// is not guaranteed; use [`signed_area`] where orientation matters).
 pub fn delaunay(points: &[Point]) -> Result<Vec<Triangle>, MeshError> {
     if points.len() < 3 {
-        return Err(MeshError::Degenerate(format!("{} points (need at least 3)", points.len())));
+        return Err(MeshError::Degenerate(format!(
+            "{} points (need at least 3)",
+            points.len()
+        )));
     }
     for (i, p) in points.iter().enumerate() {
         if let Some(j) = points[..i].iter().position(|q| q == p) {
-            return Err(MeshError::Degenerate(format!("landmarks {j} and {i} coincide at {p:?}")));
+            return Err(MeshError::Degenerate(format!(
+                "landmarks {j} and {i} coincide at {p:?}"
+            )));
         }
     }
-    let pts: Vec<delaunator::Point> = points.iter().map(|p| delaunator::Point { x: p[0], y: p[1] }).collect();
+    let pts: Vec<delaunator::Point> = points
+        .iter()
+        .map(|p| delaunator::Point { x: p[0], y: p[1] })
+        .collect();
     let t = delaunator::triangulate(&pts);
     if t.triangles.is_empty() {
         return Err(MeshError::Degenerate("all landmarks are collinear".into()));
     }
-    let triangles: Vec<Triangle> =
-        t.triangles.chunks_exact(3).map(|c| [c[0] as u32, c[1] as u32, c[2] as u32]).collect();
+    let triangles: Vec<Triangle> = t
+        .triangles
+        .chunks_exact(3)
+        .map(|c| [c[0] as u32, c[1] as u32, c[2] as u32])
+        .collect();
     validate(points, &triangles)?;
     Ok(triangles)
 }
@@ -56,16 +75,31 @@ pub fn validate(points: &[Point], triangles: &[Triangle]) -> Result<(), MeshErro
     }
     for (index, t) in triangles.iter().enumerate() {
         if let Some(&vertex) = t.iter().find(|&&v| v as usize >= points.len()) {
-            return Err(MeshError::IndexOutOfRange { index, vertex, count: points.len() });
+            return Err(MeshError::IndexOutOfRange {
+                index,
+                vertex,
+                count: points.len(),
+            });
         }
     }
-    let area = |t: &Triangle| 0.5 * signed_area(points[t[0] as usize], points[t[1] as usize], points[t[2] as usize]).abs();
+    let area = |t: &Triangle| {
+        0.5 * signed_area(
+            points[t[0] as usize],
+            points[t[1] as usize],
+            points[t[2] as usize],
+        )
+        .abs()
+    };
     let total: f64 = triangles.iter().map(area).sum();
     let floor = 1e-9 * total.max(f64::MIN_POSITIVE);
     for (index, t) in triangles.iter().enumerate() {
         let a = area(t);
         if a <= floor {
-            return Err(MeshError::ZeroArea { index, triangle: *t, area: a });
+            return Err(MeshError::ZeroArea {
+                index,
+                triangle: *t,
+                area: a,
+            });
         }
     }
     Ok(())
@@ -112,41 +146,75 @@ const MARGIN: f64 = 2.0;
 
 impl ReferenceFrame {
     /// Scales the (normalised) mean shape so the mesh covers about `target_pixels` pixels.
-    pub fn fit_mean(mean: &[Point], triangles: Vec<Triangle>, target_pixels: usize) -> Result<(Self, Placement), MeshError> {
+    pub fn fit_mean(
+        mean: &[Point],
+        triangles: Vec<Triangle>,
+        target_pixels: usize,
+    ) -> Result<(Self, Placement), MeshError> {
         if target_pixels < 100 {
             return Err(MeshError::TooFewPixels(target_pixels));
         }
         validate(mean, &triangles)?;
         let area: f64 = triangles
             .iter()
-            .map(|t| 0.5 * signed_area(mean[t[0] as usize], mean[t[1] as usize], mean[t[2] as usize]).abs())
+            .map(|t| {
+                0.5 * signed_area(
+                    mean[t[0] as usize],
+                    mean[t[1] as usize],
+                    mean[t[2] as usize],
+                )
+                .abs()
+            })
             .sum();
         let scale = (target_pixels as f64 / area).sqrt();
-        let min = mean.iter().fold([f64::INFINITY; 2], |m, p| [m[0].min(p[0]), m[1].min(p[1])]);
-        let placement = Placement { scale, offset: [MARGIN - scale * min[0], MARGIN - scale * min[1]] };
+        let min = mean
+            .iter()
+            .fold([f64::INFINITY; 2], |m, p| [m[0].min(p[0]), m[1].min(p[1])]);
+        let placement = Placement {
+            scale,
+            offset: [MARGIN - scale * min[0], MARGIN - scale * min[1]],
+        };
         Ok((Self::place(mean, triangles, placement)?, placement))
     }
 
     /// Rebuilds a frame from a stored placement (bit-identical to the one it was saved from).
-    pub fn place(mean: &[Point], triangles: Vec<Triangle>, placement: Placement) -> Result<Self, MeshError> {
+    pub fn place(
+        mean: &[Point],
+        triangles: Vec<Triangle>,
+        placement: Placement,
+    ) -> Result<Self, MeshError> {
         let landmarks: Vec<Point> = mean
             .iter()
-            .map(|p| [placement.scale * p[0] + placement.offset[0], placement.scale * p[1] + placement.offset[1]])
+            .map(|p| {
+                [
+                    placement.scale * p[0] + placement.offset[0],
+                    placement.scale * p[1] + placement.offset[1],
+                ]
+            })
             .collect();
-        let max = landmarks.iter().fold([0f64; 2], |m, p| [m[0].max(p[0]), m[1].max(p[1])]);
+        let max = landmarks
+            .iter()
+            .fold([0f64; 2], |m, p| [m[0].max(p[0]), m[1].max(p[1])]);
         let width = (max[0] + MARGIN).ceil() as usize + 1;
         let height = (max[1] + MARGIN).ceil() as usize + 1;
         Self::from_landmarks(landmarks, triangles, width, height)
     }
 
     /// A frame from explicit vertex positions and size (for warps onto any target shape).
-    pub fn from_landmarks(landmarks: Vec<Point>, triangles: Vec<Triangle>, width: usize, height: usize) -> Result<Self, MeshError> {
+    pub fn from_landmarks(
+        landmarks: Vec<Point>,
+        triangles: Vec<Triangle>,
+        width: usize,
+        height: usize,
+    ) -> Result<Self, MeshError> {
         validate(&landmarks, &triangles)?;
         let mut owner = vec![u32::MAX; width * height];
         let mut bary = vec![[0f32; 3]; width * height];
         for (ti, t) in triangles.iter().enumerate() {
             let [a, b, c] = t.map(|v| landmarks[v as usize]);
-            let Some(to_bary) = BarycentricMap::new(a, b, c) else { continue };
+            let Some(to_bary) = BarycentricMap::new(a, b, c) else {
+                continue;
+            };
             let x0 = a[0].min(b[0]).min(c[0]).floor().max(0.0) as usize;
             let x1 = (a[0].max(b[0]).max(c[0]).ceil() as usize).min(width.saturating_sub(1));
             let y0 = a[1].min(b[1]).min(c[1]).floor().max(0.0) as usize;
@@ -167,11 +235,24 @@ impl ReferenceFrame {
         }
         let pixels: Vec<MaskPixel> = (0..width * height)
             .filter(|&i| owner[i] != u32::MAX)
-            .map(|i| MaskPixel { x: (i % width) as u32, y: (i / width) as u32, triangle: owner[i], bary: bary[i] })
+            .map(|i| MaskPixel {
+                x: (i % width) as u32,
+                y: (i / width) as u32,
+                triangle: owner[i],
+                bary: bary[i],
+            })
             .collect();
         let padding = padding_rings(width, height, &pixels, 2);
         let hull_edges = hull_edges(&triangles);
-        Ok(ReferenceFrame { width, height, landmarks, triangles, pixels, padding, hull_edges })
+        Ok(ReferenceFrame {
+            width,
+            height,
+            landmarks,
+            triangles,
+            pixels,
+            padding,
+            hull_edges,
+        })
     }
 
     /// Number of mask pixels.
@@ -201,10 +282,15 @@ impl BarycentricMap {
     pub fn new(a: Point, b: Point, c: Point) -> Option<Self> {
         let (e1, e2) = ([b[0] - a[0], b[1] - a[1]], [c[0] - a[0], c[1] - a[1]]);
         let det = e1[0] * e2[1] - e2[0] * e1[1];
-        if det.abs() <= f64::EPSILON * (e1[0].abs() + e1[1].abs() + e2[0].abs() + e2[1].abs()).powi(2) {
+        if det.abs()
+            <= f64::EPSILON * (e1[0].abs() + e1[1].abs() + e2[0].abs() + e2[1].abs()).powi(2)
+        {
             return None;
         }
-        Some(BarycentricMap { origin: a, inv: [[e2[1] / det, -e2[0] / det], [-e1[1] / det, e1[0] / det]] })
+        Some(BarycentricMap {
+            origin: a,
+            inv: [[e2[1] / det, -e2[0] / det], [-e1[1] / det, e1[0] / det]],
+        })
     }
 
     pub fn at(&self, p: Point) -> [f64; 3] {
@@ -221,14 +307,24 @@ fn hull_edges(triangles: &[Triangle]) -> Vec<[bool; 3]> {
     let mut count = std::collections::BTreeMap::new();
     for t in triangles {
         for i in 0..3 {
-            *count.entry(key(t[(i + 1) % 3], t[(i + 2) % 3])).or_insert(0) += 1;
+            *count
+                .entry(key(t[(i + 1) % 3], t[(i + 2) % 3]))
+                .or_insert(0) += 1;
         }
     }
-    triangles.iter().map(|t| std::array::from_fn(|i| count[&key(t[(i + 1) % 3], t[(i + 2) % 3])] == 1)).collect()
+    triangles
+        .iter()
+        .map(|t| std::array::from_fn(|i| count[&key(t[(i + 1) % 3], t[(i + 2) % 3])] == 1))
+        .collect()
 }
 
 /// Rings of pixels around the mask, each filled from an already-defined 8-neighbour.
-fn padding_rings(width: usize, height: usize, pixels: &[MaskPixel], rings: usize) -> Vec<(u32, u32)> {
+fn padding_rings(
+    width: usize,
+    height: usize,
+    pixels: &[MaskPixel],
+    rings: usize,
+) -> Vec<(u32, u32)> {
     // source[i] = mask index whose value pixel i takes, for mask and padded pixels.
     let mut source = vec![u32::MAX; width * height];
     for (k, p) in pixels.iter().enumerate() {
@@ -242,7 +338,16 @@ fn padding_rings(width: usize, height: usize, pixels: &[MaskPixel], rings: usize
                 if source[y * width + x] != u32::MAX {
                     continue;
                 }
-                let neighbours = [(0i64, -1i64), (-1, 0), (1, 0), (0, 1), (-1, -1), (1, -1), (-1, 1), (1, 1)];
+                let neighbours = [
+                    (0i64, -1i64),
+                    (-1, 0),
+                    (1, 0),
+                    (0, 1),
+                    (-1, -1),
+                    (1, -1),
+                    (-1, 1),
+                    (1, 1),
+                ];
                 let found = neighbours.iter().find_map(|&(dx, dy)| {
                     let (nx, ny) = (x as i64 + dx, y as i64 + dy);
                     (nx >= 0 && ny >= 0 && (nx as usize) < width && (ny as usize) < height)

@@ -29,9 +29,15 @@ const OUTSIDE_TOLERANCE: f64 = 0.05;
 #[derive(Debug, Error)]
 pub enum ModelError {
     #[error("{path}: {source}")]
-    Io { path: PathBuf, source: std::io::Error },
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
     #[error("{path}: cannot read image: {source}")]
-    Image { path: PathBuf, source: image::ImageError },
+    Image {
+        path: PathBuf,
+        source: image::ImageError,
+    },
     #[error("{dir}: no images ({} files)", IMAGE_EXTENSIONS.join(", "))]
     NoImages { dir: PathBuf },
     #[error("{image}: no landmarks file {pts}")]
@@ -39,25 +45,47 @@ pub enum ModelError {
     #[error("{pts}: landmarks file has no image of the same name")]
     OrphanLandmarks { pts: PathBuf },
     #[error("{path}: {found} landmarks, but {first} has {expected}")]
-    LandmarkCount { path: PathBuf, expected: usize, found: usize, first: PathBuf },
+    LandmarkCount {
+        path: PathBuf,
+        expected: usize,
+        found: usize,
+        first: PathBuf,
+    },
     #[error(
         "{pts}: landmark {index} at ({:.1}, {:.1}) lies outside its image {image} ({width}×{height}); are they from different frames?",
         point[0], point[1]
     )]
-    LandmarksOutsideImage { pts: PathBuf, image: PathBuf, index: usize, point: shape::Point, width: u32, height: u32 },
+    LandmarksOutsideImage {
+        pts: PathBuf,
+        image: PathBuf,
+        index: usize,
+        point: shape::Point,
+        width: u32,
+        height: u32,
+    },
     #[error("need at least 2 training examples, got {0}")]
     TooFewExamples(usize),
     #[error("{path}: {reason}")]
     Manifest { path: PathBuf, reason: String },
     #[error("{path}: model version {found}, this build reads version {supported}")]
-    Version { path: PathBuf, found: u32, supported: u32 },
+    Version {
+        path: PathBuf,
+        found: u32,
+        supported: u32,
+    },
     #[error("{path}: array shape {found:?}, expected {expected:?}")]
-    ArrayShape { path: PathBuf, expected: Vec<usize>, found: Vec<usize> },
+    ArrayShape {
+        path: PathBuf,
+        expected: Vec<usize>,
+        found: Vec<usize>,
+    },
     #[error("{path}: value {index} is not finite")]
     NotFinite { path: PathBuf, index: usize },
     #[error("{path}: {reason}")]
     Inconsistent { path: PathBuf, reason: String },
-    #[error("{found} face-space values given, the model has {expected} (4 pose + shape + appearance)")]
+    #[error(
+        "{found} face-space values given, the model has {expected} (4 pose + shape + appearance)"
+    )]
     ParamCount { expected: usize, found: usize },
     #[error(transparent)]
     Shape(#[from] ShapeError),
@@ -73,7 +101,10 @@ pub enum ModelError {
 
 impl From<std::io::Error> for ModelError {
     fn from(source: std::io::Error) -> Self {
-        ModelError::Io { path: PathBuf::new(), source }
+        ModelError::Io {
+            path: PathBuf::new(),
+            source,
+        }
     }
 }
 
@@ -88,43 +119,69 @@ pub struct TrainingExample {
 
 /// Loads every image in `images` with the `.pts` file of the same stem from `landmarks`
 /// (default: the same folder), checking that the pairs belong together.
-pub fn load_training_set(images: &Path, landmarks: Option<&Path>) -> Result<Vec<TrainingExample>, ModelError> {
+pub fn load_training_set(
+    images: &Path,
+    landmarks: Option<&Path>,
+) -> Result<Vec<TrainingExample>, ModelError> {
     let pts_dir = landmarks.unwrap_or(images);
     let list = |dir: &Path| -> Result<Vec<PathBuf>, ModelError> {
         let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
-            .map_err(|source| ModelError::Io { path: dir.into(), source })?
+            .map_err(|source| ModelError::Io {
+                path: dir.into(),
+                source,
+            })?
             .filter_map(|e| e.ok().map(|e| e.path()))
             .filter(|p| p.is_file())
             .collect();
         files.sort();
         Ok(files)
     };
-    let ext = |p: &Path| p.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-    let image_paths: Vec<PathBuf> =
-        list(images)?.into_iter().filter(|p| ext(p).is_some_and(|e| IMAGE_EXTENSIONS.contains(&e.as_str()))).collect();
+    let ext = |p: &Path| {
+        p.extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase)
+    };
+    let image_paths: Vec<PathBuf> = list(images)?
+        .into_iter()
+        .filter(|p| ext(p).is_some_and(|e| IMAGE_EXTENSIONS.contains(&e.as_str())))
+        .collect();
     if image_paths.is_empty() {
         return Err(ModelError::NoImages { dir: images.into() });
     }
     let stems: Vec<&std::ffi::OsStr> = image_paths.iter().filter_map(|p| p.file_stem()).collect();
-    if let Some(orphan) = list(pts_dir)?
-        .into_iter()
-        .find(|p| ext(p).as_deref() == Some("pts") && !p.file_stem().is_some_and(|s| stems.contains(&s)))
-    {
+    if let Some(orphan) = list(pts_dir)?.into_iter().find(|p| {
+        ext(p).as_deref() == Some("pts") && !p.file_stem().is_some_and(|s| stems.contains(&s))
+    }) {
         return Err(ModelError::OrphanLandmarks { pts: orphan });
     }
     let examples = image_paths
         .par_iter()
         .map(|image_path| {
-            let pts = pts_dir.join(image_path.file_stem().unwrap_or_default()).with_extension("pts");
+            let pts = pts_dir
+                .join(image_path.file_stem().unwrap_or_default())
+                .with_extension("pts");
             if !pts.is_file() {
-                return Err(ModelError::MissingLandmarks { image: image_path.clone(), pts });
+                return Err(ModelError::MissingLandmarks {
+                    image: image_path.clone(),
+                    pts,
+                });
             }
             let landmarks = shape::read_pts(&pts)?;
             let image = image::open(image_path)
-                .map_err(|source| ModelError::Image { path: image_path.clone(), source })?
+                .map_err(|source| ModelError::Image {
+                    path: image_path.clone(),
+                    source,
+                })?
                 .to_rgb8();
             check_inside(&landmarks, &image, &pts, image_path)?;
-            Ok((pts, TrainingExample { name: image_path.display().to_string(), image, landmarks }))
+            Ok((
+                pts,
+                TrainingExample {
+                    name: image_path.display().to_string(),
+                    image,
+                    landmarks,
+                },
+            ))
         })
         .collect::<Result<Vec<_>, _>>()?;
     let (first_pts, first) = &examples[0];
@@ -141,10 +198,19 @@ pub fn load_training_set(images: &Path, landmarks: Option<&Path>) -> Result<Vec<
     Ok(examples.into_iter().map(|(_, e)| e).collect())
 }
 
-fn check_inside(landmarks: &Landmarks, image: &RgbImage, pts: &Path, image_path: &Path) -> Result<(), ModelError> {
+fn check_inside(
+    landmarks: &Landmarks,
+    image: &RgbImage,
+    pts: &Path,
+    image_path: &Path,
+) -> Result<(), ModelError> {
     let (w, h) = (image.width() as f64, image.height() as f64);
     let (mx, my) = (OUTSIDE_TOLERANCE * w, OUTSIDE_TOLERANCE * h);
-    match landmarks.points.iter().position(|p| p[0] < -mx || p[1] < -my || p[0] > w + mx || p[1] > h + my) {
+    match landmarks
+        .points
+        .iter()
+        .position(|p| p[0] < -mx || p[1] < -my || p[0] > w + mx || p[1] > h + my)
+    {
         Some(index) => Err(ModelError::LandmarksOutsideImage {
             pts: pts.into(),
             image: image_path.into(),
@@ -172,8 +238,14 @@ impl Default for BuildOptions {
     fn default() -> Self {
         BuildOptions {
             pixels: 40_000,
-            shape: Components::Variance { fraction: 0.95, max: None },
-            appearance: Components::Variance { fraction: 0.98, max: Some(80) },
+            shape: Components::Variance {
+                fraction: 0.95,
+                max: None,
+            },
+            appearance: Components::Variance {
+                fraction: 0.98,
+                max: Some(80),
+            },
             triangles: None,
         }
     }
@@ -191,7 +263,11 @@ impl FaceParams {
     /// `[a, b, tx, ty | b_s | b_a]`.
     pub fn to_vector(&self) -> Vec<f32> {
         let pose = self.pose.to_array().map(|v| v as f32);
-        pose.iter().chain(&self.shape).chain(&self.appearance).copied().collect()
+        pose.iter()
+            .chain(&self.shape)
+            .chain(&self.appearance)
+            .copied()
+            .collect()
     }
 }
 
@@ -216,12 +292,20 @@ pub struct FaceModel {
 impl FaceModel {
     /// Builds both models: Procrustes + shape PCA, the reference frame, every example warped
     /// to it (in parallel), appearance PCA.
-    pub fn build(examples: &[TrainingExample], options: &BuildOptions, progress: &mut dyn FnMut(Progress)) -> Result<Self, ModelError> {
+    pub fn build(
+        examples: &[TrainingExample],
+        options: &BuildOptions,
+        progress: &mut dyn FnMut(Progress),
+    ) -> Result<Self, ModelError> {
         if examples.len() < 2 {
             return Err(ModelError::TooFewExamples(examples.len()));
         }
         let steps = examples.len() + 2;
-        progress(Progress { stage: "shape model", done: 0, total: steps });
+        progress(Progress {
+            stage: "shape model",
+            done: 0,
+            total: steps,
+        });
         let shapes: Vec<Landmarks> = examples.iter().map(|e| e.landmarks.clone()).collect();
         for (e, s) in examples.iter().zip(&shapes) {
             s.validate(Some(shapes[0].len()), &e.name)?;
@@ -234,17 +318,39 @@ impl FaceModel {
             None => mesh::delaunay(&mean)?,
         };
         let (frame, placement) = ReferenceFrame::fit_mean(&mean, triangles, options.pixels)?;
-        progress(Progress { stage: "warping", done: 1, total: steps });
+        progress(Progress {
+            stage: "warping",
+            done: 1,
+            total: steps,
+        });
         // Each warp is parallel inside, so examples go one after another with a report each.
         let mut textures = Vec::with_capacity(examples.len());
         for (i, e) in examples.iter().enumerate() {
             textures.push(warp::to_reference(&frame, &e.image, &e.landmarks.points)?);
-            progress(Progress { stage: "warping", done: i + 2, total: steps });
+            progress(Progress {
+                stage: "warping",
+                done: i + 2,
+                total: steps,
+            });
         }
-        progress(Progress { stage: "appearance model", done: steps - 1, total: steps });
+        progress(Progress {
+            stage: "appearance model",
+            done: steps - 1,
+            total: steps,
+        });
         let appearance = AppearanceModel::build(&textures, options.appearance)?;
-        progress(Progress { stage: "done", done: steps, total: steps });
-        Ok(FaceModel { shape, appearance, frame, placement, source: examples.iter().map(|e| e.name.clone()).collect() })
+        progress(Progress {
+            stage: "done",
+            done: steps,
+            total: steps,
+        });
+        Ok(FaceModel {
+            shape,
+            appearance,
+            frame,
+            placement,
+            source: examples.iter().map(|e| e.name.clone()).collect(),
+        })
     }
 
     /// Length of a face-space vector: 4 pose values + shape + appearance parameters.
@@ -254,16 +360,27 @@ impl FaceModel {
 
     /// Projects a frame to face-space: pose and `b_s` from the landmarks, `b_a` from the
     /// image warped to the reference frame.
-    pub fn project(&self, image: &RgbImage, landmarks: &Landmarks) -> Result<FaceParams, ModelError> {
+    pub fn project(
+        &self,
+        image: &RgbImage,
+        landmarks: &Landmarks,
+    ) -> Result<FaceParams, ModelError> {
         let (pose, shape) = self.shape.project(landmarks)?;
         let texture = warp::to_reference(&self.frame, image, &landmarks.points)?;
-        Ok(FaceParams { pose, shape, appearance: self.appearance.project(&texture) })
+        Ok(FaceParams {
+            pose,
+            shape,
+            appearance: self.appearance.project(&texture),
+        })
     }
 
     /// Splits a face-space vector, checking its length.
     pub fn params_from_vector(&self, v: &[f32]) -> Result<FaceParams, ModelError> {
         if v.len() != self.n_params() {
-            return Err(ModelError::ParamCount { expected: self.n_params(), found: v.len() });
+            return Err(ModelError::ParamCount {
+                expected: self.n_params(),
+                found: v.len(),
+            });
         }
         let ns = self.shape.n_params();
         Ok(FaceParams {
@@ -277,7 +394,10 @@ impl FaceModel {
     pub fn reconstruct(&self, params: &FaceParams) -> Result<Reconstruction, ModelError> {
         let (ns, na) = (params.shape.len(), params.appearance.len());
         if ns != self.shape.n_params() || na != self.appearance.n_params() {
-            return Err(ModelError::ParamCount { expected: self.n_params(), found: 4 + ns + na });
+            return Err(ModelError::ParamCount {
+                expected: self.n_params(),
+                found: 4 + ns + na,
+            });
         }
         Ok(Reconstruction {
             landmarks: self.shape.instance(&params.pose, &params.shape),
@@ -286,7 +406,11 @@ impl FaceModel {
     }
 
     /// Draws the reconstructed face onto `canvas` (pixels outside the face are kept).
-    pub fn render_into(&self, params: &FaceParams, canvas: &mut RgbImage) -> Result<Reconstruction, ModelError> {
+    pub fn render_into(
+        &self,
+        params: &FaceParams,
+        canvas: &mut RgbImage,
+    ) -> Result<Reconstruction, ModelError> {
         let r = self.reconstruct(params)?;
         warp::from_reference_into(&self.frame, &r.texture, &r.landmarks.points, canvas)?;
         Ok(r)
@@ -316,17 +440,40 @@ impl FaceModel {
         atomic::replace_dir(dir, |tmp| -> Result<(), ModelError> {
             let (s, a) = (&self.shape.pca, &self.appearance.pca);
             npy::write(&tmp.join("shape_mean.npy"), &[n, 2], &s.mean)?;
-            npy::write(&tmp.join("shape_components.npy"), &[s.n_components(), 2 * n], &s.components)?;
-            npy::write(&tmp.join("shape_variances.npy"), &[s.n_components()], &s.variances)?;
+            npy::write(
+                &tmp.join("shape_components.npy"),
+                &[s.n_components(), 2 * n],
+                &s.components,
+            )?;
+            npy::write(
+                &tmp.join("shape_variances.npy"),
+                &[s.n_components()],
+                &s.variances,
+            )?;
             npy::write(&tmp.join("appearance_mean.npy"), &[p, 3], &a.mean)?;
-            npy::write(&tmp.join("appearance_components.npy"), &[a.n_components(), 3 * p], &a.components)?;
-            npy::write(&tmp.join("appearance_variances.npy"), &[a.n_components()], &a.variances)?;
-            npy::write(&tmp.join("mask.npy"), &[self.frame.height, self.frame.width], &self.frame.mask_image())?;
+            npy::write(
+                &tmp.join("appearance_components.npy"),
+                &[a.n_components(), 3 * p],
+                &a.components,
+            )?;
+            npy::write(
+                &tmp.join("appearance_variances.npy"),
+                &[a.n_components()],
+                &a.variances,
+            )?;
+            npy::write(
+                &tmp.join("mask.npy"),
+                &[self.frame.height, self.frame.width],
+                &self.frame.mask_image(),
+            )?;
             let path = tmp.join("model.json");
             std::fs::write(&path, json).map_err(|source| ModelError::Io { path, source })
         })
         .map_err(|e| match e {
-            ModelError::Io { path, source } if path.as_os_str().is_empty() => ModelError::Io { path: dir.into(), source },
+            ModelError::Io { path, source } if path.as_os_str().is_empty() => ModelError::Io {
+                path: dir.into(),
+                source,
+            },
             e => e,
         })
     }
@@ -335,18 +482,33 @@ impl FaceModel {
     /// the manifest, finiteness, and that the stored mask matches the rebuilt frame.
     pub fn load(dir: &Path) -> Result<Self, ModelError> {
         let path = dir.join("model.json");
-        let text = std::fs::read_to_string(&path).map_err(|source| ModelError::Io { path: path.clone(), source })?;
+        let text = std::fs::read_to_string(&path).map_err(|source| ModelError::Io {
+            path: path.clone(),
+            source,
+        })?;
         let value: serde_json::Value =
-            serde_json::from_str(&text).map_err(|e| ModelError::Manifest { path: path.clone(), reason: e.to_string() })?;
+            serde_json::from_str(&text).map_err(|e| ModelError::Manifest {
+                path: path.clone(),
+                reason: e.to_string(),
+            })?;
         if value.get("format").and_then(|f| f.as_str()) != Some(FORMAT) {
-            return Err(ModelError::Manifest { path, reason: format!("not a {FORMAT} manifest (\"format\" field)") });
+            return Err(ModelError::Manifest {
+                path,
+                reason: format!("not a {FORMAT} manifest (\"format\" field)"),
+            });
         }
         let version = value.get("version").and_then(|v| v.as_u64()).unwrap_or(0) as u32;
         if version != MODEL_VERSION {
-            return Err(ModelError::Version { path, found: version, supported: MODEL_VERSION });
+            return Err(ModelError::Version {
+                path,
+                found: version,
+                supported: MODEL_VERSION,
+            });
         }
-        let m: Manifest =
-            serde_json::from_value(value).map_err(|e| ModelError::Manifest { path: path.clone(), reason: e.to_string() })?;
+        let m: Manifest = serde_json::from_value(value).map_err(|e| ModelError::Manifest {
+            path: path.clone(),
+            reason: e.to_string(),
+        })?;
         let (n, p) = (m.n_landmarks, m.reference.n_pixels);
         let (ks, ka) = (m.shape.n_components, m.appearance.n_components);
         let shape = PcaModel {
@@ -362,28 +524,59 @@ impl FaceModel {
             total_variance: m.appearance.total_variance,
         };
         let shape = ShapeModel { pca: shape };
-        let frame = ReferenceFrame::place(&shape.mean(), m.triangles.clone(), m.reference.placement)
-            .map_err(|e| ModelError::Inconsistent { path: path.clone(), reason: format!("mesh: {e}") })?;
-        let mask: Vec<u8> = read_array(dir, "mask", &[frame.height, frame.width])
-            .map_err(|e| ModelError::Inconsistent { path: path.clone(), reason: format!("reference frame does not match the mask: {e}") })?;
-        if frame.width != m.reference.width || frame.height != m.reference.height || frame.n_pixels() != p || mask != frame.mask_image() {
+        let frame =
+            ReferenceFrame::place(&shape.mean(), m.triangles.clone(), m.reference.placement)
+                .map_err(|e| ModelError::Inconsistent {
+                    path: path.clone(),
+                    reason: format!("mesh: {e}"),
+                })?;
+        let mask: Vec<u8> = read_array(dir, "mask", &[frame.height, frame.width]).map_err(|e| {
+            ModelError::Inconsistent {
+                path: path.clone(),
+                reason: format!("reference frame does not match the mask: {e}"),
+            }
+        })?;
+        if frame.width != m.reference.width
+            || frame.height != m.reference.height
+            || frame.n_pixels() != p
+            || mask != frame.mask_image()
+        {
             return Err(ModelError::Inconsistent {
                 path,
                 reason: format!(
                     "the rebuilt reference frame ({}×{}, {} pixels) differs from the stored one ({}×{}, {} pixels, mask.npy)",
-                    frame.width, frame.height, frame.n_pixels(), m.reference.width, m.reference.height, p
+                    frame.width,
+                    frame.height,
+                    frame.n_pixels(),
+                    m.reference.width,
+                    m.reference.height,
+                    p
                 ),
             });
         }
-        Ok(FaceModel { shape, appearance: AppearanceModel { pca: appearance }, frame, placement: m.reference.placement, source: m.source })
+        Ok(FaceModel {
+            shape,
+            appearance: AppearanceModel { pca: appearance },
+            frame,
+            placement: m.reference.placement,
+            source: m.source,
+        })
     }
 }
 
-fn read_array<T: Element + CheckFinite>(dir: &Path, name: &str, expected: &[usize]) -> Result<Vec<T>, ModelError> {
+fn read_array<T: Element + CheckFinite>(
+    dir: &Path,
+    name: &str,
+    expected: &[usize],
+) -> Result<Vec<T>, ModelError> {
     let path = dir.join(format!("{name}.npy"));
     let a = npy::read::<T>(&path)?;
     if a.shape != expected {
-        return Err(ModelError::ArrayShape { path, expected: expected.to_vec(), found: a.shape });
+        return Err(ModelError::ArrayShape {
+            path,
+            expected: expected.to_vec(),
+            found: a.shape,
+        });
     }
     if let Some(index) = a.data.iter().position(|x| !x.finite()) {
         return Err(ModelError::NotFinite { path, index });
@@ -406,10 +599,18 @@ impl CheckFinite for u8 {
 }
 
 fn array_files() -> BTreeMap<String, String> {
-    ["shape_mean", "shape_components", "shape_variances", "appearance_mean", "appearance_components", "appearance_variances", "mask"]
-        .iter()
-        .map(|n| (n.to_string(), format!("{n}.npy")))
-        .collect()
+    [
+        "shape_mean",
+        "shape_components",
+        "shape_variances",
+        "appearance_mean",
+        "appearance_components",
+        "appearance_variances",
+        "mask",
+    ]
+    .iter()
+    .map(|n| (n.to_string(), format!("{n}.npy")))
+    .collect()
 }
 
 /// `model.json`.
@@ -444,6 +645,10 @@ struct PcaInfo {
 
 impl PcaInfo {
     fn of(p: &PcaModel) -> Self {
-        PcaInfo { n_components: p.n_components(), variance_kept: p.variance_ratio(), total_variance: p.total_variance }
+        PcaInfo {
+            n_components: p.n_components(),
+            variance_kept: p.variance_ratio(),
+            total_variance: p.total_variance,
+        }
     }
 }

@@ -12,19 +12,35 @@ use crate::atomic;
 #[derive(Debug, Error)]
 pub enum NpyError {
     #[error("{path}: {source}")]
-    Io { path: PathBuf, source: std::io::Error },
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
     #[error("{path}: not a .npy file (bad magic bytes)")]
     BadMagic { path: PathBuf },
     #[error("{path}: malformed .npy header: {reason}")]
     BadHeader { path: PathBuf, reason: String },
     #[error("{path}: dtype {found} where {expected} was expected")]
-    Dtype { path: PathBuf, expected: &'static str, found: String },
+    Dtype {
+        path: PathBuf,
+        expected: &'static str,
+        found: String,
+    },
     #[error("{path}: Fortran-ordered arrays are not supported")]
     FortranOrder { path: PathBuf },
     #[error("{path}: truncated: shape {shape:?} needs {expected} data bytes, file has {actual}")]
-    Truncated { path: PathBuf, shape: Vec<usize>, expected: usize, actual: usize },
+    Truncated {
+        path: PathBuf,
+        shape: Vec<usize>,
+        expected: usize,
+        actual: usize,
+    },
     #[error("{path}: {actual} trailing bytes after the data of shape {shape:?}")]
-    TrailingBytes { path: PathBuf, shape: Vec<usize>, actual: usize },
+    TrailingBytes {
+        path: PathBuf,
+        shape: Vec<usize>,
+        actual: usize,
+    },
 }
 
 /// A scalar type stored in `.npy` files.
@@ -66,12 +82,26 @@ const MAGIC: &[u8] = b"\x93NUMPY";
 
 /// Encodes an array as `.npy` bytes (format 1.0, header padded to 64 bytes).
 pub fn to_bytes<T: Element>(shape: &[usize], data: &[T]) -> Vec<u8> {
-    assert_eq!(shape.iter().product::<usize>(), data.len(), "shape and data length differ");
+    assert_eq!(
+        shape.iter().product::<usize>(),
+        data.len(),
+        "shape and data length differ"
+    );
     let dims = match shape {
         [n] => format!("({n},)"),
-        _ => format!("({})", shape.iter().map(|d| d.to_string()).collect::<Vec<_>>().join(", ")),
+        _ => format!(
+            "({})",
+            shape
+                .iter()
+                .map(|d| d.to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
     };
-    let mut header = format!("{{'descr': '{}', 'fortran_order': False, 'shape': {dims}, }}", T::DESCR);
+    let mut header = format!(
+        "{{'descr': '{}', 'fortran_order': False, 'shape': {dims}, }}",
+        T::DESCR
+    );
     let unpadded = MAGIC.len() + 2 + 2 + header.len() + 1;
     header.push_str(&" ".repeat((64 - unpadded % 64) % 64));
     header.push('\n');
@@ -88,21 +118,31 @@ pub fn to_bytes<T: Element>(shape: &[usize], data: &[T]) -> Vec<u8> {
 
 /// Writes an array atomically (temporary file + rename).
 pub fn write<T: Element>(path: &Path, shape: &[usize], data: &[T]) -> Result<(), NpyError> {
-    atomic::write_file(path, &to_bytes(shape, data))
-        .map_err(|source| NpyError::Io { path: path.to_owned(), source })
+    atomic::write_file(path, &to_bytes(shape, data)).map_err(|source| NpyError::Io {
+        path: path.to_owned(),
+        source,
+    })
 }
 
 /// Reads an array whose dtype must be `T`.
 pub fn read<T: Element>(path: &Path) -> Result<Array<T>, NpyError> {
-    let bytes = std::fs::read(path).map_err(|source| NpyError::Io { path: path.to_owned(), source })?;
+    let bytes = std::fs::read(path).map_err(|source| NpyError::Io {
+        path: path.to_owned(),
+        source,
+    })?;
     from_bytes(&bytes, path)
 }
 
 /// Decodes `.npy` bytes; `path` only names the source in errors.
 pub fn from_bytes<T: Element>(bytes: &[u8], path: &Path) -> Result<Array<T>, NpyError> {
-    let bad = |reason: &str| NpyError::BadHeader { path: path.to_owned(), reason: reason.to_owned() };
+    let bad = |reason: &str| NpyError::BadHeader {
+        path: path.to_owned(),
+        reason: reason.to_owned(),
+    };
     if bytes.len() < MAGIC.len() + 2 || &bytes[..MAGIC.len()] != MAGIC {
-        return Err(NpyError::BadMagic { path: path.to_owned() });
+        return Err(NpyError::BadMagic {
+            path: path.to_owned(),
+        });
     }
     let major = bytes[MAGIC.len()];
     let (len_bytes, start) = match major {
@@ -119,19 +159,30 @@ pub fn from_bytes<T: Element>(bytes: &[u8], path: &Path) -> Result<Array<T>, Npy
     } else {
         u32::from_le_bytes([len_field[0], len_field[1], len_field[2], len_field[3]]) as usize
     };
-    let data_start = start.checked_add(header_len).ok_or_else(|| bad("header length overflows"))?;
+    let data_start = start
+        .checked_add(header_len)
+        .ok_or_else(|| bad("header length overflows"))?;
     if bytes.len() < data_start {
         return Err(bad("file ends inside the header"));
     }
-    let header = std::str::from_utf8(&bytes[start..data_start]).map_err(|_| bad("header is not text"))?;
+    let header =
+        std::str::from_utf8(&bytes[start..data_start]).map_err(|_| bad("header is not text"))?;
     let descr = dict_value(header, "descr").ok_or_else(|| bad("no 'descr'"))?;
     let descr = descr.trim_matches(|c| c == '\'' || c == '"');
     if descr != T::DESCR && !(T::SIZE == 1 && descr.trim_start_matches(['|', '<']) == "u1") {
-        return Err(NpyError::Dtype { path: path.to_owned(), expected: T::DESCR, found: descr.to_owned() });
+        return Err(NpyError::Dtype {
+            path: path.to_owned(),
+            expected: T::DESCR,
+            found: descr.to_owned(),
+        });
     }
     match dict_value(header, "fortran_order") {
         Some("False") => {}
-        Some("True") => return Err(NpyError::FortranOrder { path: path.to_owned() }),
+        Some("True") => {
+            return Err(NpyError::FortranOrder {
+                path: path.to_owned(),
+            });
+        }
         _ => return Err(bad("no valid 'fortran_order'")),
     }
     let shape_text = dict_value(header, "shape").ok_or_else(|| bad("no 'shape'"))?;
@@ -140,19 +191,33 @@ pub fn from_bytes<T: Element>(bytes: &[u8], path: &Path) -> Result<Array<T>, Npy
         .split(',')
         .map(str::trim)
         .filter(|s| !s.is_empty())
-        .map(|s| s.parse::<usize>().map_err(|_| bad(&format!("bad dimension {s:?} in shape"))))
+        .map(|s| {
+            s.parse::<usize>()
+                .map_err(|_| bad(&format!("bad dimension {s:?} in shape")))
+        })
         .collect::<Result<Vec<_>, _>>()?;
     let count = shape
         .iter()
         .try_fold(1usize, |acc, &d| acc.checked_mul(d))
         .ok_or_else(|| bad("shape overflows"))?;
-    let expected = count.checked_mul(T::SIZE).ok_or_else(|| bad("shape overflows"))?;
+    let expected = count
+        .checked_mul(T::SIZE)
+        .ok_or_else(|| bad("shape overflows"))?;
     let body = &bytes[data_start..];
     if body.len() < expected {
-        return Err(NpyError::Truncated { path: path.to_owned(), shape, expected, actual: body.len() });
+        return Err(NpyError::Truncated {
+            path: path.to_owned(),
+            shape,
+            expected,
+            actual: body.len(),
+        });
     }
     if body.len() > expected {
-        return Err(NpyError::TrailingBytes { path: path.to_owned(), shape, actual: body.len() - expected });
+        return Err(NpyError::TrailingBytes {
+            path: path.to_owned(),
+            shape,
+            actual: body.len() - expected,
+        });
     }
     let data = body.chunks_exact(T::SIZE).map(T::read_le).collect();
     Ok(Array { shape, data })
@@ -161,9 +226,18 @@ pub fn from_bytes<T: Element>(bytes: &[u8], path: &Path) -> Result<Array<T>, Npy
 /// The raw text of `key`'s value in a Python dict literal (values here hold no nested braces
 /// except the shape tuple, which holds no commas outside its parentheses).
 fn dict_value<'h>(header: &'h str, key: &str) -> Option<&'h str> {
-    let at = header.find(&format!("'{key}'")).or_else(|| header.find(&format!("\"{key}\"")))?;
-    let rest = header[at + key.len() + 2..].trim_start().strip_prefix(':')?.trim_start();
-    let end = if rest.starts_with('(') { rest.find(')')? + 1 } else { rest.find([',', '}'])? };
+    let at = header
+        .find(&format!("'{key}'"))
+        .or_else(|| header.find(&format!("\"{key}\"")))?;
+    let rest = header[at + key.len() + 2..]
+        .trim_start()
+        .strip_prefix(':')?
+        .trim_start();
+    let end = if rest.starts_with('(') {
+        rest.find(')')? + 1
+    } else {
+        rest.find([',', '}'])?
+    };
     Some(rest[..end].trim())
 }
 
@@ -202,11 +276,30 @@ mod tests {
     fn truncation_dtype_and_magic_are_named() {
         let bytes = to_bytes(&[10], &[1.0f32; 10]);
         let err = from_bytes::<f32>(&bytes[..bytes.len() - 3], Path::new("t.npy")).unwrap_err();
-        assert!(matches!(err, NpyError::Truncated { expected: 40, actual: 37, .. }), "{err}");
+        assert!(
+            matches!(
+                err,
+                NpyError::Truncated {
+                    expected: 40,
+                    actual: 37,
+                    ..
+                }
+            ),
+            "{err}"
+        );
         assert!(err.to_string().contains("t.npy"));
         let err = from_bytes::<f64>(&bytes, Path::new("d.npy")).unwrap_err();
-        assert!(err.to_string().contains("<f4") && err.to_string().contains("<f8"), "{err}");
-        assert!(matches!(from_bytes::<f32>(b"hello", Path::new("m")), Err(NpyError::BadMagic { .. })));
-        assert!(matches!(from_bytes::<f32>(&bytes[..20], Path::new("h")), Err(NpyError::BadHeader { .. })));
+        assert!(
+            err.to_string().contains("<f4") && err.to_string().contains("<f8"),
+            "{err}"
+        );
+        assert!(matches!(
+            from_bytes::<f32>(b"hello", Path::new("m")),
+            Err(NpyError::BadMagic { .. })
+        ));
+        assert!(matches!(
+            from_bytes::<f32>(&bytes[..20], Path::new("h")),
+            Err(NpyError::BadHeader { .. })
+        ));
     }
 }

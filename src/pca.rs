@@ -23,7 +23,9 @@ impl Components {
         match self {
             Components::Count(0) => Err(PcaError::BadComponents("a count of 0 components".into())),
             Components::Variance { fraction, .. } if !(fraction > 0.0 && fraction <= 1.0) => {
-                Err(PcaError::BadComponents(format!("variance fraction {fraction} (must be in (0, 1])")))
+                Err(PcaError::BadComponents(format!(
+                    "variance fraction {fraction} (must be in (0, 1])"
+                )))
             }
             Components::Variance { max: Some(0), .. } => {
                 Err(PcaError::BadComponents("a maximum of 0 components".into()))
@@ -38,7 +40,11 @@ pub enum PcaError {
     #[error("PCA needs at least 2 samples, got {0}")]
     TooFewSamples(usize),
     #[error("sample {index} has {found} values, sample 0 has {expected}")]
-    Ragged { index: usize, expected: usize, found: usize },
+    Ragged {
+        index: usize,
+        expected: usize,
+        found: usize,
+    },
     #[error("sample {index} holds a non-finite value at position {position}")]
     NotFinite { index: usize, position: usize },
     #[error("the samples do not vary: every sample equals the mean")]
@@ -67,7 +73,9 @@ impl PcaModel {
         let d = check_samples(samples)?;
         let mut mean = vec![0f64; d];
         for s in samples {
-            mean.iter_mut().zip(s.iter()).for_each(|(m, &x)| *m += x as f64);
+            mean.iter_mut()
+                .zip(s.iter())
+                .for_each(|(m, &x)| *m += x as f64);
         }
         let n = samples.len() as f64;
         let mean: Vec<f32> = mean.iter().map(|m| (m / n) as f32).collect();
@@ -79,12 +87,21 @@ impl PcaModel {
         let keep = keep.validate()?;
         let d = check_samples(samples)?;
         if mean.len() != d {
-            return Err(PcaError::Ragged { index: usize::MAX, expected: d, found: mean.len() });
+            return Err(PcaError::Ragged {
+                index: usize::MAX,
+                expected: d,
+                found: mean.len(),
+            });
         }
         let n = samples.len();
         let centred: Vec<Vec<f64>> = samples
             .par_iter()
-            .map(|s| s.iter().zip(mean).map(|(&x, &m)| x as f64 - m as f64).collect())
+            .map(|s| {
+                s.iter()
+                    .zip(mean)
+                    .map(|(&x, &m)| x as f64 - m as f64)
+                    .collect()
+            })
             .collect();
         let dof = (n - 1) as f64;
         // Eigen-pairs of the covariance, as (variance, unit vector in data space).
@@ -115,7 +132,9 @@ impl PcaModel {
             }
             cov.fill_upper_triangle_with_lower_triangle();
             let (values, v) = sorted_eigen(cov);
-            let vectors = (0..values.len()).map(|k| v.column(k).iter().copied().collect()).collect();
+            let vectors = (0..values.len())
+                .map(|k| v.column(k).iter().copied().collect())
+                .collect();
             (values.iter().map(|l| l / dof).collect(), vectors)
         };
         let total_variance: f64 = centred.iter().map(|r| dot(r, r)).sum::<f64>() / dof;
@@ -123,7 +142,10 @@ impl PcaModel {
             return Err(PcaError::NoVariance);
         }
         // Eigenvalues below this are round-off: the data's rank ends there.
-        let rank = values.iter().take_while(|&&l| l > values[0] * 1e-10).count();
+        let rank = values
+            .iter()
+            .take_while(|&&l| l > values[0] * 1e-10)
+            .count();
         let kept = match keep {
             Components::Count(k) => k.min(rank),
             Components::Variance { fraction, max } => {
@@ -140,7 +162,11 @@ impl PcaModel {
         };
         Ok(PcaModel {
             mean: mean.to_vec(),
-            components: vectors[..kept].iter().flatten().map(|&x| x as f32).collect(),
+            components: vectors[..kept]
+                .iter()
+                .flatten()
+                .map(|&x| x as f32)
+                .collect(),
             variances: values[..kept].iter().map(|&l| l as f32).collect(),
             total_variance,
         })
@@ -166,7 +192,11 @@ impl PcaModel {
 
     /// `b = P (x − mean)`.
     pub fn project(&self, x: &[f32]) -> Vec<f32> {
-        assert_eq!(x.len(), self.dim(), "project: sample length differs from the model's");
+        assert_eq!(
+            x.len(),
+            self.dim(),
+            "project: sample length differs from the model's"
+        );
         (0..self.n_components())
             .into_par_iter()
             .map(|k| {
@@ -189,17 +219,27 @@ impl PcaModel {
 
     /// `x = mean + Pᵀ b`, written into `out` (length `dim`).
     pub fn reconstruct_into(&self, b: &[f32], out: &mut [f32]) {
-        assert_eq!(b.len(), self.n_components(), "reconstruct: parameter count differs from the model's");
-        assert_eq!(out.len(), self.dim(), "reconstruct: output length differs from the model's");
+        assert_eq!(
+            b.len(),
+            self.n_components(),
+            "reconstruct: parameter count differs from the model's"
+        );
+        assert_eq!(
+            out.len(),
+            self.dim(),
+            "reconstruct: output length differs from the model's"
+        );
         const CHUNK: usize = 4096;
-        out.par_chunks_mut(CHUNK).enumerate().for_each(|(ci, chunk)| {
-            let start = ci * CHUNK;
-            chunk.copy_from_slice(&self.mean[start..start + chunk.len()]);
-            for (k, &bk) in b.iter().enumerate() {
-                let c = &self.component(k)[start..start + chunk.len()];
-                chunk.iter_mut().zip(c).for_each(|(o, &ck)| *o += bk * ck);
-            }
-        });
+        out.par_chunks_mut(CHUNK)
+            .enumerate()
+            .for_each(|(ci, chunk)| {
+                let start = ci * CHUNK;
+                chunk.copy_from_slice(&self.mean[start..start + chunk.len()]);
+                for (k, &bk) in b.iter().enumerate() {
+                    let c = &self.component(k)[start..start + chunk.len()];
+                    chunk.iter_mut().zip(c).for_each(|(o, &ck)| *o += bk * ck);
+                }
+            });
     }
 }
 
@@ -210,7 +250,11 @@ fn check_samples(samples: &[&[f32]]) -> Result<usize, PcaError> {
     let d = samples[0].len();
     for (index, s) in samples.iter().enumerate() {
         if s.len() != d {
-            return Err(PcaError::Ragged { index, expected: d, found: s.len() });
+            return Err(PcaError::Ragged {
+                index,
+                expected: d,
+                found: s.len(),
+            });
         }
         if let Some(position) = s.iter().position(|x| !x.is_finite()) {
             return Err(PcaError::NotFinite { index, position });
@@ -226,7 +270,9 @@ fn sorted_eigen(m: DMatrix<f64>) -> (Vec<f64>, DMatrix<f64>) {
     let mut order: Vec<usize> = (0..eig.eigenvalues.len()).collect();
     order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
     let values = order.iter().map(|&i| eig.eigenvalues[i].max(0.0)).collect();
-    let vectors = DMatrix::from_fn(eig.eigenvectors.nrows(), order.len(), |r, c| eig.eigenvectors[(r, order[c])]);
+    let vectors = DMatrix::from_fn(eig.eigenvectors.nrows(), order.len(), |r, c| {
+        eig.eigenvectors[(r, order[c])]
+    });
     (values, vectors)
 }
 

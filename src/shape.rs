@@ -25,11 +25,22 @@ pub struct Landmarks {
 #[derive(Debug, Error)]
 pub enum ShapeError {
     #[error("{path}: {source}")]
-    Io { path: PathBuf, source: std::io::Error },
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
     #[error("{path}:{line}: {reason}")]
-    Parse { path: PathBuf, line: usize, reason: String },
+    Parse {
+        path: PathBuf,
+        line: usize,
+        reason: String,
+    },
     #[error("{what}: {found} landmarks where {expected} were expected")]
-    Count { what: String, expected: usize, found: usize },
+    Count {
+        what: String,
+        expected: usize,
+        found: usize,
+    },
     #[error("{what}: landmark {index} is not finite")]
     NotFinite { what: String, index: usize },
     #[error("{what}: all landmarks coincide, the shape has no size")]
@@ -54,40 +65,72 @@ impl Landmarks {
         if let Some(expected) = expected
             && self.len() != expected
         {
-            return Err(ShapeError::Count { what: what.into(), expected, found: self.len() });
+            return Err(ShapeError::Count {
+                what: what.into(),
+                expected,
+                found: self.len(),
+            });
         }
-        match self.points.iter().position(|p| !(p[0].is_finite() && p[1].is_finite())) {
-            Some(index) => Err(ShapeError::NotFinite { what: what.into(), index }),
+        match self
+            .points
+            .iter()
+            .position(|p| !(p[0].is_finite() && p[1].is_finite()))
+        {
+            Some(index) => Err(ShapeError::NotFinite {
+                what: what.into(),
+                index,
+            }),
             None => Ok(()),
         }
     }
 
     /// Coordinates as `[x0, y0, x1, y1, …]`.
     pub fn to_flat(&self) -> Vec<f32> {
-        self.points.iter().flat_map(|p| [p[0] as f32, p[1] as f32]).collect()
+        self.points
+            .iter()
+            .flat_map(|p| [p[0] as f32, p[1] as f32])
+            .collect()
     }
 
     pub fn from_flat(flat: &[f32]) -> Self {
-        Landmarks { points: flat.chunks_exact(2).map(|c| [c[0] as f64, c[1] as f64]).collect() }
+        Landmarks {
+            points: flat
+                .chunks_exact(2)
+                .map(|c| [c[0] as f64, c[1] as f64])
+                .collect(),
+        }
     }
 
     /// Axis-aligned bounds `(min, max)`.
     pub fn bounds(&self) -> (Point, Point) {
-        self.points.iter().fold(([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]), |(lo, hi), p| {
-            ([lo[0].min(p[0]), lo[1].min(p[1])], [hi[0].max(p[0]), hi[1].max(p[1])])
-        })
+        self.points.iter().fold(
+            ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]),
+            |(lo, hi), p| {
+                (
+                    [lo[0].min(p[0]), lo[1].min(p[1])],
+                    [hi[0].max(p[0]), hi[1].max(p[1])],
+                )
+            },
+        )
     }
 }
 
 /// Reads an iBUG `.pts` file (`version: 1`, `n_points: N`, `{`, N lines `x y`, `}`).
 pub fn read_pts(path: &Path) -> Result<Landmarks, ShapeError> {
-    let text = std::fs::read_to_string(path).map_err(|source| ShapeError::Io { path: path.into(), source })?;
+    let text = std::fs::read_to_string(path).map_err(|source| ShapeError::Io {
+        path: path.into(),
+        source,
+    })?;
     parse_pts(&text, path)
 }
 
 /// Parses `.pts` text; `path` names the source in errors.
 pub fn parse_pts(text: &str, path: &Path) -> Result<Landmarks, ShapeError> {
-    let err = |line: usize, reason: String| ShapeError::Parse { path: path.into(), line, reason };
+    let err = |line: usize, reason: String| ShapeError::Parse {
+        path: path.into(),
+        line,
+        reason,
+    };
     let mut declared = None;
     let mut points = Vec::new();
     let mut state = 0; // 0: header, 1: inside braces, 2: after the closing brace
@@ -105,44 +148,75 @@ pub fn parse_pts(text: &str, path: &Path) -> Result<Landmarks, ShapeError> {
                     state = 1;
                 } else if let Some((key, value)) = line.split_once(':') {
                     match key.trim() {
-                        "version" => {
-                            if value.trim() != "1" {
-                                return Err(err(line_no, format!("unsupported version {:?}", value.trim())));
-                            }
+                        "version" if value.trim() != "1" => {
+                            return Err(err(
+                                line_no,
+                                format!("unsupported version {:?}", value.trim()),
+                            ));
                         }
                         "n_points" => {
                             let n = value.trim().parse::<usize>();
-                            declared = Some(n.map_err(|_| err(line_no, format!("bad n_points {:?}", value.trim())))?);
+                            declared = Some(n.map_err(|_| {
+                                err(line_no, format!("bad n_points {:?}", value.trim()))
+                            })?);
                         }
                         _ => {} // other header keys are allowed and ignored
                     }
                 } else {
-                    return Err(err(line_no, format!("expected a header line or '{{', found {line:?}")));
+                    return Err(err(
+                        line_no,
+                        format!("expected a header line or '{{', found {line:?}"),
+                    ));
                 }
             }
             1 if line == "}" => state = 2,
             1 => {
                 let mut it = line.split_whitespace();
                 let mut coord = |name| -> Result<f64, ShapeError> {
-                    let s = it.next().ok_or_else(|| err(line_no, format!("missing {name} coordinate")))?;
-                    let v = s.parse::<f64>().map_err(|_| err(line_no, format!("bad {name} coordinate {s:?}")))?;
-                    if v.is_finite() { Ok(v) } else { Err(err(line_no, format!("{name} coordinate is {v}"))) }
+                    let s = it
+                        .next()
+                        .ok_or_else(|| err(line_no, format!("missing {name} coordinate")))?;
+                    let v = s
+                        .parse::<f64>()
+                        .map_err(|_| err(line_no, format!("bad {name} coordinate {s:?}")))?;
+                    if v.is_finite() {
+                        Ok(v)
+                    } else {
+                        Err(err(line_no, format!("{name} coordinate is {v}")))
+                    }
                 };
                 let (x, y) = (coord("x")?, coord("y")?);
                 if it.next().is_some() {
-                    return Err(err(line_no, format!("expected two coordinates, found {line:?}")));
+                    return Err(err(
+                        line_no,
+                        format!("expected two coordinates, found {line:?}"),
+                    ));
                 }
                 points.push([x - 1.0, y - 1.0]);
             }
-            _ => return Err(err(line_no, format!("text after the closing '}}': {line:?}"))),
+            _ => {
+                return Err(err(
+                    line_no,
+                    format!("text after the closing '}}': {line:?}"),
+                ));
+            }
         }
     }
     let declared = declared.ok_or_else(|| err(1, "no n_points header".into()))?;
     if state != 2 {
-        return Err(err(last_line, "missing closing '}' (file truncated?)".into()));
+        return Err(err(
+            last_line,
+            "missing closing '}' (file truncated?)".into(),
+        ));
     }
     if points.len() != declared {
-        return Err(err(last_line, format!("n_points says {declared} but {} points follow", points.len())));
+        return Err(err(
+            last_line,
+            format!(
+                "n_points says {declared} but {} points follow",
+                points.len()
+            ),
+        ));
     }
     Ok(Landmarks { points })
 }
@@ -159,7 +233,10 @@ pub fn format_pts(landmarks: &Landmarks) -> String {
 
 /// Writes a `.pts` file atomically.
 pub fn write_pts(path: &Path, landmarks: &Landmarks) -> Result<(), ShapeError> {
-    atomic::write_file(path, format_pts(landmarks).as_bytes()).map_err(|source| ShapeError::Io { path: path.into(), source })
+    atomic::write_file(path, format_pts(landmarks).as_bytes()).map_err(|source| ShapeError::Io {
+        path: path.into(),
+        source,
+    })
 }
 
 /// A similarity transform `p ↦ [a −b; b a] p + t`, with `a = s cos θ`, `b = s sin θ`.
@@ -173,10 +250,20 @@ pub struct Similarity {
 }
 
 impl Similarity {
-    pub const IDENTITY: Similarity = Similarity { a: 1.0, b: 0.0, tx: 0.0, ty: 0.0 };
+    pub const IDENTITY: Similarity = Similarity {
+        a: 1.0,
+        b: 0.0,
+        tx: 0.0,
+        ty: 0.0,
+    };
 
     pub fn new(scale: f64, angle: f64, tx: f64, ty: f64) -> Self {
-        Similarity { a: scale * angle.cos(), b: scale * angle.sin(), tx, ty }
+        Similarity {
+            a: scale * angle.cos(),
+            b: scale * angle.sin(),
+            tx,
+            ty,
+        }
     }
 
     pub fn scale(&self) -> f64 {
@@ -188,7 +275,10 @@ impl Similarity {
     }
 
     pub fn apply(&self, p: Point) -> Point {
-        [self.a * p[0] - self.b * p[1] + self.tx, self.b * p[0] + self.a * p[1] + self.ty]
+        [
+            self.a * p[0] - self.b * p[1] + self.tx,
+            self.b * p[0] + self.a * p[1] + self.ty,
+        ]
     }
 
     pub fn apply_all(&self, points: &[Point]) -> Vec<Point> {
@@ -199,7 +289,12 @@ impl Similarity {
     pub fn invert(&self) -> Self {
         let d = self.a * self.a + self.b * self.b;
         let (a, b) = (self.a / d, -self.b / d);
-        Similarity { a, b, tx: -(a * self.tx - b * self.ty), ty: -(b * self.tx + a * self.ty) }
+        Similarity {
+            a,
+            b,
+            tx: -(a * self.tx - b * self.ty),
+            ty: -(b * self.tx + a * self.ty),
+        }
     }
 
     /// `self ∘ other`: apply `other` first, then `self`.
@@ -218,7 +313,12 @@ impl Similarity {
     }
 
     pub fn from_array(v: [f64; 4]) -> Self {
-        Similarity { a: v[0], b: v[1], tx: v[2], ty: v[3] }
+        Similarity {
+            a: v[0],
+            b: v[1],
+            tx: v[2],
+            ty: v[3],
+        }
     }
 }
 
@@ -239,12 +339,19 @@ pub fn align(from: &[Point], to: &[Point]) -> Option<Similarity> {
         return None;
     }
     let (a, b) = (num_a / denom, num_b / denom);
-    Some(Similarity { a, b, tx: ct[0] - (a * cf[0] - b * cf[1]), ty: ct[1] - (b * cf[0] + a * cf[1]) })
+    Some(Similarity {
+        a,
+        b,
+        tx: ct[0] - (a * cf[0] - b * cf[1]),
+        ty: ct[1] - (b * cf[0] + a * cf[1]),
+    })
 }
 
 pub fn centroid(points: &[Point]) -> Point {
     let n = points.len() as f64;
-    let s = points.iter().fold([0.0, 0.0], |s, p| [s[0] + p[0], s[1] + p[1]]);
+    let s = points
+        .iter()
+        .fold([0.0, 0.0], |s, p| [s[0] + p[0], s[1] + p[1]]);
     [s[0] / n, s[1] / n]
 }
 
@@ -252,7 +359,11 @@ pub fn centroid(points: &[Point]) -> Point {
 fn normalise(points: &[Point]) -> Option<Vec<Point>> {
     let c = centroid(points);
     let centred: Vec<Point> = points.iter().map(|p| [p[0] - c[0], p[1] - c[1]]).collect();
-    let norm = centred.iter().map(|p| p[0] * p[0] + p[1] * p[1]).sum::<f64>().sqrt();
+    let norm = centred
+        .iter()
+        .map(|p| p[0] * p[0] + p[1] * p[1])
+        .sum::<f64>()
+        .sqrt();
     (norm > f64::MIN_POSITIVE).then(|| centred.iter().map(|p| [p[0] / norm, p[1] / norm]).collect())
 }
 
@@ -281,7 +392,9 @@ pub fn generalised_procrustes(shapes: &[Landmarks]) -> Result<Procrustes, ShapeE
     for (i, s) in shapes.iter().enumerate() {
         s.validate(Some(n), &format!("shape {i}"))?;
     }
-    let degenerate = |i: usize| ShapeError::Degenerate { what: format!("shape {i}") };
+    let degenerate = |i: usize| ShapeError::Degenerate {
+        what: format!("shape {i}"),
+    };
     let mut mean = normalise(&shapes[0].points).ok_or_else(|| degenerate(0))?;
     let mut iterations = 0;
     loop {
@@ -289,10 +402,17 @@ pub fn generalised_procrustes(shapes: &[Landmarks]) -> Result<Procrustes, ShapeE
         let poses = shapes
             .iter()
             .enumerate()
-            .map(|(i, s)| align(&mean, &s.points).filter(|t| t.scale() > 0.0).ok_or_else(|| degenerate(i)))
+            .map(|(i, s)| {
+                align(&mean, &s.points)
+                    .filter(|t| t.scale() > 0.0)
+                    .ok_or_else(|| degenerate(i))
+            })
             .collect::<Result<Vec<_>, _>>()?;
-        let aligned: Vec<Vec<Point>> =
-            shapes.iter().zip(&poses).map(|(s, t)| t.invert().apply_all(&s.points)).collect();
+        let aligned: Vec<Vec<Point>> = shapes
+            .iter()
+            .zip(&poses)
+            .map(|(s, t)| t.invert().apply_all(&s.points))
+            .collect();
         let mut next = vec![[0.0, 0.0]; n];
         for shape in &aligned {
             for (m, p) in next.iter_mut().zip(shape) {
@@ -300,19 +420,42 @@ pub fn generalised_procrustes(shapes: &[Landmarks]) -> Result<Procrustes, ShapeE
                 m[1] += p[1] / shapes.len() as f64;
             }
         }
-        let next = normalise(&next).ok_or(ShapeError::Degenerate { what: "mean shape".into() })?;
+        let next = normalise(&next).ok_or(ShapeError::Degenerate {
+            what: "mean shape".into(),
+        })?;
         // Hold the orientation: rotate the new mean onto the old one (rotation only).
         let t = align(&next, &mean).expect("normalised mean has extent");
-        let rotation = Similarity { a: t.a / t.scale(), b: t.b / t.scale(), tx: 0.0, ty: 0.0 };
+        let rotation = Similarity {
+            a: t.a / t.scale(),
+            b: t.b / t.scale(),
+            tx: 0.0,
+            ty: 0.0,
+        };
         let next = rotation.apply_all(&next);
-        let change: f64 = next.iter().zip(&mean).map(|(p, q)| (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)).sum();
+        let change: f64 = next
+            .iter()
+            .zip(&mean)
+            .map(|(p, q)| (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2))
+            .sum();
         mean = next;
         if change.sqrt() < 1e-12 || iterations >= 100 {
             // Re-derive poses and aligned shapes against the final mean.
-            let poses: Vec<Similarity> =
-                shapes.iter().enumerate().map(|(i, s)| align(&mean, &s.points).ok_or_else(|| degenerate(i))).collect::<Result<_, _>>()?;
-            let aligned = shapes.iter().zip(&poses).map(|(s, t)| t.invert().apply_all(&s.points)).collect();
-            return Ok(Procrustes { mean, aligned, poses, iterations });
+            let poses: Vec<Similarity> = shapes
+                .iter()
+                .enumerate()
+                .map(|(i, s)| align(&mean, &s.points).ok_or_else(|| degenerate(i)))
+                .collect::<Result<_, _>>()?;
+            let aligned = shapes
+                .iter()
+                .zip(&poses)
+                .map(|(s, t)| t.invert().apply_all(&s.points))
+                .collect();
+            return Ok(Procrustes {
+                mean,
+                aligned,
+                poses,
+                iterations,
+            });
         }
     }
 }
@@ -329,11 +472,20 @@ impl ShapeModel {
     /// Procrustes-aligns the shapes and keeps the components that `keep` asks for.
     pub fn build(shapes: &[Landmarks], keep: Components) -> Result<Self, ShapeError> {
         let gpa = generalised_procrustes(shapes)?;
-        let mean: Vec<f32> = gpa.mean.iter().flat_map(|p| [p[0] as f32, p[1] as f32]).collect();
-        let rows: Vec<Vec<f32>> =
-            gpa.aligned.iter().map(|s| s.iter().flat_map(|p| [p[0] as f32, p[1] as f32]).collect()).collect();
+        let mean: Vec<f32> = gpa
+            .mean
+            .iter()
+            .flat_map(|p| [p[0] as f32, p[1] as f32])
+            .collect();
+        let rows: Vec<Vec<f32>> = gpa
+            .aligned
+            .iter()
+            .map(|s| s.iter().flat_map(|p| [p[0] as f32, p[1] as f32]).collect())
+            .collect();
         let refs: Vec<&[f32]> = rows.iter().map(|r| r.as_slice()).collect();
-        Ok(ShapeModel { pca: PcaModel::fit_about(&refs, &mean, keep)? })
+        Ok(ShapeModel {
+            pca: PcaModel::fit_about(&refs, &mean, keep)?,
+        })
     }
 
     pub fn n_landmarks(&self) -> usize {
@@ -355,14 +507,24 @@ impl ShapeModel {
         landmarks.validate(Some(self.n_landmarks()), "landmarks")?;
         let pose = align(&self.mean(), &landmarks.points)
             .filter(|t| t.scale() > 0.0)
-            .ok_or(ShapeError::Degenerate { what: "landmarks".into() })?;
-        let aligned = Landmarks { points: pose.invert().apply_all(&landmarks.points) };
+            .ok_or(ShapeError::Degenerate {
+                what: "landmarks".into(),
+            })?;
+        let aligned = Landmarks {
+            points: pose.invert().apply_all(&landmarks.points),
+        };
         Ok((pose, self.pca.project(&aligned.to_flat())))
     }
 
     /// Landmarks of `pose(x̄ + P_s b_s)`.
     pub fn instance(&self, pose: &Similarity, b: &[f32]) -> Landmarks {
         let flat = self.pca.reconstruct(b);
-        Landmarks { points: Landmarks::from_flat(&flat).points.iter().map(|&p| pose.apply(p)).collect() }
+        Landmarks {
+            points: Landmarks::from_flat(&flat)
+                .points
+                .iter()
+                .map(|&p| pose.apply(p))
+                .collect(),
+        }
     }
 }

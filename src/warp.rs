@@ -38,7 +38,14 @@ pub fn sample_bilinear(image: &RgbImage, x: f64, y: f64) -> [f32; 3] {
 }
 
 #[inline(always)]
-fn sample<T: Copy>(data: &[T], w: usize, h: usize, x: f64, y: f64, to_f32: impl Fn(T) -> f32) -> [f32; 3] {
+fn sample<T: Copy>(
+    data: &[T],
+    w: usize,
+    h: usize,
+    x: f64,
+    y: f64,
+    to_f32: impl Fn(T) -> f32,
+) -> [f32; 3] {
     let xc = x.clamp(0.0, (w - 1) as f64);
     let yc = y.clamp(0.0, (h - 1) as f64);
     // Truncation is floor here (both are ≥ 0) and, unlike f64::floor on baseline x86-64,
@@ -46,7 +53,12 @@ fn sample<T: Copy>(data: &[T], w: usize, h: usize, x: f64, y: f64, to_f32: impl 
     let (x0, y0) = (xc as usize, yc as usize);
     let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
     let (fx, fy) = ((xc - x0 as f64) as f32, (yc - y0 as f64) as f32);
-    let (i00, i01, i10, i11) = ((y0 * w + x0) * 3, (y0 * w + x1) * 3, (y1 * w + x0) * 3, (y1 * w + x1) * 3);
+    let (i00, i01, i10, i11) = (
+        (y0 * w + x0) * 3,
+        (y0 * w + x1) * 3,
+        (y1 * w + x0) * 3,
+        (y1 * w + x1) * 3,
+    );
     let mut out = [0f32; 3];
     for (c, o) in out.iter_mut().enumerate() {
         let top = to_f32(data[i00 + c]) * (1.0 - fx) + to_f32(data[i01 + c]) * fx;
@@ -58,40 +70,63 @@ fn sample<T: Copy>(data: &[T], w: usize, h: usize, x: f64, y: f64, to_f32: impl 
 
 fn check_landmarks(frame: &ReferenceFrame, landmarks: &[Point]) -> Result<(), WarpError> {
     if landmarks.len() != frame.landmarks.len() {
-        return Err(WarpError::LandmarkCount { expected: frame.landmarks.len(), found: landmarks.len() });
+        return Err(WarpError::LandmarkCount {
+            expected: frame.landmarks.len(),
+            found: landmarks.len(),
+        });
     }
-    match landmarks.iter().position(|p| !(p[0].is_finite() && p[1].is_finite())) {
+    match landmarks
+        .iter()
+        .position(|p| !(p[0].is_finite() && p[1].is_finite()))
+    {
         Some(index) => Err(WarpError::NotFinite { index }),
         None => Ok(()),
     }
 }
 
 /// Warps `image`, whose face has `landmarks`, into the reference frame.
-pub fn to_reference(frame: &ReferenceFrame, image: &RgbImage, landmarks: &[Point]) -> Result<Vec<f32>, WarpError> {
+pub fn to_reference(
+    frame: &ReferenceFrame,
+    image: &RgbImage,
+    landmarks: &[Point],
+) -> Result<Vec<f32>, WarpError> {
     let mut out = vec![0f32; frame.n_pixels() * 3];
     to_reference_into(frame, image, landmarks, &mut out)?;
     Ok(out)
 }
 
 /// [`to_reference`] into a caller's buffer of `n_pixels × 3` values.
-pub fn to_reference_into(frame: &ReferenceFrame, image: &RgbImage, landmarks: &[Point], out: &mut [f32]) -> Result<(), WarpError> {
+pub fn to_reference_into(
+    frame: &ReferenceFrame,
+    image: &RgbImage,
+    landmarks: &[Point],
+    out: &mut [f32],
+) -> Result<(), WarpError> {
     check_landmarks(frame, landmarks)?;
     if image.width() == 0 || image.height() == 0 {
-        return Err(WarpError::EmptyImage { width: image.width(), height: image.height() });
+        return Err(WarpError::EmptyImage {
+            width: image.width(),
+            height: image.height(),
+        });
     }
     if out.len() != frame.n_pixels() * 3 {
-        return Err(WarpError::TextureLength { expected: frame.n_pixels() * 3, found: out.len() });
+        return Err(WarpError::TextureLength {
+            expected: frame.n_pixels() * 3,
+            found: out.len(),
+        });
     }
     const CHUNK: usize = 2048;
-    out.par_chunks_mut(CHUNK * 3).zip(frame.pixels.par_chunks(CHUNK)).for_each(|(out, pixels)| {
-        for (o, p) in out.chunks_exact_mut(3).zip(pixels) {
-            let [a, b, c] = frame.triangles[p.triangle as usize].map(|v| landmarks[v as usize]);
-            let l = p.bary.map(|v| v as f64);
-            let x = l[0] * a[0] + l[1] * b[0] + l[2] * c[0];
-            let y = l[0] * a[1] + l[1] * b[1] + l[2] * c[1];
-            o.copy_from_slice(&sample_bilinear(image, x, y));
-        }
-    });
+    out.par_chunks_mut(CHUNK * 3)
+        .zip(frame.pixels.par_chunks(CHUNK))
+        .for_each(|(out, pixels)| {
+            for (o, p) in out.chunks_exact_mut(3).zip(pixels) {
+                let [a, b, c] = frame.triangles[p.triangle as usize].map(|v| landmarks[v as usize]);
+                let l = p.bary.map(|v| v as f64);
+                let x = l[0] * a[0] + l[1] * b[0] + l[2] * c[0];
+                let y = l[0] * a[1] + l[1] * b[1] + l[2] * c[1];
+                o.copy_from_slice(&sample_bilinear(image, x, y));
+            }
+        });
     Ok(())
 }
 
@@ -99,7 +134,10 @@ pub fn to_reference_into(frame: &ReferenceFrame, image: &RgbImage, landmarks: &[
 /// rings, so bilinear samples at the mesh edge read defined values.
 pub fn texture_to_image(frame: &ReferenceFrame, texture: &[f32]) -> Result<Vec<f32>, WarpError> {
     if texture.len() != frame.n_pixels() * 3 {
-        return Err(WarpError::TextureLength { expected: frame.n_pixels() * 3, found: texture.len() });
+        return Err(WarpError::TextureLength {
+            expected: frame.n_pixels() * 3,
+            found: texture.len(),
+        });
     }
     let mut img = vec![0f32; frame.width * frame.height * 3];
     for (p, t) in frame.pixels.iter().zip(texture.chunks_exact(3)) {
@@ -116,11 +154,18 @@ pub fn texture_to_image(frame: &ReferenceFrame, texture: &[f32]) -> Result<Vec<f
 /// The texture as an 8-bit image of the reference frame (outside the mask: black).
 pub fn texture_to_rgb(frame: &ReferenceFrame, texture: &[f32]) -> Result<RgbImage, WarpError> {
     if texture.len() != frame.n_pixels() * 3 {
-        return Err(WarpError::TextureLength { expected: frame.n_pixels() * 3, found: texture.len() });
+        return Err(WarpError::TextureLength {
+            expected: frame.n_pixels() * 3,
+            found: texture.len(),
+        });
     }
     let mut img = RgbImage::new(frame.width as u32, frame.height as u32);
     for (p, t) in frame.pixels.iter().zip(texture.chunks_exact(3)) {
-        img.put_pixel(p.x, p.y, image::Rgb([to_u8(t[0]), to_u8(t[1]), to_u8(t[2])]));
+        img.put_pixel(
+            p.x,
+            p.y,
+            image::Rgb([to_u8(t[0]), to_u8(t[1]), to_u8(t[2])]),
+        );
     }
     Ok(img)
 }
@@ -138,7 +183,12 @@ pub const RENDER_DILATION: f64 = 1.0;
 
 /// Draws a texture onto `canvas` with the mesh at `landmarks`. Pixels outside the mesh (and
 /// its one-pixel dilation) are left as they were, so the face can be drawn over a background.
-pub fn from_reference_into(frame: &ReferenceFrame, texture: &[f32], landmarks: &[Point], canvas: &mut RgbImage) -> Result<(), WarpError> {
+pub fn from_reference_into(
+    frame: &ReferenceFrame,
+    texture: &[f32],
+    landmarks: &[Point],
+    canvas: &mut RgbImage,
+) -> Result<(), WarpError> {
     check_landmarks(frame, landmarks)?;
     let source = texture_to_image(frame, texture)?;
     let (w, h) = (canvas.width() as usize, canvas.height() as usize);
@@ -174,7 +224,11 @@ pub fn from_reference_into(frame: &ReferenceFrame, texture: &[f32], landmarks: &
             let twice_area = crate::mesh::signed_area(a, b, c).abs();
             let floor = std::array::from_fn(|i| {
                 let (p, q) = (verts[(i + 1) % 3], verts[(i + 2) % 3]);
-                if hull[i] { -RENDER_DILATION * (p[0] - q[0]).hypot(p[1] - q[1]) / twice_area } else { -1e-9 }
+                if hull[i] {
+                    -RENDER_DILATION * (p[0] - q[0]).hypot(p[1] - q[1]) / twice_area
+                } else {
+                    -1e-9
+                }
             });
             let d = RENDER_DILATION;
             let (lo_y, hi_y) = (a[1].min(b[1]).min(c[1]) - d, a[1].max(b[1]).max(c[1]) + d);
@@ -182,7 +236,11 @@ pub fn from_reference_into(frame: &ReferenceFrame, texture: &[f32], landmarks: &
             if hi_x < 0.0 || hi_y < 0.0 || lo_x > (w - 1) as f64 || lo_y > (h - 1) as f64 {
                 return None;
             }
-            let (l00, l10, l01) = (to_bary.at([0.0, 0.0]), to_bary.at([1.0, 0.0]), to_bary.at([0.0, 1.0]));
+            let (l00, l10, l01) = (
+                to_bary.at([0.0, 0.0]),
+                to_bary.at([1.0, 0.0]),
+                to_bary.at([0.0, 1.0]),
+            );
             let lx = std::array::from_fn(|i| l10[i] - l00[i]);
             let ly = std::array::from_fn(|i| l01[i] - l00[i]);
             let src = t.map(|v| frame.landmarks[v as usize]);
@@ -203,37 +261,40 @@ pub fn from_reference_into(frame: &ReferenceFrame, texture: &[f32], landmarks: &
         .collect();
     const BAND: usize = 16;
     let (fw, fh) = (frame.width, frame.height);
-    canvas.par_chunks_mut(BAND * w * 3).enumerate().for_each(|(band, rows)| {
-        let (r0, r1) = (band * BAND, (band * BAND + BAND).min(h) - 1);
-        for t in tris.iter().filter(|t| t.y1 >= r0 && t.y0 <= r1) {
-            for y in t.y0.max(r0)..=t.y1.min(r1) {
-                // The row's span: every λ_i(x) = c_i + lx_i·x ≥ floor_i.
-                let (mut lo, mut hi) = (0f64, (w - 1) as f64);
-                for i in 0..3 {
-                    let c = t.l0[i] + t.ly[i] * y as f64 - t.floor[i];
-                    if t.lx[i] > 0.0 {
-                        lo = lo.max(-c / t.lx[i]);
-                    } else if t.lx[i] < 0.0 {
-                        hi = hi.min(-c / t.lx[i]);
-                    } else if c < 0.0 {
-                        hi = -1.0;
+    canvas
+        .par_chunks_mut(BAND * w * 3)
+        .enumerate()
+        .for_each(|(band, rows)| {
+            let (r0, r1) = (band * BAND, (band * BAND + BAND).min(h) - 1);
+            for t in tris.iter().filter(|t| t.y1 >= r0 && t.y0 <= r1) {
+                for y in t.y0.max(r0)..=t.y1.min(r1) {
+                    // The row's span: every λ_i(x) = c_i + lx_i·x ≥ floor_i.
+                    let (mut lo, mut hi) = (0f64, (w - 1) as f64);
+                    for i in 0..3 {
+                        let c = t.l0[i] + t.ly[i] * y as f64 - t.floor[i];
+                        if t.lx[i] > 0.0 {
+                            lo = lo.max(-c / t.lx[i]);
+                        } else if t.lx[i] < 0.0 {
+                            hi = hi.min(-c / t.lx[i]);
+                        } else if c < 0.0 {
+                            hi = -1.0;
+                        }
+                    }
+                    if hi < lo {
+                        continue;
+                    }
+                    let (x0, x1) = (lo.ceil() as usize, hi as usize);
+                    let row = &mut rows[(y - r0) * w * 3..(y - r0 + 1) * w * 3];
+                    let mut sx = t.s0[0] + t.sx[0] * x0 as f64 + t.sy[0] * y as f64;
+                    let mut sy = t.s0[1] + t.sx[1] * x0 as f64 + t.sy[1] * y as f64;
+                    for px in row[x0 * 3..(x1 + 1) * 3].chunks_exact_mut(3) {
+                        let v = sample(&source, fw, fh, sx, sy, |v: f32| v);
+                        px.copy_from_slice(&v.map(to_u8));
+                        sx += t.sx[0];
+                        sy += t.sx[1];
                     }
                 }
-                if hi < lo {
-                    continue;
-                }
-                let (x0, x1) = (lo.ceil() as usize, hi as usize);
-                let row = &mut rows[(y - r0) * w * 3..(y - r0 + 1) * w * 3];
-                let mut sx = t.s0[0] + t.sx[0] * x0 as f64 + t.sy[0] * y as f64;
-                let mut sy = t.s0[1] + t.sx[1] * x0 as f64 + t.sy[1] * y as f64;
-                for px in row[x0 * 3..(x1 + 1) * 3].chunks_exact_mut(3) {
-                    let v = sample(&source, fw, fh, sx, sy, |v: f32| v);
-                    px.copy_from_slice(&v.map(to_u8));
-                    sx += t.sx[0];
-                    sy += t.sx[1];
-                }
             }
-        }
-    });
+        });
     Ok(())
 }

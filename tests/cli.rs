@@ -5,11 +5,18 @@ use std::path::Path;
 use std::process::{Command, Output};
 
 fn facespace(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_facespace")).args(args).output().expect("binary runs")
+    Command::new(env!("CARGO_BIN_EXE_facespace"))
+        .args(args)
+        .output()
+        .expect("binary runs")
 }
 
 fn text(o: &Output) -> String {
-    format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
 }
 
 #[test]
@@ -17,18 +24,40 @@ fn build_info_reconstruct() {
     let tmp = tempfile::tempdir().unwrap();
     let model = tmp.path().join("m");
     let faces = common::faces_dir();
-    let o = facespace(&["model", "build", "--images", faces.to_str().unwrap(), "--pixels", "8000", "-o", model.to_str().unwrap()]);
+    let o = facespace(&[
+        "model",
+        "build",
+        "--images",
+        faces.to_str().unwrap(),
+        "--pixels",
+        "8000",
+        "-o",
+        model.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", text(&o));
     assert!(text(&o).contains("68") && model.join("model.json").is_file());
 
     let o = facespace(&["model", "info", model.to_str().unwrap()]);
     assert!(o.status.success(), "{}", text(&o));
     let t = text(&o);
-    assert!(t.contains("appearance") && t.contains("appearance_components.npy") && t.contains("training images  4"), "{t}");
+    assert!(
+        t.contains("appearance")
+            && t.contains("appearance_components.npy")
+            && t.contains("training images  4"),
+        "{t}"
+    );
 
     let out = tmp.path().join("r.png");
     let image = faces.join("takeo.png");
-    let o = facespace(&["model", "reconstruct", model.to_str().unwrap(), "--image", image.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    let o = facespace(&[
+        "model",
+        "reconstruct",
+        model.to_str().unwrap(),
+        "--image",
+        image.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", text(&o));
     let pair = image::open(&out).unwrap();
     assert_eq!(pair.width() % 2, 0, "two panels side by side");
@@ -39,17 +68,41 @@ fn build_info_reconstruct() {
 fn errors_are_reported_not_panicked() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("m");
-    let o = facespace(&["model", "build", "--images", "/no/such/dir", "-o", out.to_str().unwrap()]);
+    let o = facespace(&[
+        "model",
+        "build",
+        "--images",
+        "/no/such/dir",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert_eq!(o.status.code(), Some(1));
     let t = text(&o);
-    assert!(t.starts_with("error: loading training images from /no/such/dir") && !t.contains("panicked"), "{t}");
+    assert!(
+        t.starts_with("error: loading training images from /no/such/dir")
+            && !t.contains("panicked"),
+        "{t}"
+    );
     assert!(!out.exists(), "no model folder after a failed build");
 
     let o = facespace(&["model", "info", "/no/such/model"]);
     assert_eq!(o.status.code(), Some(1));
-    assert!(text(&o).contains("/no/such/model/model.json"), "{}", text(&o));
+    assert!(
+        text(&o).contains("/no/such/model/model.json"),
+        "{}",
+        text(&o)
+    );
 
-    let o = facespace(&["model", "build", "--images", common::faces_dir().to_str().unwrap(), "--shape-var", "1.5", "-o", out.to_str().unwrap()]);
+    let o = facespace(&[
+        "model",
+        "build",
+        "--images",
+        common::faces_dir().to_str().unwrap(),
+        "--shape-var",
+        "1.5",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert_eq!(o.status.code(), Some(1));
     assert!(text(&o).contains("variance fraction 1.5"), "{}", text(&o));
 }
@@ -59,7 +112,11 @@ fn demo_writes_its_outputs() {
     let tmp = tempfile::tempdir().unwrap();
     let o = facespace(&["demo", "-o", tmp.path().to_str().unwrap()]);
     assert!(o.status.success(), "{}", text(&o));
-    for f in ["model/model.json", "reconstruct-takeo.png", "appearance-mode1.png"] {
+    for f in [
+        "model/model.json",
+        "reconstruct-takeo.png",
+        "appearance-mode1.png",
+    ] {
         assert!(Path::new(&tmp.path().join(f)).is_file(), "missing {f}");
     }
 }

@@ -18,8 +18,16 @@ fn copy_dir(from: &Path, to: &Path) {
 }
 
 fn random_params(model: &FaceModel, rng: &mut Rng, pose: Similarity) -> FaceParams {
-    let draw = |vars: &[f32], rng: &mut Rng| vars.iter().map(|v| (rng.range(-2.0, 2.0) * (*v as f64).sqrt()) as f32).collect();
-    FaceParams { pose, shape: draw(&model.shape.pca.variances, rng), appearance: draw(&model.appearance.pca.variances, rng) }
+    let draw = |vars: &[f32], rng: &mut Rng| {
+        vars.iter()
+            .map(|v| (rng.range(-2.0, 2.0) * (*v as f64).sqrt()) as f32)
+            .collect()
+    };
+    FaceParams {
+        pose,
+        shape: draw(&model.shape.pca.variances, rng),
+        appearance: draw(&model.appearance.pca.variances, rng),
+    }
 }
 
 #[test]
@@ -27,11 +35,20 @@ fn build_reports_sensible_counts() {
     let model = common::small_model();
     assert_eq!(model.shape.n_landmarks(), 68);
     // Four faces: at most 3 modes of variation in each model.
-    assert!((1..=3).contains(&model.shape.n_params()), "{}", model.shape.n_params());
+    assert!(
+        (1..=3).contains(&model.shape.n_params()),
+        "{}",
+        model.shape.n_params()
+    );
     assert_eq!(model.appearance.n_params(), 3);
     let p = model.frame.n_pixels() as f64;
-    assert!((p - 6000.0).abs() < 0.03 * 6000.0, "reference frame has {p} pixels for a 6000 target");
-    assert!(model.shape.pca.variance_ratio() >= 0.95 && model.appearance.pca.variance_ratio() >= 0.98);
+    assert!(
+        (p - 6000.0).abs() < 0.03 * 6000.0,
+        "reference frame has {p} pixels for a 6000 target"
+    );
+    assert!(
+        model.shape.pca.variance_ratio() >= 0.95 && model.appearance.pca.variance_ratio() >= 0.98
+    );
 }
 
 #[test]
@@ -56,10 +73,21 @@ fn save_then_load_gives_identical_arrays() {
 fn project_of_reconstruct_recovers_random_parameters() {
     let model = common::small_model();
     let mut rng = Rng::new(42);
-    let sd_a: Vec<f32> = model.appearance.pca.variances.iter().map(|v| v.sqrt()).collect();
+    let sd_a: Vec<f32> = model
+        .appearance
+        .pca
+        .variances
+        .iter()
+        .map(|v| v.sqrt())
+        .collect();
     let sd_s: Vec<f32> = model.shape.pca.variances.iter().map(|v| v.sqrt()).collect();
     for _ in 0..40 {
-        let pose = Similarity::new(2.0 * model.placement.scale, rng.range(-0.2, 0.2), 320.0, 260.0);
+        let pose = Similarity::new(
+            2.0 * model.placement.scale,
+            rng.range(-0.2, 0.2),
+            320.0,
+            260.0,
+        );
         let b = random_params(&model, &mut rng, pose);
         let r = model.reconstruct(&b).unwrap();
         let (pose2, bs) = model.shape.project(&r.landmarks).unwrap();
@@ -68,8 +96,14 @@ fn project_of_reconstruct_recovers_random_parameters() {
         }
         // The model is stored in f32: the pose comes back to ~1e-6 of its scale.
         let [a, b2, tx, ty] = pose2.to_array();
-        assert!((a - pose.a).abs().max((b2 - pose.b).abs()) < 1e-5 * pose.scale(), "{pose:?} vs {pose2:?}");
-        assert!((tx - pose.tx).abs().max((ty - pose.ty).abs()) < 1e-3, "{pose:?} vs {pose2:?}");
+        assert!(
+            (a - pose.a).abs().max((b2 - pose.b).abs()) < 1e-5 * pose.scale(),
+            "{pose:?} vs {pose2:?}"
+        );
+        assert!(
+            (tx - pose.tx).abs().max((ty - pose.ty).abs()) < 1e-3,
+            "{pose:?} vs {pose2:?}"
+        );
         let ba = model.appearance.project(&r.texture);
         for ((x, y), s) in b.appearance.iter().zip(&ba).zip(&sd_a) {
             assert!((x - y).abs() < 1e-3 * s, "appearance {x} vs {y}");
@@ -83,13 +117,18 @@ fn project_of_reconstruct_recovers_random_parameters() {
 /// them; this model is where the renderer and the projection, not the data, are on trial.)
 #[test]
 fn project_of_rendered_frame_recovers_parameters() {
-    let face = common::faces().into_iter().find(|e| e.name.ends_with("takeo.png")).unwrap();
+    let face = common::faces()
+        .into_iter()
+        .find(|e| e.name.ends_with("takeo.png"))
+        .unwrap();
     let mut rng = Rng::new(5);
     let examples: Vec<_> = (0..12)
         .map(|i| {
             let mut e = face.clone();
             let gain = rng.range(0.6, 0.75);
-            e.image.pixels_mut().for_each(|p| p.0 = p.0.map(|v| (30.0 + v as f64 * gain) as u8));
+            e.image
+                .pixels_mut()
+                .for_each(|p| p.0 = p.0.map(|v| (30.0 + v as f64 * gain) as u8));
             let (dx, dy) = (rng.normal(), rng.normal());
             for (k, p) in e.landmarks.points.iter_mut().enumerate() {
                 let w = ((k as f64) * 0.3 + i as f64).sin();
@@ -100,17 +139,33 @@ fn project_of_rendered_frame_recovers_parameters() {
             e
         })
         .collect();
-    let options = facespace::model::BuildOptions { pixels: 6_000, ..Default::default() };
+    let options = facespace::model::BuildOptions {
+        pixels: 6_000,
+        ..Default::default()
+    };
     let model = FaceModel::build(&examples, &options, &mut facespace::no_progress).unwrap();
-    let sd_a: Vec<f32> = model.appearance.pca.variances.iter().map(|v| v.sqrt()).collect();
+    let sd_a: Vec<f32> = model
+        .appearance
+        .pca
+        .variances
+        .iter()
+        .map(|v| v.sqrt())
+        .collect();
     // Components are orthonormal, so |Δb| / sqrt(dim) is the RMS texture difference in grey levels.
     let dim = model.appearance.pca.dim() as f32;
     let (mut worst_rms, mut worst_first, mut compared, mut rejected) = (0f32, 0f32, 0, 0);
     for _ in 0..30 {
-        let pose = Similarity::new(2.0 * model.placement.scale, rng.range(-0.2, 0.2), 320.0, 260.0);
+        let pose = Similarity::new(
+            2.0 * model.placement.scale,
+            rng.range(-0.2, 0.2),
+            320.0,
+            260.0,
+        );
         let b = random_params(&model, &mut rng, pose);
         let r = model.reconstruct(&b).unwrap();
-        if folded_triangles(&model, &r.landmarks.points) > 0 || r.texture.iter().any(|v| !(0.0..=255.0).contains(v)) {
+        if folded_triangles(&model, &r.landmarks.points) > 0
+            || r.texture.iter().any(|v| !(0.0..=255.0).contains(v))
+        {
             rejected += 1;
             continue;
         }
@@ -118,7 +173,12 @@ fn project_of_rendered_frame_recovers_parameters() {
         let mut canvas = RgbImage::new(640, 520);
         model.render_into(&b, &mut canvas).unwrap();
         let back = model.project(&canvas, &r.landmarks).unwrap();
-        let sq: f32 = b.appearance.iter().zip(&back.appearance).map(|(x, y)| (x - y).powi(2)).sum();
+        let sq: f32 = b
+            .appearance
+            .iter()
+            .zip(&back.appearance)
+            .map(|(x, y)| (x - y).powi(2))
+            .sum();
         worst_rms = worst_rms.max((sq / dim).sqrt());
         worst_first = worst_first.max((b.appearance[0] - back.appearance[0]).abs() / sd_a[0]);
     }
@@ -126,10 +186,19 @@ fn project_of_rendered_frame_recovers_parameters() {
         "rendered round trip: {compared} draws compared, {rejected} rejected; worst texture RMS {worst_rms:.3} grey levels, \
          worst first-mode error {worst_first:.4} σ"
     );
-    assert!(compared >= 20, "only {compared} of 30 draws were representable");
+    assert!(
+        compared >= 20,
+        "only {compared} of 30 draws were representable"
+    );
     // Two bilinear resamplings and 8-bit rounding (alone ±0.5 → 0.29 RMS) cost under 1 grey level.
-    assert!(worst_rms < 1.0, "texture off by {worst_rms} grey levels RMS through pixels");
-    assert!(worst_first < 0.1, "first appearance mode off by {worst_first} σ through pixels");
+    assert!(
+        worst_rms < 1.0,
+        "texture off by {worst_rms} grey levels RMS through pixels"
+    );
+    assert!(
+        worst_first < 0.1,
+        "first appearance mode off by {worst_first} σ through pixels"
+    );
 }
 
 #[test]
@@ -139,9 +208,19 @@ fn training_images_project_close_to_themselves() {
         let p = model.project(&e.image, &e.landmarks).unwrap();
         let r = model.reconstruct(&p).unwrap();
         // With every mode kept, reconstruction reproduces the training landmarks.
-        let err = r.landmarks.points.iter().zip(&e.landmarks.points).map(|(a, b)| (a[0] - b[0]).hypot(a[1] - b[1])).fold(0.0, f64::max);
+        let err = r
+            .landmarks
+            .points
+            .iter()
+            .zip(&e.landmarks.points)
+            .map(|(a, b)| (a[0] - b[0]).hypot(a[1] - b[1]))
+            .fold(0.0, f64::max);
         let size = e.landmarks.bounds().1[0] - e.landmarks.bounds().0[0];
-        assert!(err < 0.1 * size, "{}: landmark error {err:.2} px on a face {size:.0} px wide", e.name);
+        assert!(
+            err < 0.1 * size,
+            "{}: landmark error {err:.2} px on a face {size:.0} px wide",
+            e.name
+        );
     }
 }
 
@@ -155,14 +234,24 @@ fn params_vector_round_trip_and_length_check() {
     let back = model.params_from_vector(&v).unwrap();
     assert_eq!(back.shape, b.shape);
     assert_eq!(back.appearance, b.appearance);
-    assert!(matches!(model.params_from_vector(&v[1..]), Err(ModelError::ParamCount { .. })));
+    assert!(matches!(
+        model.params_from_vector(&v[1..]),
+        Err(ModelError::ParamCount { .. })
+    ));
 }
 
 /// Triangles whose orientation at `points` is opposite to the reference frame's: the mesh
 /// folds over itself there.
 fn folded_triangles(model: &FaceModel, points: &[[f64; 2]]) -> usize {
-    let area = |p: &[[f64; 2]], t: &[u32; 3]| facespace::mesh::signed_area(p[t[0] as usize], p[t[1] as usize], p[t[2] as usize]);
-    model.frame.triangles.iter().filter(|t| area(points, t) * area(&model.frame.landmarks, t) <= 0.0).count()
+    let area = |p: &[[f64; 2]], t: &[u32; 3]| {
+        facespace::mesh::signed_area(p[t[0] as usize], p[t[1] as usize], p[t[2] as usize])
+    };
+    model
+        .frame
+        .triangles
+        .iter()
+        .filter(|t| area(points, t) * area(&model.frame.landmarks, t) <= 0.0)
+        .count()
 }
 
 // ---- bad input ----
@@ -181,7 +270,11 @@ fn truncated_npy_is_named() {
     let bytes = std::fs::read(&f).unwrap();
     std::fs::write(&f, &bytes[..bytes.len() / 2]).unwrap();
     let err = FaceModel::load(&path).unwrap_err();
-    assert!(err.to_string().contains("appearance_components.npy") && err.to_string().contains("truncated"), "{err}");
+    assert!(
+        err.to_string().contains("appearance_components.npy")
+            && err.to_string().contains("truncated"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -189,7 +282,10 @@ fn wrong_shape_npy_is_named() {
     let (_d, path) = saved_model();
     npy::write(&path.join("shape_mean.npy"), &[67, 2], &vec![0f32; 134]).unwrap();
     let err = FaceModel::load(&path).unwrap_err();
-    assert!(matches!(&err, ModelError::ArrayShape { expected, found, .. } if expected == &vec![68, 2] && found == &vec![67, 2]), "{err}");
+    assert!(
+        matches!(&err, ModelError::ArrayShape { expected, found, .. } if expected == &vec![68, 2] && found == &vec![67, 2]),
+        "{err}"
+    );
     assert!(err.to_string().contains("shape_mean.npy"));
 }
 
@@ -201,7 +297,10 @@ fn nan_in_arrays_is_named() {
     a.data[1] = f32::NAN;
     npy::write(&f, &a.shape, &a.data).unwrap();
     let err = FaceModel::load(&path).unwrap_err();
-    assert!(matches!(err, ModelError::NotFinite { index: 1, .. }), "{err}");
+    assert!(
+        matches!(err, ModelError::NotFinite { index: 1, .. }),
+        "{err}"
+    );
 }
 
 #[test]
@@ -211,13 +310,32 @@ fn unknown_version_and_broken_manifest() {
     let text = std::fs::read_to_string(&m).unwrap();
     std::fs::write(&m, text.replace("\"version\": 1", "\"version\": 99")).unwrap();
     let err = FaceModel::load(&path).unwrap_err();
-    assert!(matches!(err, ModelError::Version { found: 99, supported: 1, .. }), "{err}");
+    assert!(
+        matches!(
+            err,
+            ModelError::Version {
+                found: 99,
+                supported: 1,
+                ..
+            }
+        ),
+        "{err}"
+    );
     std::fs::write(&m, &text[..text.len() / 2]).unwrap();
-    assert!(matches!(FaceModel::load(&path), Err(ModelError::Manifest { .. })));
+    assert!(matches!(
+        FaceModel::load(&path),
+        Err(ModelError::Manifest { .. })
+    ));
     std::fs::write(&m, text.replace("\"width\"", "\"wide\"")).unwrap();
-    assert!(matches!(FaceModel::load(&path), Err(ModelError::Manifest { .. })));
+    assert!(matches!(
+        FaceModel::load(&path),
+        Err(ModelError::Manifest { .. })
+    ));
     let err = FaceModel::load(Path::new("/no/such/model")).unwrap_err();
-    assert!(err.to_string().contains("/no/such/model/model.json"), "{err}");
+    assert!(
+        err.to_string().contains("/no/such/model/model.json"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -228,7 +346,10 @@ fn mask_that_disagrees_with_the_mesh_is_caught() {
     let i = a.data.iter().position(|&v| v == 255).unwrap();
     a.data[i] = 0;
     npy::write(&f, &a.shape, &a.data).unwrap();
-    assert!(matches!(FaceModel::load(&path), Err(ModelError::Inconsistent { .. })));
+    assert!(matches!(
+        FaceModel::load(&path),
+        Err(ModelError::Inconsistent { .. })
+    ));
 }
 
 #[test]
@@ -237,13 +358,30 @@ fn missing_and_orphan_landmarks() {
     copy_dir(&common::faces_dir(), dir.path());
     std::fs::remove_file(dir.path().join("takeo.pts")).unwrap();
     let err = load_training_set(dir.path(), None).unwrap_err();
-    assert!(matches!(err, ModelError::MissingLandmarks { .. }) && err.to_string().contains("takeo.png"), "{err}");
-    std::fs::copy(common::faces_dir().join("takeo.pts"), dir.path().join("takeo.pts")).unwrap();
-    std::fs::copy(common::faces_dir().join("takeo.pts"), dir.path().join("frame9.pts")).unwrap();
+    assert!(
+        matches!(err, ModelError::MissingLandmarks { .. }) && err.to_string().contains("takeo.png"),
+        "{err}"
+    );
+    std::fs::copy(
+        common::faces_dir().join("takeo.pts"),
+        dir.path().join("takeo.pts"),
+    )
+    .unwrap();
+    std::fs::copy(
+        common::faces_dir().join("takeo.pts"),
+        dir.path().join("frame9.pts"),
+    )
+    .unwrap();
     let err = load_training_set(dir.path(), None).unwrap_err();
-    assert!(matches!(err, ModelError::OrphanLandmarks { .. }) && err.to_string().contains("frame9.pts"), "{err}");
+    assert!(
+        matches!(err, ModelError::OrphanLandmarks { .. }) && err.to_string().contains("frame9.pts"),
+        "{err}"
+    );
     let empty = tempfile::tempdir().unwrap();
-    assert!(matches!(load_training_set(empty.path(), None), Err(ModelError::NoImages { .. })));
+    assert!(matches!(
+        load_training_set(empty.path(), None),
+        Err(ModelError::NoImages { .. })
+    ));
 }
 
 #[test]
@@ -256,8 +394,21 @@ fn mismatched_landmark_counts_name_both_files() {
     facespace::shape::write_pts(&pts, &l).unwrap();
     let err = load_training_set(dir.path(), None).unwrap_err();
     let msg = err.to_string();
-    assert!(matches!(err, ModelError::LandmarkCount { expected: 68, found: 66, .. }), "{msg}");
-    assert!(msg.contains("takeo.pts") && msg.contains("breakingbad.pts"), "{msg}");
+    assert!(
+        matches!(
+            err,
+            ModelError::LandmarkCount {
+                expected: 68,
+                found: 66,
+                ..
+            }
+        ),
+        "{msg}"
+    );
+    assert!(
+        msg.contains("takeo.pts") && msg.contains("breakingbad.pts"),
+        "{msg}"
+    );
 }
 
 #[test]
@@ -265,10 +416,20 @@ fn landmarks_of_another_frame_are_caught() {
     let dir = tempfile::tempdir().unwrap();
     copy_dir(&common::faces_dir(), dir.path());
     // takeo.png is 150×225; breakingbad's landmarks lie far outside it.
-    std::fs::copy(dir.path().join("breakingbad.pts"), dir.path().join("takeo.pts")).unwrap();
+    std::fs::copy(
+        dir.path().join("breakingbad.pts"),
+        dir.path().join("takeo.pts"),
+    )
+    .unwrap();
     let err = load_training_set(dir.path(), None).unwrap_err();
-    assert!(matches!(err, ModelError::LandmarksOutsideImage { .. }), "{err}");
-    assert!(err.to_string().contains("takeo.png") && err.to_string().contains("different frames"), "{err}");
+    assert!(
+        matches!(err, ModelError::LandmarksOutsideImage { .. }),
+        "{err}"
+    );
+    assert!(
+        err.to_string().contains("takeo.png") && err.to_string().contains("different frames"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -277,9 +438,20 @@ fn unreadable_image_and_malformed_pts_are_named() {
     copy_dir(&common::faces_dir(), dir.path());
     std::fs::write(dir.path().join("lenna.png"), b"not a png").unwrap();
     let err = load_training_set(dir.path(), None).unwrap_err();
-    assert!(matches!(err, ModelError::Image { .. }) && err.to_string().contains("lenna.png"), "{err}");
-    std::fs::copy(common::faces_dir().join("lenna.png"), dir.path().join("lenna.png")).unwrap();
-    std::fs::write(dir.path().join("einstein.pts"), "version: 1\nn_points: 68\n{\n1 2\n").unwrap();
+    assert!(
+        matches!(err, ModelError::Image { .. }) && err.to_string().contains("lenna.png"),
+        "{err}"
+    );
+    std::fs::copy(
+        common::faces_dir().join("lenna.png"),
+        dir.path().join("lenna.png"),
+    )
+    .unwrap();
+    std::fs::write(
+        dir.path().join("einstein.pts"),
+        "version: 1\nn_points: 68\n{\n1 2\n",
+    )
+    .unwrap();
     let err = load_training_set(dir.path(), None).unwrap_err();
     assert!(err.to_string().contains("einstein.pts:4"), "{err}");
 }

@@ -21,8 +21,12 @@ fn low_rank_data(n: usize, d: usize, rank: usize, seed: u64) -> (Vec<Vec<f32>>, 
     let mean: Vec<f64> = (0..d).map(|_| rng.range(0.0, 100.0)).collect();
     let data = (0..n)
         .map(|_| {
-            let w: Vec<f64> = (0..rank).map(|k| rng.normal() * 10.0 / (k + 1) as f64).collect();
-            (0..d).map(|j| (mean[j] + (0..rank).map(|k| w[k] * dirs[k][j]).sum::<f64>()) as f32).collect()
+            let w: Vec<f64> = (0..rank)
+                .map(|k| rng.normal() * 10.0 / (k + 1) as f64)
+                .collect();
+            (0..d)
+                .map(|j| (mean[j] + (0..rank).map(|k| w[k] * dirs[k][j]).sum::<f64>()) as f32)
+                .collect()
         })
         .collect();
     (data, dirs)
@@ -31,26 +35,57 @@ fn low_rank_data(n: usize, d: usize, rank: usize, seed: u64) -> (Vec<Vec<f32>>, 
 fn check_recovers_rank(n: usize, d: usize, rank: usize) {
     let (data, dirs) = low_rank_data(n, d, rank, 3 + d as u64);
     let rows: Vec<&[f32]> = data.iter().map(|r| r.as_slice()).collect();
-    let model = PcaModel::fit(&rows, Components::Variance { fraction: 1.0, max: None }).unwrap();
+    let model = PcaModel::fit(
+        &rows,
+        Components::Variance {
+            fraction: 1.0,
+            max: None,
+        },
+    )
+    .unwrap();
     assert_eq!(model.n_components(), rank, "n={n} d={d}");
     assert!((model.variance_ratio() - 1.0).abs() < 1e-5);
-    assert!(model.variances.windows(2).all(|w| w[0] >= w[1]), "variances sorted descending");
+    assert!(
+        model.variances.windows(2).all(|w| w[0] >= w[1]),
+        "variances sorted descending"
+    );
     // Components are orthonormal and span the true subspace.
     for a in 0..rank {
         for b in 0..rank {
-            let dot: f64 = model.component(a).iter().zip(model.component(b)).map(|(x, y)| *x as f64 * *y as f64).sum();
-            assert!((dot - if a == b { 1.0 } else { 0.0 }).abs() < 1e-5, "components {a},{b}: {dot}");
+            let dot: f64 = model
+                .component(a)
+                .iter()
+                .zip(model.component(b))
+                .map(|(x, y)| *x as f64 * *y as f64)
+                .sum();
+            assert!(
+                (dot - if a == b { 1.0 } else { 0.0 }).abs() < 1e-5,
+                "components {a},{b}: {dot}"
+            );
         }
         let in_span: f64 = dirs
             .iter()
-            .map(|u| u.iter().zip(model.component(a)).map(|(x, y)| x * *y as f64).sum::<f64>().powi(2))
+            .map(|u| {
+                u.iter()
+                    .zip(model.component(a))
+                    .map(|(x, y)| x * *y as f64)
+                    .sum::<f64>()
+                    .powi(2)
+            })
             .sum();
-        assert!((in_span - 1.0).abs() < 1e-4, "component {a} leaves the subspace: {in_span}");
+        assert!(
+            (in_span - 1.0).abs() < 1e-4,
+            "component {a} leaves the subspace: {in_span}"
+        );
     }
     // Every sample is reconstructed from its projection.
     for r in &data {
         let back = model.reconstruct(&model.project(r));
-        let err = back.iter().zip(r).map(|(a, b)| (a - b).abs()).fold(0f32, f32::max);
+        let err = back
+            .iter()
+            .zip(r)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0f32, f32::max);
         assert!(err < 1e-3, "reconstruction error {err}");
     }
 }
@@ -70,16 +105,46 @@ fn truncation_by_fraction_count_and_cap() {
     let (data, _) = low_rank_data(40, 30, 6, 5);
     let rows: Vec<&[f32]> = data.iter().map(|r| r.as_slice()).collect();
     let all = PcaModel::fit(&rows, Components::Count(30)).unwrap();
-    assert_eq!(all.n_components(), 6, "a count beyond the rank is capped at the rank");
+    assert_eq!(
+        all.n_components(),
+        6,
+        "a count beyond the rank is capped at the rank"
+    );
     let total: f64 = all.variances.iter().map(|&v| v as f64).sum();
     let frac = (all.variances[0] as f64 + all.variances[1] as f64) / total;
-    let two = PcaModel::fit(&rows, Components::Variance { fraction: frac - 1e-6, max: None }).unwrap();
+    let two = PcaModel::fit(
+        &rows,
+        Components::Variance {
+            fraction: frac - 1e-6,
+            max: None,
+        },
+    )
+    .unwrap();
     assert_eq!(two.n_components(), 2);
-    let three = PcaModel::fit(&rows, Components::Variance { fraction: frac + 1e-4, max: None }).unwrap();
+    let three = PcaModel::fit(
+        &rows,
+        Components::Variance {
+            fraction: frac + 1e-4,
+            max: None,
+        },
+    )
+    .unwrap();
     assert_eq!(three.n_components(), 3);
-    let capped = PcaModel::fit(&rows, Components::Variance { fraction: 1.0, max: Some(4) }).unwrap();
+    let capped = PcaModel::fit(
+        &rows,
+        Components::Variance {
+            fraction: 1.0,
+            max: Some(4),
+        },
+    )
+    .unwrap();
     assert_eq!(capped.n_components(), 4);
-    assert_eq!(PcaModel::fit(&rows, Components::Count(2)).unwrap().n_components(), 2);
+    assert_eq!(
+        PcaModel::fit(&rows, Components::Count(2))
+            .unwrap()
+            .n_components(),
+        2
+    );
 }
 
 #[test]
@@ -87,11 +152,35 @@ fn bad_input_is_a_typed_error() {
     let a = [1.0f32, 2.0, 3.0];
     let b = [1.0f32, 2.0];
     let nan = [1.0f32, f32::NAN, 3.0];
-    assert!(matches!(PcaModel::fit(&[&a], Components::Count(1)), Err(PcaError::TooFewSamples(1))));
-    assert!(matches!(PcaModel::fit(&[&a, &b], Components::Count(1)), Err(PcaError::Ragged { index: 1, .. })));
-    assert!(matches!(PcaModel::fit(&[&a, &nan], Components::Count(1)), Err(PcaError::NotFinite { index: 1, position: 1 })));
-    assert!(matches!(PcaModel::fit(&[&a, &a], Components::Count(1)), Err(PcaError::NoVariance)));
-    let bad = Components::Variance { fraction: 1.5, max: None };
-    assert!(matches!(PcaModel::fit(&[&a, &nan], bad), Err(PcaError::BadComponents(_))));
-    assert!(matches!(PcaModel::fit(&[&a, &b], Components::Count(0)), Err(PcaError::BadComponents(_))));
+    assert!(matches!(
+        PcaModel::fit(&[&a], Components::Count(1)),
+        Err(PcaError::TooFewSamples(1))
+    ));
+    assert!(matches!(
+        PcaModel::fit(&[&a, &b], Components::Count(1)),
+        Err(PcaError::Ragged { index: 1, .. })
+    ));
+    assert!(matches!(
+        PcaModel::fit(&[&a, &nan], Components::Count(1)),
+        Err(PcaError::NotFinite {
+            index: 1,
+            position: 1
+        })
+    ));
+    assert!(matches!(
+        PcaModel::fit(&[&a, &a], Components::Count(1)),
+        Err(PcaError::NoVariance)
+    ));
+    let bad = Components::Variance {
+        fraction: 1.5,
+        max: None,
+    };
+    assert!(matches!(
+        PcaModel::fit(&[&a, &nan], bad),
+        Err(PcaError::BadComponents(_))
+    ));
+    assert!(matches!(
+        PcaModel::fit(&[&a, &b], Components::Count(0)),
+        Err(PcaError::BadComponents(_))
+    ));
 }

@@ -6,7 +6,8 @@ use std::path::Path;
 use common::Rng;
 use facespace::pca::Components;
 use facespace::shape::{
-    Landmarks, ShapeError, ShapeModel, Similarity, align, format_pts, generalised_procrustes, parse_pts, read_pts,
+    Landmarks, ShapeError, ShapeModel, Similarity, align, format_pts, generalised_procrustes,
+    parse_pts, read_pts,
 };
 use proptest::prelude::*;
 
@@ -35,19 +36,45 @@ fn pts_is_one_based_on_disk() {
 fn malformed_pts_errors_name_file_and_line() {
     let cases = [
         ("version: 1\nn_points: 2\n{\n1 2\n3\n}\n", 5, "missing y"),
-        ("version: 1\nn_points: 3\n{\n1 2\n3 4\n}\n", 6, "n_points says 3"),
-        ("version: 1\nn_points: 2\n{\n1 2\n3 4\n", 5, "missing closing"),
-        ("version: 2\nn_points: 2\n{\n1 2\n3 4\n}\n", 1, "unsupported version"),
-        ("version: 1\nn_points: 2\n{\n1 2\nNaN 4\n}\n", 5, "x coordinate is NaN"),
-        ("version: 1\nn_points: 1\n{\n1 abc\n}\n", 4, "bad y coordinate"),
+        (
+            "version: 1\nn_points: 3\n{\n1 2\n3 4\n}\n",
+            6,
+            "n_points says 3",
+        ),
+        (
+            "version: 1\nn_points: 2\n{\n1 2\n3 4\n",
+            5,
+            "missing closing",
+        ),
+        (
+            "version: 2\nn_points: 2\n{\n1 2\n3 4\n}\n",
+            1,
+            "unsupported version",
+        ),
+        (
+            "version: 1\nn_points: 2\n{\n1 2\nNaN 4\n}\n",
+            5,
+            "x coordinate is NaN",
+        ),
+        (
+            "version: 1\nn_points: 1\n{\n1 abc\n}\n",
+            4,
+            "bad y coordinate",
+        ),
         ("hello\n", 1, "expected a header line"),
         ("", 1, "no n_points"),
     ];
     for (text, line, needle) in cases {
         let err = parse_pts(text, Path::new("bad.pts")).unwrap_err();
         let msg = err.to_string();
-        assert!(matches!(err, ShapeError::Parse { line: l, .. } if l == line), "{text:?}: {msg}");
-        assert!(msg.starts_with(&format!("bad.pts:{line}:")) && msg.contains(needle), "{text:?}: {msg}");
+        assert!(
+            matches!(err, ShapeError::Parse { line: l, .. } if l == line),
+            "{text:?}: {msg}"
+        );
+        assert!(
+            msg.starts_with(&format!("bad.pts:{line}:")) && msg.contains(needle),
+            "{text:?}: {msg}"
+        );
     }
     let missing = read_pts(Path::new("/no/such/file.pts")).unwrap_err();
     assert!(missing.to_string().contains("/no/such/file.pts"));
@@ -62,7 +89,9 @@ fn similarity_invert_and_compose() {
     assert!((q[0] - p[0]).abs() < 1e-12 && (q[1] - p[1]).abs() < 1e-12);
     let composed = t.compose(&u).apply(p);
     let sequential = t.apply(u.apply(p));
-    assert!((composed[0] - sequential[0]).abs() < 1e-12 && (composed[1] - sequential[1]).abs() < 1e-12);
+    assert!(
+        (composed[0] - sequential[0]).abs() < 1e-12 && (composed[1] - sequential[1]).abs() < 1e-12
+    );
     assert!((t.scale() - 1.7).abs() < 1e-12 && (t.angle() - 0.4).abs() < 1e-12);
 }
 
@@ -84,15 +113,35 @@ fn procrustes_of_similar_copies_aligns_them_exactly() {
     let base = face_shape();
     let mut rng = Rng::new(7);
     let transforms: Vec<Similarity> = (0..6)
-        .map(|_| Similarity::new(rng.range(0.3, 3.0), rng.range(-3.0, 3.0), rng.range(-200.0, 200.0), rng.range(-200.0, 200.0)))
+        .map(|_| {
+            Similarity::new(
+                rng.range(0.3, 3.0),
+                rng.range(-3.0, 3.0),
+                rng.range(-200.0, 200.0),
+                rng.range(-200.0, 200.0),
+            )
+        })
         .collect();
-    let copies: Vec<Landmarks> = transforms.iter().map(|t| Landmarks { points: t.apply_all(&base.points) }).collect();
+    let copies: Vec<Landmarks> = transforms
+        .iter()
+        .map(|t| Landmarks {
+            points: t.apply_all(&base.points),
+        })
+        .collect();
     let gpa = generalised_procrustes(&copies).unwrap();
-    let norm: f64 = gpa.mean.iter().map(|p| p[0] * p[0] + p[1] * p[1]).sum::<f64>().sqrt();
+    let norm: f64 = gpa
+        .mean
+        .iter()
+        .map(|p| p[0] * p[0] + p[1] * p[1])
+        .sum::<f64>()
+        .sqrt();
     assert!((norm - 1.0).abs() < 1e-12, "mean has unit norm, got {norm}");
     for aligned in &gpa.aligned {
         for (p, q) in aligned.iter().zip(&gpa.mean) {
-            assert!((p[0] - q[0]).abs() < 1e-9 && (p[1] - q[1]).abs() < 1e-9, "{p:?} vs {q:?}");
+            assert!(
+                (p[0] - q[0]).abs() < 1e-9 && (p[1] - q[1]).abs() < 1e-9,
+                "{p:?} vs {q:?}"
+            );
         }
     }
     // pose_i⁻¹ ∘ pose_j maps copy j onto copy i: the same as t_i ∘ t_j⁻¹.
@@ -106,15 +155,38 @@ fn procrustes_of_similar_copies_aligns_them_exactly() {
 #[test]
 fn procrustes_rejects_bad_sets() {
     let s = face_shape();
-    assert!(matches!(generalised_procrustes(std::slice::from_ref(&s)), Err(ShapeError::TooFewShapes(1))));
-    let short = Landmarks { points: s.points[..60].to_vec() };
+    assert!(matches!(
+        generalised_procrustes(std::slice::from_ref(&s)),
+        Err(ShapeError::TooFewShapes(1))
+    ));
+    let short = Landmarks {
+        points: s.points[..60].to_vec(),
+    };
     let err = generalised_procrustes(&[s.clone(), short]).unwrap_err();
-    assert!(matches!(err, ShapeError::Count { expected: 68, found: 60, .. }), "{err}");
+    assert!(
+        matches!(
+            err,
+            ShapeError::Count {
+                expected: 68,
+                found: 60,
+                ..
+            }
+        ),
+        "{err}"
+    );
     let mut nan = s.clone();
     nan.points[5][1] = f64::NAN;
-    assert!(matches!(generalised_procrustes(&[s.clone(), nan]), Err(ShapeError::NotFinite { index: 5, .. })));
-    let point = Landmarks { points: vec![[3.0, 4.0]; 68] };
-    assert!(matches!(generalised_procrustes(&[s, point]), Err(ShapeError::Degenerate { .. })));
+    assert!(matches!(
+        generalised_procrustes(&[s.clone(), nan]),
+        Err(ShapeError::NotFinite { index: 5, .. })
+    ));
+    let point = Landmarks {
+        points: vec![[3.0, 4.0]; 68],
+    };
+    assert!(matches!(
+        generalised_procrustes(&[s, point]),
+        Err(ShapeError::Degenerate { .. })
+    ));
 }
 
 /// Shapes generated from a known 3-mode model under random poses: the model finds 3 modes,
@@ -123,32 +195,73 @@ fn procrustes_rejects_bad_sets() {
 fn shape_model_separates_pose_and_recovers_parameters() {
     let base = face_shape().points;
     let mut rng = Rng::new(11);
-    let modes: Vec<Vec<[f64; 2]>> = (0..3).map(|_| base.iter().map(|_| [rng.normal(), rng.normal()]).collect()).collect();
+    let modes: Vec<Vec<[f64; 2]>> = (0..3)
+        .map(|_| base.iter().map(|_| [rng.normal(), rng.normal()]).collect())
+        .collect();
     let shapes: Vec<Landmarks> = (0..25)
         .map(|_| {
             let w: Vec<f64> = (0..3).map(|k| rng.normal() * [4.0, 2.0, 1.0][k]).collect();
             let pts: Vec<[f64; 2]> = base
                 .iter()
                 .enumerate()
-                .map(|(i, p)| [p[0] + (0..3).map(|k| w[k] * modes[k][i][0]).sum::<f64>(), p[1] + (0..3).map(|k| w[k] * modes[k][i][1]).sum::<f64>()])
+                .map(|(i, p)| {
+                    [
+                        p[0] + (0..3).map(|k| w[k] * modes[k][i][0]).sum::<f64>(),
+                        p[1] + (0..3).map(|k| w[k] * modes[k][i][1]).sum::<f64>(),
+                    ]
+                })
                 .collect();
-            let pose = Similarity::new(rng.range(0.5, 2.0), rng.range(-0.5, 0.5), rng.range(-50.0, 50.0), rng.range(-50.0, 50.0));
-            Landmarks { points: pose.apply_all(&pts) }
+            let pose = Similarity::new(
+                rng.range(0.5, 2.0),
+                rng.range(-0.5, 0.5),
+                rng.range(-50.0, 50.0),
+                rng.range(-50.0, 50.0),
+            );
+            Landmarks {
+                points: pose.apply_all(&pts),
+            }
         })
         .collect();
-    let model = ShapeModel::build(&shapes, Components::Variance { fraction: 0.999, max: None }).unwrap();
+    let model = ShapeModel::build(
+        &shapes,
+        Components::Variance {
+            fraction: 0.999,
+            max: None,
+        },
+    )
+    .unwrap();
     // Pose removal leaves 3 linear modes (to first order; the model keeps ≤ 4 at 99.9%).
-    assert!((3..=4).contains(&model.n_params()), "found {} modes", model.n_params());
-    let sd: Vec<f64> = model.pca.variances.iter().map(|v| (*v as f64).sqrt()).collect();
+    assert!(
+        (3..=4).contains(&model.n_params()),
+        "found {} modes",
+        model.n_params()
+    );
+    let sd: Vec<f64> = model
+        .pca
+        .variances
+        .iter()
+        .map(|v| (*v as f64).sqrt())
+        .collect();
     for _ in 0..20 {
-        let b: Vec<f32> = sd.iter().map(|s| (rng.range(-2.0, 2.0) * s) as f32).collect();
-        let pose = Similarity::new(rng.range(50.0, 300.0), rng.range(-1.0, 1.0), rng.range(0.0, 500.0), rng.range(0.0, 500.0));
+        let b: Vec<f32> = sd
+            .iter()
+            .map(|s| (rng.range(-2.0, 2.0) * s) as f32)
+            .collect();
+        let pose = Similarity::new(
+            rng.range(50.0, 300.0),
+            rng.range(-1.0, 1.0),
+            rng.range(0.0, 500.0),
+            rng.range(0.0, 500.0),
+        );
         let (pose2, b2) = model.project(&model.instance(&pose, &b)).unwrap();
         for (x, y) in b.iter().zip(&b2) {
             assert!((x - y).abs() < 1e-5 * sd[0] as f32, "{b:?} vs {b2:?}");
         }
         for (x, y) in pose.to_array().iter().zip(pose2.to_array()) {
-            assert!((x - y).abs() < 1e-4 * x.abs().max(1.0), "{pose:?} vs {pose2:?}");
+            assert!(
+                (x - y).abs() < 1e-4 * x.abs().max(1.0),
+                "{pose:?} vs {pose2:?}"
+            );
         }
     }
 }

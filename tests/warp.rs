@@ -21,22 +21,37 @@ struct Reference {
 }
 
 fn reference() -> Reference {
-    let text = std::fs::read_to_string(common::root().join("tests/data/warp_skimage.json")).unwrap();
+    let text =
+        std::fs::read_to_string(common::root().join("tests/data/warp_skimage.json")).unwrap();
     serde_json::from_str(&text).unwrap()
 }
 
 fn lenna() -> RgbImage {
-    image::open(common::faces_dir().join("lenna.png")).unwrap().to_rgb8()
+    image::open(common::faces_dir().join("lenna.png"))
+        .unwrap()
+        .to_rgb8()
 }
 
 /// Warping with identical source and target landmarks returns the input pixels.
 #[test]
 fn identity_warp_returns_the_input() {
     let image = lenna();
-    let pts = read_pts(&common::faces_dir().join("lenna.pts")).unwrap().points;
+    let pts = read_pts(&common::faces_dir().join("lenna.pts"))
+        .unwrap()
+        .points;
     let triangles = mesh::delaunay(&pts).unwrap();
-    let frame = ReferenceFrame::from_landmarks(pts.clone(), triangles, image.width() as usize, image.height() as usize).unwrap();
-    assert!(frame.n_pixels() > 10_000, "mesh covers the face: {} pixels", frame.n_pixels());
+    let frame = ReferenceFrame::from_landmarks(
+        pts.clone(),
+        triangles,
+        image.width() as usize,
+        image.height() as usize,
+    )
+    .unwrap();
+    assert!(
+        frame.n_pixels() > 10_000,
+        "mesh covers the face: {} pixels",
+        frame.n_pixels()
+    );
     let texture = warp::to_reference(&frame, &image, &pts).unwrap();
     let mut worst = 0f32;
     for (p, t) in frame.pixels.iter().zip(texture.chunks_exact(3)) {
@@ -50,7 +65,13 @@ fn identity_warp_returns_the_input() {
     let mut canvas = RgbImage::new(image.width(), image.height());
     warp::from_reference_into(&frame, &texture, &pts, &mut canvas).unwrap();
     for p in &frame.pixels {
-        assert_eq!(canvas.get_pixel(p.x, p.y), image.get_pixel(p.x, p.y), "at {},{}", p.x, p.y);
+        assert_eq!(
+            canvas.get_pixel(p.x, p.y),
+            image.get_pixel(p.x, p.y),
+            "at {},{}",
+            p.x,
+            p.y
+        );
     }
 }
 
@@ -59,23 +80,45 @@ fn identity_warp_returns_the_input() {
 #[test]
 fn warp_agrees_with_scikit_image() {
     let r = reference();
-    let expected = image::open(common::root().join("tests/data/warp_skimage.png")).unwrap().to_rgb8();
-    let frame = ReferenceFrame::from_landmarks(r.target.clone(), r.triangles.clone(), r.width, r.height).unwrap();
+    let expected = image::open(common::root().join("tests/data/warp_skimage.png"))
+        .unwrap()
+        .to_rgb8();
+    let frame =
+        ReferenceFrame::from_landmarks(r.target.clone(), r.triangles.clone(), r.width, r.height)
+            .unwrap();
     let texture = warp::to_reference(&frame, &lenna(), &r.source).unwrap();
     let (mut within, mut worst) = (0usize, 0i32);
     for (p, t) in frame.pixels.iter().zip(texture.chunks_exact(3)) {
         let e = expected.get_pixel(p.x, p.y).0;
-        let d = (0..3).map(|c| (warp::to_u8(t[c]) as i32 - e[c] as i32).abs()).max().unwrap();
+        let d = (0..3)
+            .map(|c| (warp::to_u8(t[c]) as i32 - e[c] as i32).abs())
+            .max()
+            .unwrap();
         worst = worst.max(d);
         within += (d <= 1) as usize;
     }
     let frac = within as f64 / frame.n_pixels() as f64;
-    eprintln!("scikit-image parity: {:.4}% of {} mask pixels within 1 grey level, worst {worst}", 100.0 * frac, frame.n_pixels());
-    assert!(frac >= 0.99, "only {:.3}% within 1 grey level", 100.0 * frac);
+    eprintln!(
+        "scikit-image parity: {:.4}% of {} mask pixels within 1 grey level, worst {worst}",
+        100.0 * frac,
+        frame.n_pixels()
+    );
+    assert!(
+        frac >= 0.99,
+        "only {:.3}% within 1 grey level",
+        100.0 * frac
+    );
     // The masks agree too (pixels exactly on the hull may go either way).
-    let theirs: usize = r.mask_rows.iter().map(|row| row.bytes().filter(|&b| b == b'1').count()).sum();
+    let theirs: usize = r
+        .mask_rows
+        .iter()
+        .map(|row| row.bytes().filter(|&b| b == b'1').count())
+        .sum();
     let ours = frame.n_pixels();
-    assert!((ours as f64 - theirs as f64).abs() <= 0.01 * theirs as f64, "mask sizes {ours} vs {theirs}");
+    assert!(
+        (ours as f64 - theirs as f64).abs() <= 0.01 * theirs as f64,
+        "mask sizes {ours} vs {theirs}"
+    );
 }
 
 /// Our Delaunay triangulation of a face shape is scipy's (as sets of vertex triples).
@@ -98,30 +141,56 @@ fn delaunay_matches_scipy() {
 #[test]
 fn degenerate_meshes_are_errors() {
     let line: Vec<[f64; 2]> = (0..10).map(|i| [i as f64, 2.0 * i as f64]).collect();
-    assert!(matches!(mesh::delaunay(&line), Err(MeshError::Degenerate(_))));
+    assert!(matches!(
+        mesh::delaunay(&line),
+        Err(MeshError::Degenerate(_))
+    ));
     let dup = vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 0.0]];
     let err = mesh::delaunay(&dup).unwrap_err();
-    assert!(err.to_string().contains("landmarks 1 and 3 coincide"), "{err}");
+    assert!(
+        err.to_string().contains("landmarks 1 and 3 coincide"),
+        "{err}"
+    );
     let pts = vec![[0.0, 0.0], [10.0, 0.0], [0.0, 10.0], [5.0, 0.0]];
-    let flat = vec![[0, 1, 3]];
-    assert!(matches!(mesh::validate(&pts, &[[0, 1, 2], flat[0]]), Err(MeshError::ZeroArea { index: 1, .. })));
-    assert!(matches!(mesh::validate(&pts, &[[0, 1, 9]]), Err(MeshError::IndexOutOfRange { vertex: 9, .. })));
-    assert!(matches!(ReferenceFrame::fit_mean(&pts, vec![[0, 1, 2]], 10), Err(MeshError::TooFewPixels(10))));
+    let flat = [[0, 1, 3]];
+    assert!(matches!(
+        mesh::validate(&pts, &[[0, 1, 2], flat[0]]),
+        Err(MeshError::ZeroArea { index: 1, .. })
+    ));
+    assert!(matches!(
+        mesh::validate(&pts, &[[0, 1, 9]]),
+        Err(MeshError::IndexOutOfRange { vertex: 9, .. })
+    ));
+    assert!(matches!(
+        ReferenceFrame::fit_mean(&pts, vec![[0, 1, 2]], 10),
+        Err(MeshError::TooFewPixels(10))
+    ));
 }
 
 #[test]
 fn warp_input_errors() {
     let r = reference();
-    let frame = ReferenceFrame::from_landmarks(r.target.clone(), r.triangles.clone(), r.width, r.height).unwrap();
+    let frame =
+        ReferenceFrame::from_landmarks(r.target.clone(), r.triangles.clone(), r.width, r.height)
+            .unwrap();
     let image = lenna();
     assert!(matches!(
         warp::to_reference(&frame, &image, &r.source[..60]),
-        Err(WarpError::LandmarkCount { expected: 68, found: 60 })
+        Err(WarpError::LandmarkCount {
+            expected: 68,
+            found: 60
+        })
     ));
     let mut nan = r.source.clone();
     nan[3][0] = f64::NAN;
-    assert!(matches!(warp::to_reference(&frame, &image, &nan), Err(WarpError::NotFinite { index: 3 })));
-    assert!(matches!(warp::to_reference(&frame, &RgbImage::new(0, 0), &r.source), Err(WarpError::EmptyImage { .. })));
+    assert!(matches!(
+        warp::to_reference(&frame, &image, &nan),
+        Err(WarpError::NotFinite { index: 3 })
+    ));
+    assert!(matches!(
+        warp::to_reference(&frame, &RgbImage::new(0, 0), &r.source),
+        Err(WarpError::EmptyImage { .. })
+    ));
     let mut canvas = RgbImage::new(10, 10);
     assert!(matches!(
         warp::from_reference_into(&frame, &[0.0; 5], &r.target, &mut canvas),

@@ -8,7 +8,11 @@ use facespace::Progress;
 use indicatif::{ProgressBar, ProgressStyle};
 
 #[derive(Parser)]
-#[command(name = "facespace", version, about = "Talking-face animation from independent shape and appearance models")]
+#[command(
+    name = "facespace",
+    version,
+    about = "Talking-face animation from independent shape and appearance models"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -34,7 +38,10 @@ pub fn run() -> anyhow::Result<()> {
 /// drives it.
 pub fn progress_bar() -> (ProgressBar, impl FnMut(Progress)) {
     let bar = ProgressBar::new(1);
-    bar.set_style(ProgressStyle::with_template("{spinner} {msg:<18} [{bar:30}] {pos}/{len} {elapsed}").expect("valid template"));
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} {msg:<18} [{bar:30}] {pos}/{len} {elapsed}")
+            .expect("valid template"),
+    );
     let handle = bar.clone();
     let callback = move |p: Progress| {
         handle.set_length(p.total as u64);

@@ -78,24 +78,41 @@ pub fn run(command: ModelCommand) -> Result<()> {
 fn build(a: BuildArgs) -> Result<()> {
     let triangles = match &a.triangles {
         Some(path) => {
-            let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-            Some(serde_json::from_str::<Vec<Triangle>>(&text).with_context(|| format!("{}: expected [[i, j, k], …]", path.display()))?)
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("reading {}", path.display()))?;
+            Some(
+                serde_json::from_str::<Vec<Triangle>>(&text)
+                    .with_context(|| format!("{}: expected [[i, j, k], …]", path.display()))?,
+            )
         }
         None => None,
     };
     let options = BuildOptions {
         pixels: a.pixels,
-        shape: Components::Variance { fraction: a.shape_var, max: None },
-        appearance: Components::Variance { fraction: a.appearance_var, max: Some(a.appearance_max) },
+        shape: Components::Variance {
+            fraction: a.shape_var,
+            max: None,
+        },
+        appearance: Components::Variance {
+            fraction: a.appearance_var,
+            max: Some(a.appearance_max),
+        },
         triangles,
     };
     let examples = load_training_set(&a.images, a.landmarks.as_deref())
         .with_context(|| format!("loading training images from {}", a.images.display()))?;
     let (bar, mut progress) = super::progress_bar();
-    let model = FaceModel::build(&examples, &options, &mut progress).context("building the model")?;
+    let model =
+        FaceModel::build(&examples, &options, &mut progress).context("building the model")?;
     bar.finish_and_clear();
-    model.save(&a.output).with_context(|| format!("saving the model to {}", a.output.display()))?;
-    println!("built {} from {} images", a.output.display(), examples.len());
+    model
+        .save(&a.output)
+        .with_context(|| format!("saving the model to {}", a.output.display()))?;
+    println!(
+        "built {} from {} images",
+        a.output.display(),
+        examples.len()
+    );
     print_summary(&model);
     Ok(())
 }
@@ -104,10 +121,23 @@ pub fn print_summary(model: &FaceModel) {
     let f = &model.frame;
     println!("  landmarks        {}", model.shape.n_landmarks());
     println!("  triangles        {}", f.triangles.len());
-    println!("  reference frame  {}×{} px, {} pixels inside the mesh", f.width, f.height, f.n_pixels());
-    for (name, pca) in [("shape", &model.shape.pca), ("appearance", &model.appearance.pca)] {
+    println!(
+        "  reference frame  {}×{} px, {} pixels inside the mesh",
+        f.width,
+        f.height,
+        f.n_pixels()
+    );
+    for (name, pca) in [
+        ("shape", &model.shape.pca),
+        ("appearance", &model.appearance.pca),
+    ] {
         let total = pca.total_variance;
-        let ratios: Vec<String> = pca.variances.iter().take(5).map(|v| format!("{:.1}%", 100.0 * *v as f64 / total)).collect();
+        let ratios: Vec<String> = pca
+            .variances
+            .iter()
+            .take(5)
+            .map(|v| format!("{:.1}%", 100.0 * *v as f64 / total))
+            .collect();
         println!(
             "  {name:<16} {} parameters, {:.1}% of variance (first: {}{})",
             pca.n_components(),
@@ -116,7 +146,10 @@ pub fn print_summary(model: &FaceModel) {
             if pca.n_components() > 5 { ", …" } else { "" }
         );
     }
-    println!("  face-space       {} values per frame (4 pose + shape + appearance)", model.n_params());
+    println!(
+        "  face-space       {} values per frame (4 pose + shape + appearance)",
+        model.n_params()
+    );
 }
 
 fn info(dir: &Path) -> Result<()> {
@@ -130,7 +163,11 @@ fn info(dir: &Path) -> Result<()> {
     for e in files {
         let len = e.metadata()?.len();
         total += len;
-        println!("    {:<28} {:>10}", e.file_name().to_string_lossy(), human_bytes(len));
+        println!(
+            "    {:<28} {:>10}",
+            e.file_name().to_string_lossy(),
+            human_bytes(len)
+        );
     }
     println!("  on disk          {}", human_bytes(total));
     Ok(())
@@ -145,39 +182,83 @@ fn human_bytes(n: u64) -> String {
 }
 
 /// Side-by-side original | reconstruction, cropped to the face, and the texture PSNR.
-pub fn reconstruct_pair(model: &FaceModel, image: &RgbImage, landmarks: &Landmarks) -> Result<(RgbImage, f64)> {
+pub fn reconstruct_pair(
+    model: &FaceModel,
+    image: &RgbImage,
+    landmarks: &Landmarks,
+) -> Result<(RgbImage, f64)> {
     let params = model.project(image, landmarks)?;
     let mut canvas = image.clone();
     let r = model.render_into(&params, &mut canvas)?;
     let original = warp::to_reference(&model.frame, image, &landmarks.points)?;
-    let mse = original.iter().zip(&r.texture).map(|(a, b)| ((a - b) as f64).powi(2)).sum::<f64>() / original.len() as f64;
+    let mse = original
+        .iter()
+        .zip(&r.texture)
+        .map(|(a, b)| ((a - b) as f64).powi(2))
+        .sum::<f64>()
+        / original.len() as f64;
     let psnr = 10.0 * (255.0f64 * 255.0 / mse.max(1e-12)).log10();
     let (lo, hi) = landmarks.bounds();
     let margin = 0.25 * (hi[0] - lo[0]).max(hi[1] - lo[1]);
     let clamp = |v: f64, max: u32| v.clamp(0.0, max as f64) as u32;
-    let (x0, y0) = (clamp(lo[0] - margin, image.width()), clamp(lo[1] - margin, image.height()));
-    let (x1, y1) = (clamp(hi[0] + margin, image.width()), clamp(hi[1] + margin, image.height()));
+    let (x0, y0) = (
+        clamp(lo[0] - margin, image.width()),
+        clamp(lo[1] - margin, image.height()),
+    );
+    let (x1, y1) = (
+        clamp(hi[0] + margin, image.width()),
+        clamp(hi[1] + margin, image.height()),
+    );
     let (w, h) = ((x1 - x0).max(1), (y1 - y0).max(1));
     let mut out = RgbImage::new(2 * w, h);
-    image::imageops::replace(&mut out, &image::imageops::crop_imm(image, x0, y0, w, h).to_image(), 0, 0);
-    image::imageops::replace(&mut out, &image::imageops::crop_imm(&canvas, x0, y0, w, h).to_image(), w as i64, 0);
+    image::imageops::replace(
+        &mut out,
+        &image::imageops::crop_imm(image, x0, y0, w, h).to_image(),
+        0,
+        0,
+    );
+    image::imageops::replace(
+        &mut out,
+        &image::imageops::crop_imm(&canvas, x0, y0, w, h).to_image(),
+        w as i64,
+        0,
+    );
     Ok((out, psnr))
 }
 
 pub fn save_png(image: &RgbImage, path: &Path) -> Result<()> {
     let mut bytes = Vec::new();
-    image.write_to(&mut std::io::Cursor::new(&mut bytes), image::ImageFormat::Png)?;
-    facespace::atomic::write_file(path, &bytes).with_context(|| format!("writing {}", path.display()))
+    image.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    )?;
+    facespace::atomic::write_file(path, &bytes)
+        .with_context(|| format!("writing {}", path.display()))
 }
 
 fn reconstruct(a: ReconstructArgs) -> Result<()> {
-    let model = FaceModel::load(&a.model).with_context(|| format!("loading model {}", a.model.display()))?;
-    let image = image::open(&a.image).with_context(|| format!("reading image {}", a.image.display()))?.to_rgb8();
-    let pts = a.landmarks.clone().unwrap_or_else(|| a.image.with_extension("pts"));
-    let landmarks = read_pts(&pts).with_context(|| format!("reading landmarks for {}", a.image.display()))?;
-    let (pair, psnr) = reconstruct_pair(&model, &image, &landmarks)
-        .with_context(|| format!("reconstructing {} with {}", a.image.display(), pts.display()))?;
+    let model = FaceModel::load(&a.model)
+        .with_context(|| format!("loading model {}", a.model.display()))?;
+    let image = image::open(&a.image)
+        .with_context(|| format!("reading image {}", a.image.display()))?
+        .to_rgb8();
+    let pts = a
+        .landmarks
+        .clone()
+        .unwrap_or_else(|| a.image.with_extension("pts"));
+    let landmarks =
+        read_pts(&pts).with_context(|| format!("reading landmarks for {}", a.image.display()))?;
+    let (pair, psnr) = reconstruct_pair(&model, &image, &landmarks).with_context(|| {
+        format!(
+            "reconstructing {} with {}",
+            a.image.display(),
+            pts.display()
+        )
+    })?;
     save_png(&pair, &a.output)?;
-    println!("wrote {} (original | reconstruction); texture PSNR {psnr:.1} dB", a.output.display());
+    println!(
+        "wrote {} (original | reconstruction); texture PSNR {psnr:.1} dB",
+        a.output.display()
+    );
     Ok(())
 }

@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use facespace::model::{FaceModel, BuildOptions, TrainingExample, load_training_set};
+use facespace::model::{BuildOptions, FaceModel, TrainingExample, load_training_set};
 
 /// A small deterministic generator (SplitMix64) so tests need no RNG crate and never vary.
 pub struct Rng(u64);
@@ -54,6 +54,9 @@ pub fn faces() -> Vec<TrainingExample> {
 
 /// A model of the bundled faces with a small reference frame (fast to build).
 pub fn small_model() -> FaceModel {
-    let options = BuildOptions { pixels: 6_000, ..BuildOptions::default() };
+    let options = BuildOptions {
+        pixels: 6_000,
+        ..BuildOptions::default()
+    };
     FaceModel::build(&faces(), &options, &mut facespace::no_progress).expect("model builds")
 }
