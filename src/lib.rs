@@ -20,8 +20,10 @@ pub mod atomic;
 pub mod mesh;
 pub mod model;
 pub mod npy;
+pub mod phonemes;
 pub mod pca;
 pub mod shape;
+pub mod trajectory;
 pub mod warp;
 
 /// A progress report from long-running work: `done` of `total` units of `stage`.
