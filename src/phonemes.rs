@@ -252,7 +252,7 @@ pub fn parse_htk(text: &str, path: &Path, map: &PhoneMap) -> Result<Vec<Segment>
         if fields.len() < 3 {
             return Err(err(format!("expected `start end label`, found {line:?}")));
         }
-        let time = |s: &str| s.parse::<i64>().map(|t| t as f64 * 1e-7).map_err(|_| err(format!("bad time {s:?} (integer 100 ns units)")));
+        let time = |s: &str| s.parse::<i64>().map(|t| t as f64 / 1e7).map_err(|_| err(format!("bad time {s:?} (integer 100 ns units)")));
         raw.push(RawInterval { start: time(fields[0])?, end: time(fields[1])?, label: fields[2].to_owned(), line: i + 1 });
     }
     finish(path, raw, map)
