@@ -16,34 +16,39 @@ pub fn write_file(path: &Path, bytes: &[u8]) -> io::Result<()> {
 }
 
 /// Builds a folder with `fill` in a temporary sibling, then swaps it in for `target`
-/// (an existing `target` is replaced only once the new one is complete).
-pub fn replace_dir<E: From<io::Error>>(
+/// (an existing `target` is replaced only once the new one is complete). `io` turns this
+/// function's own I/O errors into the caller's error type.
+pub fn replace_dir<E>(
     target: &Path,
     fill: impl FnOnce(&Path) -> Result<(), E>,
+    io: impl Fn(io::Error) -> E,
 ) -> Result<(), E> {
     let parent = parent_of(target);
-    std::fs::create_dir_all(parent)?;
+    std::fs::create_dir_all(parent).map_err(&io)?;
     let tmp = tempfile::Builder::new()
         .prefix(".tmp-")
-        .tempdir_in(parent)?;
+        .tempdir_in(parent)
+        .map_err(&io)?;
     fill(tmp.path())?;
     let staged = tmp.keep();
-    if target.exists() {
-        let old = tempfile::Builder::new()
-            .prefix(".old-")
-            .tempdir_in(parent)?
-            .keep();
-        std::fs::remove_dir(&old)?;
-        std::fs::rename(target, &old)?;
-        if let Err(e) = std::fs::rename(&staged, target) {
-            std::fs::rename(&old, target)?;
-            return Err(e.into());
+    let swap = || -> io::Result<()> {
+        if target.exists() {
+            let old = tempfile::Builder::new()
+                .prefix(".old-")
+                .tempdir_in(parent)?
+                .keep();
+            std::fs::remove_dir(&old)?;
+            std::fs::rename(target, &old)?;
+            if let Err(e) = std::fs::rename(&staged, target) {
+                std::fs::rename(&old, target)?;
+                return Err(e);
+            }
+            std::fs::remove_dir_all(&old)
+        } else {
+            std::fs::rename(&staged, target)
         }
-        std::fs::remove_dir_all(&old)?;
-    } else {
-        std::fs::rename(&staged, target)?;
-    }
-    Ok(())
+    };
+    swap().map_err(io)
 }
 
 fn parent_of(path: &Path) -> &Path {
@@ -61,14 +66,18 @@ mod tests {
     fn failed_fill_leaves_the_old_folder_untouched() {
         let root = tempfile::tempdir().unwrap();
         let target = root.path().join("model");
-        replace_dir::<io::Error>(&target, |d| std::fs::write(d.join("a"), "1")).unwrap();
-        let failed = replace_dir::<io::Error>(&target, |d| {
-            std::fs::write(d.join("a"), "2")?;
-            Err(io::Error::other("crash"))
-        });
+        replace_dir(&target, |d| std::fs::write(d.join("a"), "1"), |e| e).unwrap();
+        let failed = replace_dir(
+            &target,
+            |d| {
+                std::fs::write(d.join("a"), "2")?;
+                Err(io::Error::other("crash"))
+            },
+            |e| e,
+        );
         assert!(failed.is_err());
         assert_eq!(std::fs::read_to_string(target.join("a")).unwrap(), "1");
-        replace_dir::<io::Error>(&target, |d| std::fs::write(d.join("b"), "3")).unwrap();
+        replace_dir(&target, |d| std::fs::write(d.join("b"), "3"), |e| e).unwrap();
         assert!(!target.join("a").exists());
         assert_eq!(std::fs::read_to_string(target.join("b")).unwrap(), "3");
         let left: Vec<_> = std::fs::read_dir(root.path()).unwrap().collect();

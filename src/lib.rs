@@ -17,11 +17,12 @@
 
 pub mod appearance;
 pub mod atomic;
+pub mod codebook;
 pub mod mesh;
 pub mod model;
 pub mod npy;
-pub mod phonemes;
 pub mod pca;
+pub mod phonemes;
 pub mod shape;
 pub mod trajectory;
 pub mod warp;

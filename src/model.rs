@@ -99,15 +99,6 @@ pub enum ModelError {
     Npy(#[from] NpyError),
 }
 
-impl From<std::io::Error> for ModelError {
-    fn from(source: std::io::Error) -> Self {
-        ModelError::Io {
-            path: PathBuf::new(),
-            source,
-        }
-    }
-}
-
 /// One training image with its hand-marked landmarks.
 #[derive(Clone, Debug)]
 pub struct TrainingExample {
@@ -353,6 +344,31 @@ impl FaceModel {
         })
     }
 
+    /// A content hash of the model (FNV-1a 64 over the mesh, placement and every array), in
+    /// hex: codebooks and encoded clips record it to refuse parameters of another model.
+    pub fn hash(&self) -> String {
+        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+        let mut eat = |bytes: &[u8]| {
+            for &b in bytes {
+                h = (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3);
+            }
+        };
+        for t in &self.frame.triangles {
+            t.iter().for_each(|v| eat(&v.to_le_bytes()));
+        }
+        eat(&self.placement.scale.to_le_bytes());
+        self.placement
+            .offset
+            .iter()
+            .for_each(|v| eat(&v.to_le_bytes()));
+        for pca in [&self.shape.pca, &self.appearance.pca] {
+            for array in [&pca.mean, &pca.components, &pca.variances] {
+                array.iter().for_each(|v| eat(&v.to_le_bytes()));
+            }
+        }
+        format!("{h:016x}")
+    }
+
     /// Length of a face-space vector: 4 pose values + shape + appearance parameters.
     pub fn n_params(&self) -> usize {
         4 + self.shape.n_params() + self.appearance.n_params()
@@ -437,45 +453,45 @@ impl FaceModel {
             arrays: array_files(),
         };
         let json = serde_json::to_string_pretty(&manifest).expect("manifest serialises");
-        atomic::replace_dir(dir, |tmp| -> Result<(), ModelError> {
-            let (s, a) = (&self.shape.pca, &self.appearance.pca);
-            npy::write(&tmp.join("shape_mean.npy"), &[n, 2], &s.mean)?;
-            npy::write(
-                &tmp.join("shape_components.npy"),
-                &[s.n_components(), 2 * n],
-                &s.components,
-            )?;
-            npy::write(
-                &tmp.join("shape_variances.npy"),
-                &[s.n_components()],
-                &s.variances,
-            )?;
-            npy::write(&tmp.join("appearance_mean.npy"), &[p, 3], &a.mean)?;
-            npy::write(
-                &tmp.join("appearance_components.npy"),
-                &[a.n_components(), 3 * p],
-                &a.components,
-            )?;
-            npy::write(
-                &tmp.join("appearance_variances.npy"),
-                &[a.n_components()],
-                &a.variances,
-            )?;
-            npy::write(
-                &tmp.join("mask.npy"),
-                &[self.frame.height, self.frame.width],
-                &self.frame.mask_image(),
-            )?;
-            let path = tmp.join("model.json");
-            std::fs::write(&path, json).map_err(|source| ModelError::Io { path, source })
-        })
-        .map_err(|e| match e {
-            ModelError::Io { path, source } if path.as_os_str().is_empty() => ModelError::Io {
+        atomic::replace_dir(
+            dir,
+            |tmp| -> Result<(), ModelError> {
+                let (s, a) = (&self.shape.pca, &self.appearance.pca);
+                npy::write(&tmp.join("shape_mean.npy"), &[n, 2], &s.mean)?;
+                npy::write(
+                    &tmp.join("shape_components.npy"),
+                    &[s.n_components(), 2 * n],
+                    &s.components,
+                )?;
+                npy::write(
+                    &tmp.join("shape_variances.npy"),
+                    &[s.n_components()],
+                    &s.variances,
+                )?;
+                npy::write(&tmp.join("appearance_mean.npy"), &[p, 3], &a.mean)?;
+                npy::write(
+                    &tmp.join("appearance_components.npy"),
+                    &[a.n_components(), 3 * p],
+                    &a.components,
+                )?;
+                npy::write(
+                    &tmp.join("appearance_variances.npy"),
+                    &[a.n_components()],
+                    &a.variances,
+                )?;
+                npy::write(
+                    &tmp.join("mask.npy"),
+                    &[self.frame.height, self.frame.width],
+                    &self.frame.mask_image(),
+                )?;
+                let path = tmp.join("model.json");
+                std::fs::write(&path, json).map_err(|source| ModelError::Io { path, source })
+            },
+            |source| ModelError::Io {
                 path: dir.into(),
                 source,
             },
-            e => e,
-        })
+        )
     }
 
     /// Loads and validates a model folder: format and version, every array's shape against

@@ -17,8 +17,9 @@ use crate::atomic;
 
 /// The phones, `sil` first; a [`Phone`] is an index into this list.
 pub const PHONES: [&str; 40] = [
-    "sil", "aa", "ae", "ah", "ao", "aw", "ay", "b", "ch", "d", "dh", "eh", "er", "ey", "f", "g", "hh", "ih", "iy", "jh",
-    "k", "l", "m", "n", "ng", "ow", "oy", "p", "r", "s", "sh", "t", "th", "uh", "uw", "v", "w", "y", "z", "zh",
+    "sil", "aa", "ae", "ah", "ao", "aw", "ay", "b", "ch", "d", "dh", "eh", "er", "ey", "f", "g",
+    "hh", "ih", "iy", "jh", "k", "l", "m", "n", "ng", "ow", "oy", "p", "r", "s", "sh", "t", "th",
+    "uh", "uw", "v", "w", "y", "z", "zh",
 ];
 
 /// Viseme class of each phone in [`PHONES`] order: the 22 classes of [unitsel] Table 1.
@@ -54,11 +55,19 @@ impl Phone {
 
     /// Normalises a label (case, stress digits, silence, known aliases); `None` if unknown.
     pub fn parse(label: &str) -> Option<Phone> {
-        let l: String = label.trim().chars().filter(|c| !c.is_ascii_digit()).collect::<String>().to_ascii_lowercase();
+        let l: String = label
+            .trim()
+            .chars()
+            .filter(|c| !c.is_ascii_digit())
+            .collect::<String>()
+            .to_ascii_lowercase();
         if SILENCE.contains(&l.as_str()) || l == "<sil>" {
             return Some(Phone::SIL);
         }
-        let l = ALIASES.iter().find(|(a, _)| *a == l).map_or(l.as_str(), |(_, b)| b);
+        let l = ALIASES
+            .iter()
+            .find(|(a, _)| *a == l)
+            .map_or(l.as_str(), |(_, b)| b);
         PHONES.iter().position(|p| *p == l).map(|i| Phone(i as u8))
     }
 
@@ -120,13 +129,28 @@ impl Segment {
 #[derive(Debug, Error)]
 pub enum PhonemeError {
     #[error("{path}: {source}")]
-    Io { path: PathBuf, source: std::io::Error },
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
     #[error("{path}:{line}: {reason}")]
-    Parse { path: PathBuf, line: usize, reason: String },
+    Parse {
+        path: PathBuf,
+        line: usize,
+        reason: String,
+    },
     #[error("{path}:{line}: unknown phone label {label:?} (give a phone map for other phone sets)")]
-    UnknownLabel { path: PathBuf, line: usize, label: String },
+    UnknownLabel {
+        path: PathBuf,
+        line: usize,
+        label: String,
+    },
     #[error("{path}: no tier named {wanted}; the tiers are {found:?}")]
-    NoTier { path: PathBuf, wanted: String, found: Vec<String> },
+    NoTier {
+        path: PathBuf,
+        wanted: String,
+        found: Vec<String>,
+    },
     #[error("{path}: no phone intervals")]
     Empty { path: PathBuf },
     #[error("words not in the pronouncing dictionary: {}", .0.join(", "))]
@@ -149,12 +173,17 @@ impl PhoneMap {
             if line.is_empty() {
                 continue;
             }
-            let parse = |reason: String| PhonemeError::Parse { path: path.into(), line: i + 1, reason };
+            let parse = |reason: String| PhonemeError::Parse {
+                path: path.into(),
+                line: i + 1,
+                reason,
+            };
             let mut it = line.split_whitespace();
             let (Some(from), Some(to), None) = (it.next(), it.next(), it.next()) else {
                 return Err(parse(format!("expected `label arpabet`, found {line:?}")));
             };
-            let phone = Phone::parse(to).ok_or_else(|| parse(format!("{to:?} is not an ARPAbet phone")))?;
+            let phone =
+                Phone::parse(to).ok_or_else(|| parse(format!("{to:?} is not an ARPAbet phone")))?;
             map.insert(from.to_owned(), phone);
         }
         Ok(PhoneMap(map))
@@ -162,24 +191,37 @@ impl PhoneMap {
 
     /// The map's entry for `label`, else the built-in normalisation.
     pub fn phone(&self, label: &str) -> Option<Phone> {
-        self.0.get(label.trim()).copied().or_else(|| Phone::parse(label))
+        self.0
+            .get(label.trim())
+            .copied()
+            .or_else(|| Phone::parse(label))
     }
 }
 
 fn read_text(path: &Path) -> Result<String, PhonemeError> {
-    let bytes = std::fs::read(path).map_err(|source| PhonemeError::Io { path: path.into(), source })?;
+    let bytes = std::fs::read(path).map_err(|source| PhonemeError::Io {
+        path: path.into(),
+        source,
+    })?;
     // Praat may write UTF-16 with a byte-order mark.
     let utf16 = |le: bool| {
         let units: Vec<u16> = bytes[2..]
             .chunks_exact(2)
-            .map(|c| if le { u16::from_le_bytes([c[0], c[1]]) } else { u16::from_be_bytes([c[0], c[1]]) })
+            .map(|c| {
+                if le {
+                    u16::from_le_bytes([c[0], c[1]])
+                } else {
+                    u16::from_be_bytes([c[0], c[1]])
+                }
+            })
             .collect();
         String::from_utf16_lossy(&units)
     };
     Ok(match bytes.get(..2) {
         Some([0xFF, 0xFE]) => utf16(true),
         Some([0xFE, 0xFF]) => utf16(false),
-        _ => String::from_utf8_lossy(bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(&bytes)).into_owned(),
+        _ => String::from_utf8_lossy(bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(&bytes))
+            .into_owned(),
     })
 }
 
@@ -193,8 +235,16 @@ struct RawInterval {
 
 /// Normalises labels and checks times: finite, non-negative, `end ≥ start`, sorted and
 /// non-overlapping (a 1 µs tolerance absorbs rounding in the files).
-fn finish(path: &Path, raw: Vec<RawInterval>, map: &PhoneMap) -> Result<Vec<Segment>, PhonemeError> {
-    let err = |line: usize, reason: String| PhonemeError::Parse { path: path.into(), line, reason };
+fn finish(
+    path: &Path,
+    raw: Vec<RawInterval>,
+    map: &PhoneMap,
+) -> Result<Vec<Segment>, PhonemeError> {
+    let err = |line: usize, reason: String| PhonemeError::Parse {
+        path: path.into(),
+        line,
+        reason,
+    };
     if raw.is_empty() {
         return Err(PhonemeError::Empty { path: path.into() });
     }
@@ -207,25 +257,59 @@ fn finish(path: &Path, raw: Vec<RawInterval>, map: &PhoneMap) -> Result<Vec<Segm
             return Err(err(r.line, format!("negative time {}", r.start)));
         }
         if r.end < r.start {
-            return Err(err(r.line, format!("interval ends ({}) before it starts ({})", r.end, r.start)));
+            return Err(err(
+                r.line,
+                format!("interval ends ({}) before it starts ({})", r.end, r.start),
+            ));
         }
         if let Some(prev) = out.last() {
             if r.start < prev.start - 1e-6 {
-                return Err(err(r.line, format!("intervals out of order: {} starts before the previous one ({})", r.start, prev.start)));
+                return Err(err(
+                    r.line,
+                    format!(
+                        "intervals out of order: {} starts before the previous one ({})",
+                        r.start, prev.start
+                    ),
+                ));
             }
             if r.start < prev.end - 1e-6 {
-                return Err(err(r.line, format!("interval {}–{} overlaps the previous one ({}–{})", r.start, r.end, prev.start, prev.end)));
+                return Err(err(
+                    r.line,
+                    format!(
+                        "interval {}–{} overlaps the previous one ({}–{})",
+                        r.start, r.end, prev.start, prev.end
+                    ),
+                ));
             }
         }
-        let phone = map.phone(&r.label).ok_or_else(|| PhonemeError::UnknownLabel { path: path.into(), line: r.line, label: r.label.clone() })?;
-        out.push(Segment { start: r.start, end: r.end, phone });
+        let phone = map
+            .phone(&r.label)
+            .ok_or_else(|| PhonemeError::UnknownLabel {
+                path: path.into(),
+                line: r.line,
+                label: r.label.clone(),
+            })?;
+        out.push(Segment {
+            start: r.start,
+            end: r.end,
+            phone,
+        });
     }
     Ok(out)
 }
 
 /// Reads a timing file by extension: `.lab` (HTK), `.TextGrid` (Praat), `.tsv`/`.txt`.
-pub fn read_labels(path: &Path, tier: Option<&str>, map: &PhoneMap) -> Result<Vec<Segment>, PhonemeError> {
-    match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+pub fn read_labels(
+    path: &Path,
+    tier: Option<&str>,
+    map: &PhoneMap,
+) -> Result<Vec<Segment>, PhonemeError> {
+    match path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .as_deref()
+    {
         Some("textgrid") => read_textgrid(path, tier, map),
         Some("tsv") | Some("txt") => read_tsv(path, map),
         _ => read_htk(path, map),
@@ -247,13 +331,26 @@ pub fn parse_htk(text: &str, path: &Path, map: &PhoneMap) -> Result<Vec<Segment>
         if line == "///" {
             break; // only the first alternative of a multi-level file
         }
-        let err = |reason: String| PhonemeError::Parse { path: path.into(), line: i + 1, reason };
+        let err = |reason: String| PhonemeError::Parse {
+            path: path.into(),
+            line: i + 1,
+            reason,
+        };
         let fields: Vec<&str> = line.split_whitespace().collect();
         if fields.len() < 3 {
             return Err(err(format!("expected `start end label`, found {line:?}")));
         }
-        let time = |s: &str| s.parse::<i64>().map(|t| t as f64 / 1e7).map_err(|_| err(format!("bad time {s:?} (integer 100 ns units)")));
-        raw.push(RawInterval { start: time(fields[0])?, end: time(fields[1])?, label: fields[2].to_owned(), line: i + 1 });
+        let time = |s: &str| {
+            s.parse::<i64>()
+                .map(|t| t as f64 / 1e7)
+                .map_err(|_| err(format!("bad time {s:?} (integer 100 ns units)")))
+        };
+        raw.push(RawInterval {
+            start: time(fields[0])?,
+            end: time(fields[1])?,
+            label: fields[2].to_owned(),
+            line: i + 1,
+        });
     }
     finish(path, raw, map)
 }
@@ -270,8 +367,16 @@ pub fn parse_tsv(text: &str, path: &Path, map: &PhoneMap) -> Result<Vec<Segment>
         if line.trim().is_empty() || line.trim_start().starts_with('#') {
             continue;
         }
-        let err = |reason: String| PhonemeError::Parse { path: path.into(), line: i + 1, reason };
-        let fields: Vec<&str> = if line.contains('\t') { line.split('\t').collect() } else { line.split_whitespace().collect() };
+        let err = |reason: String| PhonemeError::Parse {
+            path: path.into(),
+            line: i + 1,
+            reason,
+        };
+        let fields: Vec<&str> = if line.contains('\t') {
+            line.split('\t').collect()
+        } else {
+            line.split_whitespace().collect()
+        };
         let start = fields.first().map(|s| s.trim().parse::<f64>());
         if i == 0 && raw.is_empty() && !matches!(start, Some(Ok(_))) {
             continue; // a header
@@ -279,16 +384,29 @@ pub fn parse_tsv(text: &str, path: &Path, map: &PhoneMap) -> Result<Vec<Segment>
         if fields.len() < 2 {
             return Err(err(format!("expected `start end label`, found {line:?}")));
         }
-        let time = |s: &str| s.trim().parse::<f64>().map_err(|_| err(format!("bad time {s:?}")));
+        let time = |s: &str| {
+            s.trim()
+                .parse::<f64>()
+                .map_err(|_| err(format!("bad time {s:?}")))
+        };
         let label = fields.get(2).map_or("", |s| s.trim());
-        raw.push(RawInterval { start: time(fields[0])?, end: time(fields[1])?, label: label.to_owned(), line: i + 1 });
+        raw.push(RawInterval {
+            start: time(fields[0])?,
+            end: time(fields[1])?,
+            label: label.to_owned(),
+            line: i + 1,
+        });
     }
     finish(path, raw, map)
 }
 
 /// Praat TextGrid, long or short text form (UTF-8 or UTF-16). The tier is `tier` if given,
 /// else the first named `phones` or `phonemes` (any case).
-pub fn read_textgrid(path: &Path, tier: Option<&str>, map: &PhoneMap) -> Result<Vec<Segment>, PhonemeError> {
+pub fn read_textgrid(
+    path: &Path,
+    tier: Option<&str>,
+    map: &PhoneMap,
+) -> Result<Vec<Segment>, PhonemeError> {
     parse_textgrid(&read_text(path)?, path, tier, map)
 }
 
@@ -324,7 +442,13 @@ fn tokenise(text: &str, path: &Path) -> Result<Vec<(Token, usize)>, PhonemeError
                             }
                             s.push(ch);
                         }
-                        None => return Err(PhonemeError::Parse { path: path.into(), line: start_line, reason: "unterminated string".into() }),
+                        None => {
+                            return Err(PhonemeError::Parse {
+                                path: path.into(),
+                                line: start_line,
+                                reason: "unterminated string".into(),
+                            });
+                        }
                     }
                 }
                 tokens.push((Token::Str(s), start_line));
@@ -352,14 +476,24 @@ fn tokenise(text: &str, path: &Path) -> Result<Vec<(Token, usize)>, PhonemeError
             }
             c if c.is_ascii_digit() || c == '-' || c == '.' || c == '+' => {
                 let mut s = String::from(c);
-                while chars.peek().is_some_and(|ch| ch.is_ascii_alphanumeric() || matches!(ch, '.' | '-' | '+')) {
+                while chars
+                    .peek()
+                    .is_some_and(|ch| ch.is_ascii_alphanumeric() || matches!(ch, '.' | '-' | '+'))
+                {
                     s.push(chars.next().unwrap_or_default());
                 }
-                let v = s.parse::<f64>().map_err(|_| PhonemeError::Parse { path: path.into(), line, reason: format!("bad number {s:?}") })?;
+                let v = s.parse::<f64>().map_err(|_| PhonemeError::Parse {
+                    path: path.into(),
+                    line,
+                    reason: format!("bad number {s:?}"),
+                })?;
                 tokens.push((Token::Num(v), line));
             }
             c if c.is_alphabetic() => {
-                while chars.peek().is_some_and(|ch| ch.is_alphanumeric() || *ch == '_' || *ch == '?') {
+                while chars
+                    .peek()
+                    .is_some_and(|ch| ch.is_alphanumeric() || *ch == '_' || *ch == '?')
+                {
                     chars.next();
                 }
             }
@@ -369,21 +503,39 @@ fn tokenise(text: &str, path: &Path) -> Result<Vec<(Token, usize)>, PhonemeError
     Ok(tokens)
 }
 
-pub fn parse_textgrid(text: &str, path: &Path, tier: Option<&str>, map: &PhoneMap) -> Result<Vec<Segment>, PhonemeError> {
+pub fn parse_textgrid(
+    text: &str,
+    path: &Path,
+    tier: Option<&str>,
+    map: &PhoneMap,
+) -> Result<Vec<Segment>, PhonemeError> {
     let tokens = tokenise(text, path)?;
     let mut it = tokens.into_iter().peekable();
     let mut last_line = 1;
     let mut next = |what: &str| -> Result<(Token, usize), PhonemeError> {
-        let t = it.next().ok_or_else(|| PhonemeError::Parse { path: path.into(), line: last_line, reason: format!("file ends where {what} was expected") })?;
+        let t = it.next().ok_or_else(|| PhonemeError::Parse {
+            path: path.into(),
+            line: last_line,
+            reason: format!("file ends where {what} was expected"),
+        })?;
         last_line = t.1;
         Ok(t)
     };
-    let err = |line: usize, reason: String| PhonemeError::Parse { path: path.into(), line, reason };
+    let err = |line: usize, reason: String| PhonemeError::Parse {
+        path: path.into(),
+        line,
+        reason,
+    };
     macro_rules! string {
         ($what:expr) => {
             match next($what)? {
                 (Token::Str(s), l) => (s, l),
-                (t, l) => return Err(err(l, format!("expected {} (a string), found {:?}", $what, t))),
+                (t, l) => {
+                    return Err(err(
+                        l,
+                        format!("expected {} (a string), found {:?}", $what, t),
+                    ))
+                }
             }
         };
     }
@@ -391,17 +543,28 @@ pub fn parse_textgrid(text: &str, path: &Path, tier: Option<&str>, map: &PhoneMa
         ($what:expr) => {
             match next($what)? {
                 (Token::Num(v), l) => (v, l),
-                (t, l) => return Err(err(l, format!("expected {} (a number), found {:?}", $what, t))),
+                (t, l) => {
+                    return Err(err(
+                        l,
+                        format!("expected {} (a number), found {:?}", $what, t),
+                    ))
+                }
             }
         };
     }
     let (file_type, l) = string!("the file type");
     if file_type != "ooTextFile" {
-        return Err(err(l, format!("not a Praat text file (file type {file_type:?})")));
+        return Err(err(
+            l,
+            format!("not a Praat text file (file type {file_type:?})"),
+        ));
     }
     let (class, l) = string!("the object class");
     if class != "TextGrid" {
-        return Err(err(l, format!("object class {class:?}, expected \"TextGrid\"")));
+        return Err(err(
+            l,
+            format!("object class {class:?}, expected \"TextGrid\""),
+        ));
     }
     number!("xmin");
     number!("xmax");
@@ -427,7 +590,12 @@ pub fn parse_textgrid(text: &str, path: &Path, tier: Option<&str>, map: &PhoneMa
                 let (start, line) = number!("interval xmin");
                 let (end, _) = number!("interval xmax");
                 let (label, _) = string!("interval text");
-                raw.push(RawInterval { start, end, label, line });
+                raw.push(RawInterval {
+                    start,
+                    end,
+                    label,
+                    line,
+                });
             } else {
                 number!("point time");
                 string!("point mark");
@@ -435,21 +603,38 @@ pub fn parse_textgrid(text: &str, path: &Path, tier: Option<&str>, map: &PhoneMa
         }
         if wanted {
             if kind != "IntervalTier" {
-                return Err(err(last_line, format!("tier {name:?} is a {kind}, not an IntervalTier")));
+                return Err(err(
+                    last_line,
+                    format!("tier {name:?} is a {kind}, not an IntervalTier"),
+                ));
             }
             return finish(path, raw, map);
         }
         names.push(name);
     }
-    let wanted = tier.map_or_else(|| "\"phones\" or \"phonemes\"".to_owned(), |t| format!("{t:?}"));
-    Err(PhonemeError::NoTier { path: path.into(), wanted, found: names })
+    let wanted = tier.map_or_else(
+        || "\"phones\" or \"phonemes\"".to_owned(),
+        |t| format!("{t:?}"),
+    );
+    Err(PhonemeError::NoTier {
+        path: path.into(),
+        wanted,
+        found: names,
+    })
 }
 
 /// HTK label text (100 ns units).
 pub fn format_htk(segments: &[Segment]) -> String {
     segments
         .iter()
-        .map(|s| format!("{} {} {}\n", (s.start * 1e7).round() as i64, (s.end * 1e7).round() as i64, s.phone))
+        .map(|s| {
+            format!(
+                "{} {} {}\n",
+                (s.start * 1e7).round() as i64,
+                (s.end * 1e7).round() as i64,
+                s.phone
+            )
+        })
         .collect()
 }
 
@@ -468,7 +653,10 @@ pub fn write_labels(path: &Path, segments: &[Segment]) -> Result<(), PhonemeErro
         Some("tsv") | Some("txt") => format_tsv(segments),
         _ => format_htk(segments),
     };
-    atomic::write_file(path, text.as_bytes()).map_err(|source| PhonemeError::Io { path: path.into(), source })
+    atomic::write_file(path, text.as_bytes()).map_err(|source| PhonemeError::Io {
+        path: path.into(),
+        source,
+    })
 }
 
 // ---- text → phonemes ----
@@ -480,7 +668,9 @@ pub fn dictionary() -> &'static BTreeMap<String, Vec<Phone>> {
     static DICT: OnceLock<BTreeMap<String, Vec<Phone>>> = OnceLock::new();
     DICT.get_or_init(|| {
         let mut text = String::new();
-        flate2::read::GzDecoder::new(CMUDICT_GZ).read_to_string(&mut text).expect("embedded dictionary decompresses");
+        flate2::read::GzDecoder::new(CMUDICT_GZ)
+            .read_to_string(&mut text)
+            .expect("embedded dictionary decompresses");
         text.lines()
             .filter_map(|l| {
                 let mut it = l.split_whitespace();
@@ -496,8 +686,9 @@ pub fn dictionary() -> &'static BTreeMap<String, Vec<Phone>> {
 /// its own: approximate figures of the kind reported for TIMIT (vowels ~70–160 ms,
 /// consonants ~40–120 ms). Indexed like [`PHONES`].
 pub const DEFAULT_DURATIONS: [f64; 40] = [
-    0.20, 0.12, 0.13, 0.08, 0.12, 0.15, 0.14, 0.07, 0.10, 0.06, 0.04, 0.09, 0.11, 0.12, 0.10, 0.07, 0.06, 0.07, 0.10, 0.09,
-    0.08, 0.07, 0.07, 0.06, 0.07, 0.12, 0.16, 0.08, 0.07, 0.11, 0.12, 0.07, 0.10, 0.07, 0.10, 0.06, 0.06, 0.06, 0.09, 0.09,
+    0.20, 0.12, 0.13, 0.08, 0.12, 0.15, 0.14, 0.07, 0.10, 0.06, 0.04, 0.09, 0.11, 0.12, 0.10, 0.07,
+    0.06, 0.07, 0.10, 0.09, 0.08, 0.07, 0.07, 0.06, 0.07, 0.12, 0.16, 0.08, 0.07, 0.11, 0.12, 0.07,
+    0.10, 0.07, 0.10, 0.06, 0.06, 0.06, 0.09, 0.09,
 ];
 
 /// Silence at the start and end of an utterance, and at a punctuation mark.
@@ -530,7 +721,8 @@ pub fn text_to_segments(text: &str, durations: &[f64; 40]) -> Result<Vec<Segment
             word.push(c);
         } else {
             flush(&mut word, &mut phones, &mut missing);
-            if matches!(c, ',' | '.' | ';' | ':' | '?' | '!') && phones.last() != Some(&Phone::SIL) {
+            if matches!(c, ',' | '.' | ';' | ':' | '?' | '!') && phones.last() != Some(&Phone::SIL)
+            {
                 phones.push(Phone::SIL);
             }
         }
@@ -556,7 +748,11 @@ pub fn text_to_segments(text: &str, durations: &[f64; 40]) -> Result<Vec<Segment
                 Phone::SIL => PAUSE,
                 p => durations[p.index()],
             };
-            let s = Segment { start: t, end: t + d, phone };
+            let s = Segment {
+                start: t,
+                end: t + d,
+                phone,
+            };
             t += d;
             s
         })
@@ -569,7 +765,12 @@ mod tests {
 
     #[test]
     fn every_phone_has_a_viseme_and_classes_match_the_table() {
-        let class = |names: &[&str]| names.iter().map(|n| Phone::parse(n).unwrap().viseme()).collect::<Vec<_>>();
+        let class = |names: &[&str]| {
+            names
+                .iter()
+                .map(|n| Phone::parse(n).unwrap().viseme())
+                .collect::<Vec<_>>()
+        };
         assert_eq!(class(&["p", "b", "m"]), vec![21; 3]);
         assert_eq!(class(&["f", "v"]), vec![18; 2]);
         assert_eq!(class(&["d", "t", "n"]), vec![19; 3]);

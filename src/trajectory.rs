@@ -10,9 +10,17 @@ pub enum TrajectoryError {
     #[error("a trajectory needs at least one sample")]
     Empty,
     #[error("{values} values do not form {samples} samples of {dims} dimensions")]
-    Shape { samples: usize, dims: usize, values: usize },
+    Shape {
+        samples: usize,
+        dims: usize,
+        values: usize,
+    },
     #[error("sample times must increase strictly: t[{index}] = {time} follows {previous}")]
-    NotIncreasing { index: usize, time: f64, previous: f64 },
+    NotIncreasing {
+        index: usize,
+        time: f64,
+        previous: f64,
+    },
     #[error("sample {index} holds a non-finite value")]
     NotFinite { index: usize },
     #[error("segment {start}–{end} s is empty or reversed")]
@@ -37,13 +45,26 @@ impl Trajectory {
             return Err(TrajectoryError::Empty);
         }
         if values.len() != n * dims {
-            return Err(TrajectoryError::Shape { samples: n, dims, values: values.len() });
+            return Err(TrajectoryError::Shape {
+                samples: n,
+                dims,
+                values: values.len(),
+            });
         }
-        if let Some(index) = (0..n).find(|&i| !times[i].is_finite() || values[i * dims..(i + 1) * dims].iter().any(|v| !v.is_finite())) {
+        if let Some(index) = (0..n).find(|&i| {
+            !times[i].is_finite()
+                || values[i * dims..(i + 1) * dims]
+                    .iter()
+                    .any(|v| !v.is_finite())
+        }) {
             return Err(TrajectoryError::NotFinite { index });
         }
         if let Some(i) = (1..n).find(|&i| times[i] <= times[i - 1]) {
-            return Err(TrajectoryError::NotIncreasing { index: i, time: times[i], previous: times[i - 1] });
+            return Err(TrajectoryError::NotIncreasing {
+                index: i,
+                time: times[i],
+                previous: times[i - 1],
+            });
         }
         let mut slopes = vec![0.0; n * dims];
         let mut column = vec![0.0; n];
@@ -57,7 +78,12 @@ impl Trajectory {
                 slopes[i * dims + k] = d[i];
             }
         }
-        Ok(Trajectory { times, dims, values, slopes })
+        Ok(Trajectory {
+            times,
+            dims,
+            values,
+            slopes,
+        })
     }
 
     /// Frames sampled at `fps` from time 0 (`frames.len() / dims` samples).
@@ -106,10 +132,18 @@ impl Trajectory {
         let h = self.times[i + 1] - self.times[i];
         let s = (t - self.times[i]) / h;
         let (s2, s3) = (s * s, s * s * s);
-        let (h00, h10, h01, h11) = (2.0 * s3 - 3.0 * s2 + 1.0, s3 - 2.0 * s2 + s, -2.0 * s3 + 3.0 * s2, s3 - s2);
+        let (h00, h10, h01, h11) = (
+            2.0 * s3 - 3.0 * s2 + 1.0,
+            s3 - 2.0 * s2 + s,
+            -2.0 * s3 + 3.0 * s2,
+            s3 - s2,
+        );
         let (a, b) = (i * dims, (i + 1) * dims);
         for k in 0..dims {
-            out[k] = h00 * self.values[a + k] + h10 * h * self.slopes[a + k] + h01 * self.values[b + k] + h11 * h * self.slopes[b + k];
+            out[k] = h00 * self.values[a + k]
+                + h10 * h * self.slopes[a + k]
+                + h01 * self.values[b + k]
+                + h11 * h * self.slopes[b + k];
         }
     }
 
@@ -124,19 +158,33 @@ impl Trajectory {
 
     /// Values at `fps` from `start()` to `end()` inclusive of every whole frame.
     pub fn resample(&self, fps: f64) -> Vec<f64> {
-        self.sample(&frame_times(self.end() - self.start(), fps).iter().map(|t| t + self.start()).collect::<Vec<_>>())
+        self.sample(
+            &frame_times(self.end() - self.start(), fps)
+                .iter()
+                .map(|t| t + self.start())
+                .collect::<Vec<_>>(),
+        )
     }
 
     /// The segment `[start, end]` linearly time-warped to last `duration`: the returned
     /// map evaluates `self` at `start + (t / duration)(end − start)` for `t ∈ [0, duration]`.
-    pub fn warp(&self, start: f64, end: f64, duration: f64) -> Result<TimeWarp<'_>, TrajectoryError> {
+    pub fn warp(
+        &self,
+        start: f64,
+        end: f64,
+        duration: f64,
+    ) -> Result<TimeWarp<'_>, TrajectoryError> {
         if !(end > start) || !start.is_finite() || !end.is_finite() {
             return Err(TrajectoryError::BadSegment { start, end });
         }
         if !(duration > 0.0 && duration.is_finite()) {
             return Err(TrajectoryError::BadDuration(duration));
         }
-        Ok(TimeWarp { trajectory: self, start, rate: (end - start) / duration })
+        Ok(TimeWarp {
+            trajectory: self,
+            start,
+            rate: (end - start) / duration,
+        })
     }
 }
 
@@ -154,7 +202,12 @@ impl TimeWarp<'_> {
     }
 
     pub fn sample(&self, times: &[f64]) -> Vec<f64> {
-        self.trajectory.sample(&times.iter().map(|t| self.start + t * self.rate).collect::<Vec<_>>())
+        self.trajectory.sample(
+            &times
+                .iter()
+                .map(|t| self.start + t * self.rate)
+                .collect::<Vec<_>>(),
+        )
     }
 }
 

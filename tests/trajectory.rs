@@ -34,7 +34,12 @@ fn pchip_matches_scipy() {
             let (a, b) = (tr.eval(*x), tr.eval(x + h));
             for k in 0..dims {
                 let fd = (b[k] - a[k]) / h;
-                assert!((fd - expected[k]).abs() < 1e-4 * (1.0 + expected[k].abs()), "{}: slope at {x}: {fd} vs {}", c.name, expected[k]);
+                assert!(
+                    (fd - expected[k]).abs() < 1e-4 * (1.0 + expected[k].abs()),
+                    "{}: slope at {x}: {fd} vs {}",
+                    c.name,
+                    expected[k]
+                );
             }
         }
         assert!(worst < 1e-9, "{}: worst difference {worst:e}", c.name);
@@ -43,7 +48,12 @@ fn pchip_matches_scipy() {
 
 #[test]
 fn passes_through_samples_and_holds_outside() {
-    let tr = Trajectory::new(vec![0.0, 1.0, 3.0], vec![1.0, 10.0, 4.0, 40.0, 2.0, 20.0], 2).unwrap();
+    let tr = Trajectory::new(
+        vec![0.0, 1.0, 3.0],
+        vec![1.0, 10.0, 4.0, 40.0, 2.0, 20.0],
+        2,
+    )
+    .unwrap();
     assert_eq!(tr.eval(1.0), vec![4.0, 40.0]);
     assert_eq!(tr.eval(-5.0), vec![1.0, 10.0]);
     assert_eq!(tr.eval(9.0), vec![2.0, 20.0]);
@@ -63,18 +73,36 @@ fn time_warp_is_a_linear_reparameterisation() {
         assert_eq!(out[0], tr.eval(src)[0]);
     }
     assert_eq!(w.sample(&[0.15])[0], tr.eval(0.7)[0]);
-    assert!(matches!(tr.warp(1.0, 1.0, 0.3), Err(TrajectoryError::BadSegment { .. })));
-    assert!(matches!(tr.warp(0.0, 1.0, 0.0), Err(TrajectoryError::BadDuration(_))));
+    assert!(matches!(
+        tr.warp(1.0, 1.0, 0.3),
+        Err(TrajectoryError::BadSegment { .. })
+    ));
+    assert!(matches!(
+        tr.warp(0.0, 1.0, 0.0),
+        Err(TrajectoryError::BadDuration(_))
+    ));
     assert_eq!(frame_times(1.0, 25.0).len(), 26);
     assert_eq!(tr.resample(25.0).len(), 50);
 }
 
 #[test]
 fn bad_samples_are_errors() {
-    assert_eq!(Trajectory::new(vec![], vec![], 1), Err(TrajectoryError::Empty));
-    assert!(matches!(Trajectory::new(vec![0.0, 1.0], vec![1.0], 1), Err(TrajectoryError::Shape { .. })));
-    assert!(matches!(Trajectory::new(vec![0.0, 0.0], vec![1.0, 2.0], 1), Err(TrajectoryError::NotIncreasing { index: 1, .. })));
-    assert!(matches!(Trajectory::new(vec![0.0, 1.0], vec![1.0, f64::NAN], 1), Err(TrajectoryError::NotFinite { index: 1 })));
+    assert_eq!(
+        Trajectory::new(vec![], vec![], 1),
+        Err(TrajectoryError::Empty)
+    );
+    assert!(matches!(
+        Trajectory::new(vec![0.0, 1.0], vec![1.0], 1),
+        Err(TrajectoryError::Shape { .. })
+    ));
+    assert!(matches!(
+        Trajectory::new(vec![0.0, 0.0], vec![1.0, 2.0], 1),
+        Err(TrajectoryError::NotIncreasing { index: 1, .. })
+    ));
+    assert!(matches!(
+        Trajectory::new(vec![0.0, 1.0], vec![1.0, f64::NAN], 1),
+        Err(TrajectoryError::NotFinite { index: 1 })
+    ));
 }
 
 proptest! {
