@@ -23,6 +23,7 @@ pub mod model;
 pub mod npy;
 pub mod pca;
 pub mod phonemes;
+pub mod plot;
 pub mod shape;
 pub mod trajectory;
 pub mod warp;

@@ -1,5 +1,6 @@
 //! Subcommands, progress bars and human-readable reports.
 
+mod codebook;
 mod demo;
 mod model;
 
@@ -23,6 +24,9 @@ enum Command {
     /// Build, inspect and test face models.
     #[command(subcommand)]
     Model(model::ModelCommand),
+    /// Build, inspect and plot synthesis codebooks.
+    #[command(subcommand)]
+    Codebook(codebook::CodebookCommand),
     /// Build a model from the bundled faces and write reconstructions to out/demo.
     Demo(demo::DemoArgs),
 }
@@ -30,6 +34,7 @@ enum Command {
 pub fn run() -> anyhow::Result<()> {
     match Cli::parse().command {
         Command::Model(c) => model::run(c),
+        Command::Codebook(c) => codebook::run(c),
         Command::Demo(a) => demo::run(a),
     }
 }

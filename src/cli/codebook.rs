@@ -1,0 +1,120 @@
+//! `facespace codebook build | info | similarity`.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use clap::{Args, Subcommand};
+use facespace::codebook::{Codebook, Layout, SimilarityOptions, load_corpus};
+use facespace::model::FaceModel;
+use facespace::phonemes::{PHONES, Phone, PhoneMap};
+use facespace::plot;
+
+#[derive(Subcommand)]
+pub enum CodebookCommand {
+    /// Build a codebook from face-space trajectories (.npy) with phone labels of the same name.
+    Build(BuildArgs),
+    /// Sentences, frames, phone counts and the three most similar phones of each.
+    Info {
+        /// Codebook folder.
+        codebook: PathBuf,
+    },
+    /// Write the phoneme similarity matrix S as a heat map.
+    Similarity {
+        /// Codebook folder.
+        codebook: PathBuf,
+        /// Output PNG.
+        #[arg(long)]
+        png: PathBuf,
+    },
+}
+
+#[derive(Args)]
+pub struct BuildArgs {
+    /// The face model the trajectories belong to.
+    #[arg(long)]
+    model: PathBuf,
+    /// Folder of NAME.npy (frames × face-space dims) with NAME.lab / NAME.TextGrid / NAME.tsv.
+    #[arg(long)]
+    corpus: PathBuf,
+    /// Frame rate of the trajectories.
+    #[arg(long, default_value_t = 25.0)]
+    fps: f64,
+    /// TextGrid tier to read (default: "phones" or "phonemes").
+    #[arg(long)]
+    tier: Option<String>,
+    /// Two-column file mapping another phone set's labels to ARPAbet.
+    #[arg(long)]
+    phone_map: Option<PathBuf>,
+    /// γ of S = exp(−γ D) (default: 1 / median distance).
+    #[arg(long)]
+    gamma: Option<f64>,
+    /// Output codebook folder.
+    #[arg(short, long)]
+    output: PathBuf,
+}
+
+pub fn run(command: CodebookCommand) -> Result<()> {
+    match command {
+        CodebookCommand::Build(a) => build(a),
+        CodebookCommand::Info { codebook } => info(&load(&codebook)?),
+        CodebookCommand::Similarity { codebook, png } => similarity_png(&load(&codebook)?, &png),
+    }
+}
+
+fn load(dir: &Path) -> Result<Codebook> {
+    Codebook::load(dir).with_context(|| format!("loading codebook {}", dir.display()))
+}
+
+fn build(a: BuildArgs) -> Result<()> {
+    let start = std::time::Instant::now();
+    let model = FaceModel::load(&a.model).with_context(|| format!("loading model {}", a.model.display()))?;
+    let map = match &a.phone_map {
+        Some(p) => PhoneMap::read(p)?,
+        None => PhoneMap::default(),
+    };
+    let layout = Layout::of(&model);
+    let sentences = load_corpus(&a.corpus, a.fps, layout.dims(), a.tier.as_deref(), &map)
+        .with_context(|| format!("reading corpus {}", a.corpus.display()))?;
+    let options = SimilarityOptions { gamma: a.gamma, ..SimilarityOptions::default() };
+    let (bar, mut progress) = super::progress_bar();
+    let cb = Codebook::build(sentences, a.fps, layout, Some(model.hash()), options, &mut progress)?;
+    bar.finish_and_clear();
+    cb.save(&a.output).with_context(|| format!("saving codebook {}", a.output.display()))?;
+    println!("built {} in {:.2} s", a.output.display(), start.elapsed().as_secs_f64());
+    info(&cb)
+}
+
+pub fn info(cb: &Codebook) -> Result<()> {
+    let frames: usize = cb.sentences.iter().map(|s| s.frames.len() / cb.dims()).sum();
+    println!("  sentences   {}", cb.sentences.len());
+    println!("  frames      {frames} at {} fps ({:.1} s)", cb.fps, frames as f64 / cb.fps);
+    println!(
+        "  face-space  {} values (pose {}, shape {}, appearance {}), model {}",
+        cb.dims(),
+        cb.layout.pose,
+        cb.layout.shape,
+        cb.layout.appearance,
+        cb.model_hash.as_deref().unwrap_or("unknown")
+    );
+    let absent: Vec<&str> = Phone::all().filter(|p| cb.occurrences[p.index()].is_empty()).map(|p| p.name()).collect();
+    if !absent.is_empty() {
+        println!("  absent      {}", absent.join(" "));
+    }
+    println!("  phone  count  mean ms  most similar (S)");
+    let durations = cb.mean_durations();
+    for p in cb.present() {
+        let near: Vec<String> = cb.nearest(p, 3).iter().map(|(q, s)| format!("{q} {s:.3}")).collect();
+        println!("  {:<5} {:>6} {:>8.0}  {}", p.name(), cb.occurrences[p.index()].len(), 1000.0 * durations[p.index()], near.join(", "));
+    }
+    Ok(())
+}
+
+fn similarity_png(cb: &Codebook, png: &Path) -> Result<()> {
+    let present = cb.present();
+    let labels: Vec<&str> = present.iter().map(|p| PHONES[p.index()]).collect();
+    let values: Vec<f64> = present.iter().flat_map(|a| present.iter().map(move |b| cb.similarity(*a, *b))).collect();
+    let img = plot::heat_map(&values, &labels, "phoneme similarity S");
+    super::model::save_png(&img, png)?;
+    println!("wrote {} ({} phones)", png.display(), present.len());
+    Ok(())
+}
