@@ -16,13 +16,24 @@ pub fn write_file(path: &Path, bytes: &[u8]) -> io::Result<()> {
 }
 
 /// Builds a folder with `fill` in a temporary sibling, then swaps it in for `target`
-/// (an existing `target` is replaced only once the new one is complete). `io` turns this
-/// function's own I/O errors into the caller's error type.
+/// (an existing `target` is replaced only once the new one is complete). A non-empty
+/// `target` is replaced only if it holds `marker` (e.g. `model.json`), so saving never wipes
+/// a folder of something else. `io` turns this function's own I/O errors into the caller's.
 pub fn replace_dir<E>(
     target: &Path,
+    marker: &str,
     fill: impl FnOnce(&Path) -> Result<(), E>,
     io: impl Fn(io::Error) -> E,
 ) -> Result<(), E> {
+    if target.exists()
+        && !target.join(marker).is_file()
+        && std::fs::read_dir(target).map_err(&io)?.next().is_some()
+    {
+        return Err(io(io::Error::new(
+            io::ErrorKind::AlreadyExists,
+            format!("it exists and is not a folder of this kind (no {marker}); refusing to replace it"),
+        )));
+    }
     let parent = parent_of(target);
     std::fs::create_dir_all(parent).map_err(&io)?;
     let tmp = tempfile::Builder::new()
@@ -66,9 +77,10 @@ mod tests {
     fn failed_fill_leaves_the_old_folder_untouched() {
         let root = tempfile::tempdir().unwrap();
         let target = root.path().join("model");
-        replace_dir(&target, |d| std::fs::write(d.join("a"), "1"), |e| e).unwrap();
+        replace_dir(&target, "a", |d| std::fs::write(d.join("a"), "1"), |e| e).unwrap();
         let failed = replace_dir(
             &target,
+            "a",
             |d| {
                 std::fs::write(d.join("a"), "2")?;
                 Err(io::Error::other("crash"))
@@ -77,7 +89,10 @@ mod tests {
         );
         assert!(failed.is_err());
         assert_eq!(std::fs::read_to_string(target.join("a")).unwrap(), "1");
-        replace_dir(&target, |d| std::fs::write(d.join("b"), "3"), |e| e).unwrap();
+        replace_dir(&target, "a", |d| std::fs::write(d.join("b"), "3"), |e| e).unwrap();
+        // A folder without the marker is never replaced.
+        let err = replace_dir(&target, "a", |_| Ok(()), |e| e).unwrap_err();
+        assert_eq!(err.kind(), io::ErrorKind::AlreadyExists);
         assert!(!target.join("a").exists());
         assert_eq!(std::fs::read_to_string(target.join("b")).unwrap(), "3");
         let left: Vec<_> = std::fs::read_dir(root.path()).unwrap().collect();

@@ -506,6 +506,7 @@ impl Codebook {
         let dims = self.dims();
         atomic::replace_dir(
             dir,
+            "codebook.json",
             |tmp| -> Result<(), CodebookError> {
                 for (i, s) in self.sentences.iter().enumerate() {
                     npy::write(

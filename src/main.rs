@@ -4,7 +4,24 @@ mod cli;
 
 fn main() {
     if let Err(err) = cli::run() {
-        eprintln!("error: {err:#}");
+        eprintln!("error: {}", error_chain(&err));
         std::process::exit(1);
     }
+}
+
+/// The context chain joined by ": ". Library errors already display their sources, so a cause
+/// whose text the message so far contains is not repeated.
+fn error_chain(err: &anyhow::Error) -> String {
+    let mut message = String::new();
+    for cause in err.chain() {
+        let text = cause.to_string();
+        if message.contains(&text) {
+            continue;
+        }
+        if !message.is_empty() {
+            message.push_str(": ");
+        }
+        message.push_str(&text);
+    }
+    message
 }

@@ -455,6 +455,7 @@ impl FaceModel {
         let json = serde_json::to_string_pretty(&manifest).expect("manifest serialises");
         atomic::replace_dir(
             dir,
+            "model.json",
             |tmp| -> Result<(), ModelError> {
                 let (s, a) = (&self.shape.pca, &self.appearance.pca);
                 npy::write(&tmp.join("shape_mean.npy"), &[n, 2], &s.mean)?;

@@ -208,8 +208,14 @@ pub fn from_reference_into(
         floor: [f64; 3],
         /// Source (reference-frame) position: `s = s0 + sx·x + sy·y`.
         s0: Point,
+        /// The triangle's vertices in the reference frame.
+        src: [Point; 3],
         sx: Point,
         sy: Point,
+        /// The bounding box grown by the dilation: a sliver's shifted half-plane would
+        /// otherwise reach far beyond the triangle.
+        x_lo: f64,
+        x_hi: f64,
         y0: usize,
         y1: usize,
     }
@@ -252,8 +258,11 @@ pub fn from_reference_into(
                 ly,
                 floor,
                 s0,
+                src,
                 sx: [at(l10, 0) - s0[0], at(l10, 1) - s0[1]],
                 sy: [at(l01, 0) - s0[0], at(l01, 1) - s0[1]],
+                x_lo: lo_x.max(0.0),
+                x_hi: hi_x.min((w - 1) as f64),
                 y0: lo_y.ceil().max(0.0) as usize,
                 y1: (hi_y.floor() as usize).min(h - 1),
             })
@@ -269,7 +278,7 @@ pub fn from_reference_into(
             for t in tris.iter().filter(|t| t.y1 >= r0 && t.y0 <= r1) {
                 for y in t.y0.max(r0)..=t.y1.min(r1) {
                     // The row's span: every λ_i(x) = c_i + lx_i·x ≥ floor_i.
-                    let (mut lo, mut hi) = (0f64, (w - 1) as f64);
+                    let (mut lo, mut hi) = (t.x_lo, t.x_hi);
                     for i in 0..3 {
                         let c = t.l0[i] + t.ly[i] * y as f64 - t.floor[i];
                         if t.lx[i] > 0.0 {
@@ -287,11 +296,25 @@ pub fn from_reference_into(
                     let row = &mut rows[(y - r0) * w * 3..(y - r0 + 1) * w * 3];
                     let mut sx = t.s0[0] + t.sx[0] * x0 as f64 + t.sy[0] * y as f64;
                     let mut sy = t.s0[1] + t.sx[1] * x0 as f64 + t.sy[1] * y as f64;
+                    let mut l: [f64; 3] = std::array::from_fn(|i| t.l0[i] + t.lx[i] * x0 as f64 + t.ly[i] * y as f64);
                     for px in row[x0 * 3..(x1 + 1) * 3].chunks_exact_mut(3) {
-                        let v = sample(&source, fw, fh, sx, sy, |v: f32| v);
+                        let v = if l.iter().all(|&v| v >= 0.0) {
+                            sample(&source, fw, fh, sx, sy, |v: f32| v)
+                        } else {
+                            // Dilated pixel beyond a hull edge: sample the nearest point of the
+                            // triangle rather than extrapolate its map, which a sliver would
+                            // stretch far outside the texture.
+                            let c = l.map(|v| v.max(0.0));
+                            let sum = c[0] + c[1] + c[2];
+                            let at = |k: usize| (c[0] * t.src[0][k] + c[1] * t.src[1][k] + c[2] * t.src[2][k]) / sum;
+                            sample(&source, fw, fh, at(0), at(1), |v: f32| v)
+                        };
                         px.copy_from_slice(&v.map(to_u8));
                         sx += t.sx[0];
                         sy += t.sx[1];
+                        for i in 0..3 {
+                            l[i] += t.lx[i];
+                        }
                     }
                 }
             }

@@ -197,3 +197,36 @@ fn warp_input_errors() {
         Err(WarpError::TextureLength { .. })
     ));
 }
+
+/// Rendering paints nothing beyond one pixel of some triangle's bounding box, even where
+/// the mesh has slivers (the demo model's eyebrow arches: a shifted half-plane of a sliver
+/// once reached across the whole frame).
+#[test]
+fn render_dilation_stays_next_to_the_mesh() {
+    let model = facespace::model::FaceModel::load(&common::root().join("models/demo/model")).unwrap();
+    let face = facespace::model::load_training_set(&common::root().join("tests/data/demo-heldout"), None).unwrap();
+    for e in face.iter().take(3) {
+        let params = model.project(&e.image, &e.landmarks).unwrap();
+        let sentinel = image::Rgb([1, 2, 3]);
+        let mut canvas = RgbImage::from_pixel(e.image.width(), e.image.height(), sentinel);
+        let r = model.render_into(&params, &mut canvas).unwrap();
+        let boxes: Vec<[f64; 4]> = model
+            .frame
+            .triangles
+            .iter()
+            .map(|t| {
+                let p = t.map(|v| r.landmarks.points[v as usize]);
+                let (xs, ys) = (p.map(|q| q[0]), p.map(|q| q[1]));
+                let lo = |a: [f64; 3]| a[0].min(a[1]).min(a[2]) - 1.0;
+                let hi = |a: [f64; 3]| a[0].max(a[1]).max(a[2]) + 1.0;
+                [lo(xs), hi(xs), lo(ys), hi(ys)]
+            })
+            .collect();
+        let stray = canvas
+            .enumerate_pixels()
+            .filter(|(_, _, p)| **p != sentinel)
+            .filter(|(x, y, _)| !boxes.iter().any(|b| (*x as f64) >= b[0] && (*x as f64) <= b[1] && (*y as f64) >= b[2] && (*y as f64) <= b[3]))
+            .count();
+        assert_eq!(stray, 0, "{}: {stray} pixels painted away from the mesh", e.name);
+    }
+}
