@@ -18,6 +18,7 @@
 pub mod appearance;
 pub mod atomic;
 pub mod codebook;
+pub mod corpus;
 pub mod mesh;
 pub mod model;
 pub mod npy;

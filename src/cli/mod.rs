@@ -1,6 +1,7 @@
 //! Subcommands, progress bars and human-readable reports.
 
 mod codebook;
+mod corpus;
 mod demo;
 mod model;
 
@@ -27,6 +28,9 @@ enum Command {
     /// Build, inspect and plot synthesis codebooks.
     #[command(subcommand)]
     Codebook(codebook::CodebookCommand),
+    /// Generate corpora.
+    #[command(subcommand)]
+    Corpus(corpus::CorpusCommand),
     /// Build a model from the bundled faces and write reconstructions to out/demo.
     Demo(demo::DemoArgs),
 }
@@ -35,6 +39,7 @@ pub fn run() -> anyhow::Result<()> {
     match Cli::parse().command {
         Command::Model(c) => model::run(c),
         Command::Codebook(c) => codebook::run(c),
+        Command::Corpus(c) => corpus::run(c),
         Command::Demo(a) => demo::run(a),
     }
 }

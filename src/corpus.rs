@@ -1,0 +1,283 @@
+//! A generated, phoneme-labelled demo corpus over real face-space points.
+//!
+//! No phoneme-labelled recording of the demo talker exists (the video has no audio), so the
+//! corpus is **generated**, deterministically from a seed:
+//!
+//! * **Phones and timings**: each sentence's text goes through the embedded CMU dictionary;
+//!   durations come from the built-in table, scaled by a per-sentence speaking rate (±10%)
+//!   and a per-phone jitter (±20%).
+//! * **Targets**: every viseme class (DESIGN §6) has a target mouth shape, given as quantiles
+//!   of lip opening and mouth width over the real training frames; its candidates are the
+//!   three training frames nearest that shape, and their face-space points (the frames
+//!   projected through the model) are the raw material. Each phone mixes its class's
+//!   candidates with its own fixed weights; each occurrence perturbs those weights, so no
+//!   two occurrences are identical.
+//! * **Coarticulation**: dominance functions (after Cohen & Massaro 1993): segment s pulls the
+//!   trajectory towards its target with weight `α_s exp(−max(0, |t − c_s| − d_s/4) / τ)`,
+//!   `τ = 50 ms`; the face-space point at t is the dominance-weighted mean of the targets.
+//!   Bilabials, labiodentals and silence dominate strongly (the lips must close or touch);
+//!   /hh/, /k g ng/ weakly (they take the shape of their neighbours).
+//! * The pose is held at the training frames' mean pose (a still head).
+
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+use crate::model::{FaceModel, ModelError, TrainingExample};
+use crate::phonemes::{self, DEFAULT_DURATIONS, N_VISEMES, Phone, PhonemeError, Segment};
+use crate::trajectory::frame_times;
+
+#[derive(Debug, Error)]
+pub enum CorpusError {
+    #[error(transparent)]
+    Model(#[from] ModelError),
+    #[error("sentence {index} ({text:?}): {source}")]
+    Text { index: usize, text: String, source: PhonemeError },
+    #[error("need at least 3 training frames with landmarks, got {0}")]
+    TooFewFrames(usize),
+}
+
+/// The demo sentences: short original English sentences covering the phone set. The last
+/// [`HELD_OUT`] are held out for evaluation.
+pub const SENTENCES: [&str; 60] = [
+    "Bob bought a big blue boat.",
+    "My mother made muffins in the morning.",
+    "Five very fine voices filled the valley.",
+    "The thin thief thought that the theatre was there.",
+    "Two tired dogs dug a deep ditch today.",
+    "Sally sells sea shells by the sea shore.",
+    "She should choose a cheap chair for the show.",
+    "Keep the good cake for the king.",
+    "Lucy likes yellow lemons and limes.",
+    "Red roses grow near the river road.",
+    "We will walk with Willy to the woods.",
+    "How now, brown cow?",
+    "Oil and soil were in the noisy boy's toy.",
+    "I might buy a white kite tonight.",
+    "The old man rode home alone slowly.",
+    "Father saw a large dark barn.",
+    "Eat the green peas and the cheese.",
+    "A pen, a bed, and ten eggs.",
+    "The cat had a bad habit.",
+    "Put the book on the wooden hook.",
+    "The moon is blue and cool in June.",
+    "Her first word was bird.",
+    "Measure the treasure with pleasure.",
+    "Jack enjoyed the orange juice.",
+    "Thank you for the map of the bay.",
+    "Please pass me a piece of pie.",
+    "Every van moves over the bridge.",
+    "Hold the hammer in your hand.",
+    "Nine new nurses need money.",
+    "The song was sung along the long road.",
+    "Maybe my baby will be happy.",
+    "Victor gave a brave wave.",
+    "Zebras zigzag in the zoo.",
+    "The quick fox jumps over the lazy dog.",
+    "Paper plates make poor pillows.",
+    "Her mother and father live by the ocean.",
+    "Bring me the blue pencil from the box.",
+    "Few people knew about the view.",
+    "The team met at the main gate at eight.",
+    "Open the window when the room is warm.",
+    "Mark made a map of the moor.",
+    "Bill will fill the big bowl with milk.",
+    "The farmer feeds five fat pigs.",
+    "Tom and Dad went to town at ten.",
+    "Please bring both boxes back.",
+    "A mouse ran about the house.",
+    "The boy put the toy in the box.",
+    "Pamela bought apples and plums.",
+    "Give the visitor a warm welcome.",
+    "The baby smiled at the bubbles.",
+    "Mike fixed the bike in the morning.",
+    "The puppy played by the pond.",
+    "We made muffins with butter and berries.",
+    "Vera moved the vase to the oven.",
+    "My brother bought me a map.",
+    "The pilot flew above the big blue bay.",
+    "Beef and beans are fine food.",
+    "Move the boat to the dock before noon.",
+    "Mum put the pot of soup on the stove.",
+    "Few volcanoes move every five years.",
+];
+
+/// How many of [`SENTENCES`] (the last ones) are held out for evaluation.
+pub const HELD_OUT: usize = 6;
+
+/// Target mouth shape per viseme class: (lip-opening quantile, mouth-width quantile) over the
+/// training frames, 0 = least, 1 = most; and the dominance strength α.
+const VISEME_TARGETS: [(f64, f64, f64); N_VISEMES] = [
+    (0.05, 0.45, 1.5), // 0 silence: closed, relaxed
+    (0.80, 0.60, 1.0), // 1 ae ah
+    (1.00, 0.50, 1.0), // 2 aa
+    (0.80, 0.20, 1.0), // 3 ao
+    (0.60, 0.60, 1.0), // 4 ey eh uh
+    (0.35, 0.25, 1.0), // 5 er
+    (0.35, 0.95, 1.0), // 6 iy y ih
+    (0.25, 0.00, 1.2), // 7 w uw
+    (0.60, 0.10, 1.0), // 8 ow
+    (0.90, 0.30, 1.0), // 9 aw
+    (0.60, 0.15, 1.0), // 10 oy
+    (0.90, 0.60, 1.0), // 11 ay
+    (0.50, 0.50, 0.3), // 12 hh
+    (0.35, 0.15, 0.8), // 13 r
+    (0.50, 0.55, 0.8), // 14 l
+    (0.25, 0.85, 1.0), // 15 s z
+    (0.35, 0.10, 1.0), // 16 sh ch jh zh
+    (0.30, 0.60, 0.9), // 17 th dh
+    (0.15, 0.55, 1.6), // 18 f v
+    (0.35, 0.70, 0.8), // 19 d t n
+    (0.45, 0.55, 0.5), // 20 k g ng
+    (0.00, 0.40, 2.0), // 21 p b m
+];
+
+/// Time constant of the dominance functions.
+const TAU: f64 = 0.05;
+
+/// Options of the generator.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CorpusOptions {
+    pub seed: u64,
+    pub fps: f64,
+    /// Candidate training frames per viseme class.
+    pub candidates: usize,
+}
+
+impl Default for CorpusOptions {
+    fn default() -> Self {
+        CorpusOptions { seed: 2009, fps: 25.0, candidates: 3 }
+    }
+}
+
+/// One generated sentence.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GeneratedSentence {
+    pub name: String,
+    pub text: String,
+    pub held_out: bool,
+    pub segments: Vec<Segment>,
+    /// `frames × dims` face-space points at `fps`.
+    pub frames: Vec<f32>,
+}
+
+/// SplitMix64: a tiny deterministic generator, so output is identical on every machine.
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> f64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.next()
+    }
+}
+
+/// Lip opening (mean inner-lip gap) and mouth width, over the inter-ocular distance, of
+/// 68-point iBUG landmarks.
+pub fn mouth_shape(points: &[[f64; 2]]) -> (f64, f64) {
+    let d = |a: usize, b: usize| (points[a][0] - points[b][0]).hypot(points[a][1] - points[b][1]);
+    let centre = |r: std::ops::Range<usize>| {
+        let n = r.len() as f64;
+        r.fold([0.0, 0.0], |c, i| [c[0] + points[i][0] / n, c[1] + points[i][1] / n])
+    };
+    let (l, r) = (centre(36..42), centre(42..48));
+    let iod = (l[0] - r[0]).hypot(l[1] - r[1]);
+    ((d(61, 67) + d(62, 66) + d(63, 65)) / 3.0 / iod, d(48, 54) / iod)
+}
+
+/// Generates the demo corpus from the model and its (68-point) training frames.
+pub fn generate(model: &FaceModel, frames: &[TrainingExample], options: &CorpusOptions) -> Result<Vec<GeneratedSentence>, CorpusError> {
+    if frames.len() < 3 {
+        return Err(CorpusError::TooFewFrames(frames.len()));
+    }
+    let points: Vec<Vec<f32>> = frames.iter().map(|f| model.project(&f.image, &f.landmarks).map(|p| p.to_vector())).collect::<Result<_, _>>()?;
+    let dims = model.n_params();
+    // The still head: mean pose of the training frames.
+    let pose: Vec<f32> = (0..4).map(|k| points.iter().map(|p| p[k]).sum::<f32>() / points.len() as f32).collect();
+    // Mouth shapes as quantile ranks among the training frames.
+    let shapes: Vec<(f64, f64)> = frames.iter().map(|f| mouth_shape(&f.landmarks.points)).collect();
+    let rank = |values: Vec<f64>| -> Vec<f64> {
+        let mut order: Vec<usize> = (0..values.len()).collect();
+        order.sort_by(|&a, &b| values[a].total_cmp(&values[b]));
+        let mut r = vec![0.0; values.len()];
+        for (k, &i) in order.iter().enumerate() {
+            r[i] = k as f64 / (values.len() - 1) as f64;
+        }
+        r
+    };
+    let (open, wide) = (rank(shapes.iter().map(|s| s.0).collect()), rank(shapes.iter().map(|s| s.1).collect()));
+    let candidates: Vec<Vec<usize>> = VISEME_TARGETS
+        .iter()
+        .map(|&(o, w, _)| {
+            let mut order: Vec<usize> = (0..frames.len()).collect();
+            let dist = |i: usize| (open[i] - o).powi(2) + (wide[i] - w).powi(2);
+            order.sort_by(|&a, &b| dist(a).total_cmp(&dist(b)).then(a.cmp(&b)));
+            order.truncate(options.candidates.max(1));
+            order
+        })
+        .collect();
+    let mut rng = Rng(options.seed);
+    // Each phone's own mix of its class's candidates.
+    let phone_weights: Vec<Vec<f64>> = Phone::all().map(|p| candidates[p.viseme() as usize].iter().map(|_| rng.range(0.8, 1.0)).collect()).collect();
+    let mut out = Vec::with_capacity(SENTENCES.len());
+    for (index, text) in SENTENCES.iter().enumerate() {
+        let rate = rng.range(0.9, 1.1);
+        let mut durations = DEFAULT_DURATIONS;
+        durations.iter_mut().for_each(|d| *d *= rate);
+        let mut segments = phonemes::text_to_segments(text, &durations)
+            .map_err(|source| CorpusError::Text { index, text: text.to_string(), source })?;
+        // Per-phone jitter, keeping the segments contiguous.
+        let mut t = 0.0;
+        for s in &mut segments {
+            let d = s.duration() * rng.range(0.8, 1.2);
+            s.start = t;
+            s.end = t + d;
+            t += d;
+        }
+        // Occurrence targets: the phone's mix, perturbed.
+        let targets: Vec<Vec<f64>> = segments
+            .iter()
+            .map(|s| {
+                let cands = &candidates[s.phone.viseme() as usize];
+                let w: Vec<f64> = phone_weights[s.phone.index()].iter().map(|w| w * rng.range(0.85, 1.15)).collect();
+                let total: f64 = w.iter().sum();
+                (0..dims).map(|k| cands.iter().zip(&w).map(|(&c, wi)| points[c][k] as f64 * wi / total).sum()).collect()
+            })
+            .collect();
+        let times = frame_times(t, options.fps);
+        let mut frames_out = Vec::with_capacity(times.len() * dims);
+        for &time in &times {
+            let mut acc = vec![0.0; dims];
+            let mut wsum = 0.0;
+            for (s, target) in segments.iter().zip(&targets) {
+                let alpha = VISEME_TARGETS[s.phone.viseme() as usize].2;
+                let centre = 0.5 * (s.start + s.end);
+                let gap = ((time - centre).abs() - s.duration() / 4.0).max(0.0);
+                let w = alpha * (-gap / TAU).exp();
+                acc.iter_mut().zip(target).for_each(|(a, v)| *a += w * v);
+                wsum += w;
+            }
+            let row: Vec<f32> = acc.iter().map(|a| (a / wsum) as f32).collect();
+            frames_out.extend_from_slice(&pose);
+            frames_out.extend_from_slice(&row[4..]);
+        }
+        // The labels end with the last frame's interval.
+        let end = times.len() as f64 / options.fps;
+        if let Some(last) = segments.last_mut() {
+            last.end = end;
+        }
+        out.push(GeneratedSentence {
+            name: format!("demo{:02}", index + 1),
+            text: text.to_string(),
+            held_out: index >= SENTENCES.len() - HELD_OUT,
+            segments,
+            frames: frames_out,
+        });
+    }
+    Ok(out)
+}
