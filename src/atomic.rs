@@ -31,7 +31,9 @@ pub fn replace_dir<E>(
     {
         return Err(io(io::Error::new(
             io::ErrorKind::AlreadyExists,
-            format!("it exists and is not a folder of this kind (no {marker}); refusing to replace it"),
+            format!(
+                "it exists and is not a folder of this kind (no {marker}); refusing to replace it"
+            ),
         )));
     }
     let parent = parent_of(target);

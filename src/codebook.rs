@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
+use crate::manifest::{self, ManifestError};
 use crate::npy::{self, NpyError};
 use crate::phonemes::{self, Phone, PhoneMap, PhonemeError, Segment};
 use crate::trajectory::{Trajectory, TrajectoryError};
@@ -531,32 +532,20 @@ impl Codebook {
     /// rebuilt, and S and M are checked against the stored matrices' shapes and finiteness.
     pub fn load(dir: &Path) -> Result<Self, CodebookError> {
         let path = dir.join("codebook.json");
-        let text = std::fs::read_to_string(&path).map_err(|source| CodebookError::Io {
-            path: path.clone(),
-            source,
-        })?;
-        let value: serde_json::Value =
-            serde_json::from_str(&text).map_err(|e| CodebookError::Manifest {
+        let m: Manifest = manifest::read(&path, FORMAT, CODEBOOK_VERSION).map_err(|e| match e {
+            ManifestError::Io(source) => CodebookError::Io {
                 path: path.clone(),
-                reason: e.to_string(),
-            })?;
-        if value.get("format").and_then(|f| f.as_str()) != Some(FORMAT) {
-            return Err(CodebookError::Manifest {
-                path,
-                reason: format!("not a {FORMAT} manifest (\"format\" field)"),
-            });
-        }
-        let version = value.get("version").and_then(|v| v.as_u64()).unwrap_or(0) as u32;
-        if version != CODEBOOK_VERSION {
-            return Err(CodebookError::Version {
-                path,
-                found: version,
+                source,
+            },
+            ManifestError::Invalid(reason) => CodebookError::Manifest {
+                path: path.clone(),
+                reason,
+            },
+            ManifestError::Version(found) => CodebookError::Version {
+                path: path.clone(),
+                found,
                 supported: CODEBOOK_VERSION,
-            });
-        }
-        let m: Manifest = serde_json::from_value(value).map_err(|e| CodebookError::Manifest {
-            path: path.clone(),
-            reason: e.to_string(),
+            },
         })?;
         if m.phones.len() != N
             || m.phones

@@ -24,6 +24,7 @@ use thiserror::Error;
 
 use crate::model::{FaceModel, ModelError, TrainingExample};
 use crate::phonemes::{self, DEFAULT_DURATIONS, N_VISEMES, Phone, PhonemeError, Segment};
+use crate::rng::Rng;
 use crate::trajectory::frame_times;
 
 #[derive(Debug, Error)]
@@ -31,7 +32,11 @@ pub enum CorpusError {
     #[error(transparent)]
     Model(#[from] ModelError),
     #[error("sentence {index} ({text:?}): {source}")]
-    Text { index: usize, text: String, source: PhonemeError },
+    Text {
+        index: usize,
+        text: String,
+        source: PhonemeError,
+    },
     #[error("need at least 3 training frames with landmarks, got {0}")]
     TooFewFrames(usize),
 }
@@ -145,7 +150,11 @@ pub struct CorpusOptions {
 
 impl Default for CorpusOptions {
     fn default() -> Self {
-        CorpusOptions { seed: 2009, fps: 25.0, candidates: 3 }
+        CorpusOptions {
+            seed: 2009,
+            fps: 25.0,
+            candidates: 3,
+        }
     }
 }
 
@@ -160,47 +169,47 @@ pub struct GeneratedSentence {
     pub frames: Vec<f32>,
 }
 
-/// SplitMix64: a tiny deterministic generator, so output is identical on every machine.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.next()
-    }
-}
-
 /// Lip opening (mean inner-lip gap) and mouth width, over the inter-ocular distance, of
 /// 68-point iBUG landmarks.
 pub fn mouth_shape(points: &[[f64; 2]]) -> (f64, f64) {
     let d = |a: usize, b: usize| (points[a][0] - points[b][0]).hypot(points[a][1] - points[b][1]);
     let centre = |r: std::ops::Range<usize>| {
         let n = r.len() as f64;
-        r.fold([0.0, 0.0], |c, i| [c[0] + points[i][0] / n, c[1] + points[i][1] / n])
+        r.fold([0.0, 0.0], |c, i| {
+            [c[0] + points[i][0] / n, c[1] + points[i][1] / n]
+        })
     };
     let (l, r) = (centre(36..42), centre(42..48));
     let iod = (l[0] - r[0]).hypot(l[1] - r[1]);
-    ((d(61, 67) + d(62, 66) + d(63, 65)) / 3.0 / iod, d(48, 54) / iod)
+    (
+        (d(61, 67) + d(62, 66) + d(63, 65)) / 3.0 / iod,
+        d(48, 54) / iod,
+    )
 }
 
 /// Generates the demo corpus from the model and its (68-point) training frames.
-pub fn generate(model: &FaceModel, frames: &[TrainingExample], options: &CorpusOptions) -> Result<Vec<GeneratedSentence>, CorpusError> {
+pub fn generate(
+    model: &FaceModel,
+    frames: &[TrainingExample],
+    options: &CorpusOptions,
+) -> Result<Vec<GeneratedSentence>, CorpusError> {
     if frames.len() < 3 {
         return Err(CorpusError::TooFewFrames(frames.len()));
     }
-    let points: Vec<Vec<f32>> = frames.iter().map(|f| model.project(&f.image, &f.landmarks).map(|p| p.to_vector())).collect::<Result<_, _>>()?;
+    let points: Vec<Vec<f32>> = frames
+        .iter()
+        .map(|f| model.project(&f.image, &f.landmarks).map(|p| p.to_vector()))
+        .collect::<Result<_, _>>()?;
     let dims = model.n_params();
     // The still head: mean pose of the training frames.
-    let pose: Vec<f32> = (0..4).map(|k| points.iter().map(|p| p[k]).sum::<f32>() / points.len() as f32).collect();
+    let pose: Vec<f32> = (0..4)
+        .map(|k| points.iter().map(|p| p[k]).sum::<f32>() / points.len() as f32)
+        .collect();
     // Mouth shapes as quantile ranks among the training frames.
-    let shapes: Vec<(f64, f64)> = frames.iter().map(|f| mouth_shape(&f.landmarks.points)).collect();
+    let shapes: Vec<(f64, f64)> = frames
+        .iter()
+        .map(|f| mouth_shape(&f.landmarks.points))
+        .collect();
     let rank = |values: Vec<f64>| -> Vec<f64> {
         let mut order: Vec<usize> = (0..values.len()).collect();
         order.sort_by(|&a, &b| values[a].total_cmp(&values[b]));
@@ -210,7 +219,10 @@ pub fn generate(model: &FaceModel, frames: &[TrainingExample], options: &CorpusO
         }
         r
     };
-    let (open, wide) = (rank(shapes.iter().map(|s| s.0).collect()), rank(shapes.iter().map(|s| s.1).collect()));
+    let (open, wide) = (
+        rank(shapes.iter().map(|s| s.0).collect()),
+        rank(shapes.iter().map(|s| s.1).collect()),
+    );
     let candidates: Vec<Vec<usize>> = VISEME_TARGETS
         .iter()
         .map(|&(o, w, _)| {
@@ -221,16 +233,27 @@ pub fn generate(model: &FaceModel, frames: &[TrainingExample], options: &CorpusO
             order
         })
         .collect();
-    let mut rng = Rng(options.seed);
+    let mut rng = Rng::new(options.seed);
     // Each phone's own mix of its class's candidates.
-    let phone_weights: Vec<Vec<f64>> = Phone::all().map(|p| candidates[p.viseme() as usize].iter().map(|_| rng.range(0.8, 1.0)).collect()).collect();
+    let phone_weights: Vec<Vec<f64>> = Phone::all()
+        .map(|p| {
+            candidates[p.viseme() as usize]
+                .iter()
+                .map(|_| rng.range(0.8, 1.0))
+                .collect()
+        })
+        .collect();
     let mut out = Vec::with_capacity(SENTENCES.len());
     for (index, text) in SENTENCES.iter().enumerate() {
         let rate = rng.range(0.9, 1.1);
         let mut durations = DEFAULT_DURATIONS;
         durations.iter_mut().for_each(|d| *d *= rate);
-        let mut segments = phonemes::text_to_segments(text, &durations)
-            .map_err(|source| CorpusError::Text { index, text: text.to_string(), source })?;
+        let mut segments =
+            phonemes::text_to_segments(text, &durations).map_err(|source| CorpusError::Text {
+                index,
+                text: text.to_string(),
+                source,
+            })?;
         // Per-phone jitter, keeping the segments contiguous.
         let mut t = 0.0;
         for s in &mut segments {
@@ -244,9 +267,20 @@ pub fn generate(model: &FaceModel, frames: &[TrainingExample], options: &CorpusO
             .iter()
             .map(|s| {
                 let cands = &candidates[s.phone.viseme() as usize];
-                let w: Vec<f64> = phone_weights[s.phone.index()].iter().map(|w| w * rng.range(0.85, 1.15)).collect();
+                let w: Vec<f64> = phone_weights[s.phone.index()]
+                    .iter()
+                    .map(|w| w * rng.range(0.85, 1.15))
+                    .collect();
                 let total: f64 = w.iter().sum();
-                (0..dims).map(|k| cands.iter().zip(&w).map(|(&c, wi)| points[c][k] as f64 * wi / total).sum()).collect()
+                (0..dims)
+                    .map(|k| {
+                        cands
+                            .iter()
+                            .zip(&w)
+                            .map(|(&c, wi)| points[c][k] as f64 * wi / total)
+                            .sum()
+                    })
+                    .collect()
             })
             .collect();
         let times = frame_times(t, options.fps);

@@ -10,6 +10,7 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use crate::appearance::AppearanceModel;
+use crate::manifest::{self, ManifestError};
 use crate::mesh::{self, MeshError, Placement, ReferenceFrame, Triangle};
 use crate::npy::{self, Element, NpyError};
 use crate::pca::{Components, PcaError, PcaModel};
@@ -499,32 +500,20 @@ impl FaceModel {
     /// the manifest, finiteness, and that the stored mask matches the rebuilt frame.
     pub fn load(dir: &Path) -> Result<Self, ModelError> {
         let path = dir.join("model.json");
-        let text = std::fs::read_to_string(&path).map_err(|source| ModelError::Io {
-            path: path.clone(),
-            source,
-        })?;
-        let value: serde_json::Value =
-            serde_json::from_str(&text).map_err(|e| ModelError::Manifest {
+        let m: Manifest = manifest::read(&path, FORMAT, MODEL_VERSION).map_err(|e| match e {
+            ManifestError::Io(source) => ModelError::Io {
                 path: path.clone(),
-                reason: e.to_string(),
-            })?;
-        if value.get("format").and_then(|f| f.as_str()) != Some(FORMAT) {
-            return Err(ModelError::Manifest {
-                path,
-                reason: format!("not a {FORMAT} manifest (\"format\" field)"),
-            });
-        }
-        let version = value.get("version").and_then(|v| v.as_u64()).unwrap_or(0) as u32;
-        if version != MODEL_VERSION {
-            return Err(ModelError::Version {
-                path,
-                found: version,
+                source,
+            },
+            ManifestError::Invalid(reason) => ModelError::Manifest {
+                path: path.clone(),
+                reason,
+            },
+            ManifestError::Version(found) => ModelError::Version {
+                path: path.clone(),
+                found,
                 supported: MODEL_VERSION,
-            });
-        }
-        let m: Manifest = serde_json::from_value(value).map_err(|e| ModelError::Manifest {
-            path: path.clone(),
-            reason: e.to_string(),
+            },
         })?;
         let (n, p) = (m.n_landmarks, m.reference.n_pixels);
         let (ks, ka) = (m.shape.n_components, m.appearance.n_components);

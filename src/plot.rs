@@ -16,8 +16,14 @@ fn font() -> &'static FontRef<'static> {
 pub const BLACK: Rgb<u8> = Rgb([0, 0, 0]);
 pub const GREY: Rgb<u8> = Rgb([200, 200, 200]);
 /// Distinct series colours (Tableau 10).
-pub const PALETTE: [Rgb<u8>; 6] =
-    [Rgb([31, 119, 180]), Rgb([255, 127, 14]), Rgb([44, 160, 44]), Rgb([214, 39, 40]), Rgb([148, 103, 189]), Rgb([140, 86, 75])];
+pub const PALETTE: [Rgb<u8>; 6] = [
+    Rgb([31, 119, 180]),
+    Rgb([255, 127, 14]),
+    Rgb([44, 160, 44]),
+    Rgb([214, 39, 40]),
+    Rgb([148, 103, 189]),
+    Rgb([140, 86, 75]),
+];
 
 /// Blends `color` into pixel (x, y) with coverage `alpha`, ignoring points off the image.
 fn blend(img: &mut RgbImage, x: i64, y: i64, color: Rgb<u8>, alpha: f32) {
@@ -37,10 +43,21 @@ pub fn text(img: &mut RgbImage, x: f32, y: f32, size: f32, s: &str, color: Rgb<u
     for ch in s.chars() {
         let glyph = font.scaled_glyph(ch);
         let advance = font.h_advance(glyph.id);
-        let glyph = ab_glyph::Glyph { position: ab_glyph::point(caret, y + font.ascent()), ..glyph };
+        let glyph = ab_glyph::Glyph {
+            position: ab_glyph::point(caret, y + font.ascent()),
+            ..glyph
+        };
         if let Some(outline) = font.outline_glyph(glyph) {
             let b = outline.px_bounds();
-            outline.draw(|gx, gy, cov| blend(img, b.min.x as i64 + gx as i64, b.min.y as i64 + gy as i64, color, cov));
+            outline.draw(|gx, gy, cov| {
+                blend(
+                    img,
+                    b.min.x as i64 + gx as i64,
+                    b.min.y as i64 + gy as i64,
+                    color,
+                    cov,
+                )
+            });
         }
         caret += advance;
     }
@@ -53,7 +70,12 @@ pub fn text_width(size: f32, s: &str) -> f32 {
 }
 
 /// An anti-aliased line (Xiaolin Wu).
-pub fn line(img: &mut RgbImage, (mut x0, mut y0): (f32, f32), (mut x1, mut y1): (f32, f32), color: Rgb<u8>) {
+pub fn line(
+    img: &mut RgbImage,
+    (mut x0, mut y0): (f32, f32),
+    (mut x1, mut y1): (f32, f32),
+    color: Rgb<u8>,
+) {
     let steep = (y1 - y0).abs() > (x1 - x0).abs();
     if steep {
         std::mem::swap(&mut x0, &mut y0);
@@ -86,11 +108,19 @@ pub fn fill_rect(img: &mut RgbImage, x: u32, y: u32, w: u32, h: u32, color: Rgb<
 
 /// A perceptually ordered colour for `v ∈ [0, 1]` (viridis, five stops, linear between).
 pub fn viridis(v: f64) -> Rgb<u8> {
-    const STOPS: [[f64; 3]; 5] = [[68.0, 1.0, 84.0], [59.0, 82.0, 139.0], [33.0, 145.0, 140.0], [94.0, 201.0, 98.0], [253.0, 231.0, 37.0]];
+    const STOPS: [[f64; 3]; 5] = [
+        [68.0, 1.0, 84.0],
+        [59.0, 82.0, 139.0],
+        [33.0, 145.0, 140.0],
+        [94.0, 201.0, 98.0],
+        [253.0, 231.0, 37.0],
+    ];
     let t = v.clamp(0.0, 1.0) * 4.0;
     let i = (t as usize).min(3);
     let f = t - i as f64;
-    Rgb(std::array::from_fn(|c| (STOPS[i][c] * (1.0 - f) + STOPS[i + 1][c] * f).round() as u8))
+    Rgb(std::array::from_fn(|c| {
+        (STOPS[i][c] * (1.0 - f) + STOPS[i + 1][c] * f).round() as u8
+    }))
 }
 
 /// A labelled heat map of a square matrix (`values[i * n + j]`, expected in [0, 1]).
@@ -104,11 +134,32 @@ pub fn heat_map(values: &[f64], labels: &[&str], title: &str) -> RgbImage {
     let top = margin + 24;
     for i in 0..n {
         for j in 0..n {
-            fill_rect(&mut img, margin + j as u32 * cell, top + i as u32 * cell, cell - 1, cell - 1, viridis(values[i * n + j]));
+            fill_rect(
+                &mut img,
+                margin + j as u32 * cell,
+                top + i as u32 * cell,
+                cell - 1,
+                cell - 1,
+                viridis(values[i * n + j]),
+            );
         }
         let w = text_width(11.0, labels[i]);
-        text(&mut img, margin as f32 - w - 4.0, (top + i as u32 * cell) as f32 + 1.0, 11.0, labels[i], BLACK);
-        text(&mut img, (margin + i as u32 * cell) as f32 + 1.0, top as f32 - 14.0, 9.0, labels[i], BLACK);
+        text(
+            &mut img,
+            margin as f32 - w - 4.0,
+            (top + i as u32 * cell) as f32 + 1.0,
+            11.0,
+            labels[i],
+            BLACK,
+        );
+        text(
+            &mut img,
+            (margin + i as u32 * cell) as f32 + 1.0,
+            top as f32 - 14.0,
+            9.0,
+            labels[i],
+            BLACK,
+        );
     }
     // Colour bar.
     let bar_x = margin + n as u32 * cell + 12;
@@ -117,7 +168,14 @@ pub fn heat_map(values: &[f64], labels: &[&str], title: &str) -> RgbImage {
         fill_rect(&mut img, bar_x, top + k, 14, 1, viridis(v));
     }
     text(&mut img, (bar_x + 18) as f32, top as f32, 11.0, "1", BLACK);
-    text(&mut img, (bar_x + 18) as f32, (top + n as u32 * cell) as f32 - 12.0, 11.0, "0", BLACK);
+    text(
+        &mut img,
+        (bar_x + 18) as f32,
+        (top + n as u32 * cell) as f32 - 12.0,
+        11.0,
+        "0",
+        BLACK,
+    );
     img
 }
 
@@ -131,14 +189,33 @@ pub struct Series<'a> {
 
 /// A line plot with axes, ticks, a legend and optional shaded spans (`(x0, x1, label)`,
 /// e.g. phone segments) along the bottom.
-pub fn line_plot(title: &str, x_label: &str, series: &[Series], spans: &[(f64, f64, &str)], width: u32, height: u32) -> RgbImage {
+pub fn line_plot(
+    title: &str,
+    x_label: &str,
+    series: &[Series],
+    spans: &[(f64, f64, &str)],
+    width: u32,
+    height: u32,
+) -> RgbImage {
     let mut img = RgbImage::from_pixel(width, height, Rgb([255, 255, 255]));
-    let (left, right, top, bottom) = (60.0f32, 16.0f32, 28.0f32, if spans.is_empty() { 36.0f32 } else { 56.0f32 });
+    let (left, right, top, bottom) = (
+        60.0f32,
+        16.0f32,
+        28.0f32,
+        if spans.is_empty() { 36.0f32 } else { 56.0f32 },
+    );
     let (pw, ph) = (width as f32 - left - right, height as f32 - top - bottom);
-    let xs = series.iter().flat_map(|s| s.x.iter().copied()).chain(spans.iter().flat_map(|s| [s.0, s.1]));
-    let (x_min, x_max) = xs.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+    let xs = series
+        .iter()
+        .flat_map(|s| s.x.iter().copied())
+        .chain(spans.iter().flat_map(|s| [s.0, s.1]));
+    let (x_min, x_max) = xs.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+        (a.min(v), b.max(v))
+    });
     let ys = series.iter().flat_map(|s| s.y.iter().copied());
-    let (mut y_min, mut y_max) = ys.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+    let (mut y_min, mut y_max) = ys.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+        (a.min(v), b.max(v))
+    });
     if !(y_max > y_min) {
         y_min -= 1.0;
         y_max += 1.0;
@@ -153,11 +230,25 @@ pub fn line_plot(title: &str, x_label: &str, series: &[Series], spans: &[(f64, f
     for (k, (a, b, label)) in spans.iter().enumerate() {
         let (xa, xb) = (px(*a), px(*b));
         if k % 2 == 0 {
-            fill_rect(&mut img, xa as u32, top as u32, (xb - xa).max(1.0) as u32, ph as u32, Rgb([242, 242, 242]));
+            fill_rect(
+                &mut img,
+                xa as u32,
+                top as u32,
+                (xb - xa).max(1.0) as u32,
+                ph as u32,
+                Rgb([242, 242, 242]),
+            );
         }
         let w = text_width(10.0, label);
         if w < xb - xa + 6.0 {
-            text(&mut img, 0.5 * (xa + xb) - 0.5 * w, top + ph + 20.0, 10.0, label, BLACK);
+            text(
+                &mut img,
+                0.5 * (xa + xb) - 0.5 * w,
+                top + ph + 20.0,
+                10.0,
+                label,
+                BLACK,
+            );
         }
     }
     // Axes and ticks.
@@ -166,16 +257,42 @@ pub fn line_plot(title: &str, x_label: &str, series: &[Series], spans: &[(f64, f
     for k in 0..=4 {
         let y = y_min + (y_max - y_min) * k as f64 / 4.0;
         let label = format!("{y:.3}");
-        text(&mut img, left - text_width(10.0, &label) - 4.0, py(y) - 6.0, 10.0, &label, BLACK);
+        text(
+            &mut img,
+            left - text_width(10.0, &label) - 4.0,
+            py(y) - 6.0,
+            10.0,
+            &label,
+            BLACK,
+        );
         line(&mut img, (left - 3.0, py(y)), (left, py(y)), BLACK);
         let x = x_min + x_span * k as f64 / 4.0;
         let label = format!("{x:.2}");
-        text(&mut img, px(x) - 0.5 * text_width(10.0, &label), top + ph + 4.0, 10.0, &label, BLACK);
+        text(
+            &mut img,
+            px(x) - 0.5 * text_width(10.0, &label),
+            top + ph + 4.0,
+            10.0,
+            &label,
+            BLACK,
+        );
     }
-    text(&mut img, left + pw - text_width(10.0, x_label), height as f32 - 14.0, 10.0, x_label, BLACK);
+    text(
+        &mut img,
+        left + pw - text_width(10.0, x_label),
+        height as f32 - 14.0,
+        10.0,
+        x_label,
+        BLACK,
+    );
     for s in series {
         for k in 1..s.x.len().min(s.y.len()) {
-            line(&mut img, (px(s.x[k - 1]), py(s.y[k - 1])), (px(s.x[k]), py(s.y[k])), s.color);
+            line(
+                &mut img,
+                (px(s.x[k - 1]), py(s.y[k - 1])),
+                (px(s.x[k]), py(s.y[k])),
+                s.color,
+            );
         }
     }
     let mut ly = top + 4.0;

@@ -296,7 +296,8 @@ pub fn from_reference_into(
                     let row = &mut rows[(y - r0) * w * 3..(y - r0 + 1) * w * 3];
                     let mut sx = t.s0[0] + t.sx[0] * x0 as f64 + t.sy[0] * y as f64;
                     let mut sy = t.s0[1] + t.sx[1] * x0 as f64 + t.sy[1] * y as f64;
-                    let mut l: [f64; 3] = std::array::from_fn(|i| t.l0[i] + t.lx[i] * x0 as f64 + t.ly[i] * y as f64);
+                    let mut l: [f64; 3] =
+                        std::array::from_fn(|i| t.l0[i] + t.lx[i] * x0 as f64 + t.ly[i] * y as f64);
                     for px in row[x0 * 3..(x1 + 1) * 3].chunks_exact_mut(3) {
                         let v = if l.iter().all(|&v| v >= 0.0) {
                             sample(&source, fw, fh, sx, sy, |v: f32| v)
@@ -306,7 +307,9 @@ pub fn from_reference_into(
                             // stretch far outside the texture.
                             let c = l.map(|v| v.max(0.0));
                             let sum = c[0] + c[1] + c[2];
-                            let at = |k: usize| (c[0] * t.src[0][k] + c[1] * t.src[1][k] + c[2] * t.src[2][k]) / sum;
+                            let at = |k: usize| {
+                                (c[0] * t.src[0][k] + c[1] * t.src[1][k] + c[2] * t.src[2][k]) / sum
+                            };
                             sample(&source, fw, fh, at(0), at(1), |v: f32| v)
                         };
                         px.copy_from_slice(&v.map(to_u8));

@@ -127,23 +127,62 @@ fn corpus_then_codebook() {
     let corpus = tmp.path().join("corpus");
     let o = facespace(&["corpus", "demo", "-o", corpus.to_str().unwrap()]);
     assert!(o.status.success(), "{}", text(&o));
-    assert!(corpus.join("heldout/demo60.lab").is_file() && corpus.join("train/demo01.npy").is_file());
+    assert!(
+        corpus.join("heldout/demo60.lab").is_file() && corpus.join("train/demo01.npy").is_file()
+    );
     let cb = tmp.path().join("cb");
     let model = common::root().join("models/demo/model");
-    let o = facespace(&["codebook", "build", "--model", model.to_str().unwrap(), "--corpus", corpus.join("train").to_str().unwrap(), "-o", cb.to_str().unwrap()]);
+    let o = facespace(&[
+        "codebook",
+        "build",
+        "--model",
+        model.to_str().unwrap(),
+        "--corpus",
+        corpus.join("train").to_str().unwrap(),
+        "-o",
+        cb.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", text(&o));
     assert!(text(&o).contains("sentences   54"), "{}", text(&o));
     let o = facespace(&["codebook", "info", cb.to_str().unwrap()]);
-    assert!(o.status.success() && text(&o).contains("most similar"), "{}", text(&o));
+    assert!(
+        o.status.success() && text(&o).contains("most similar"),
+        "{}",
+        text(&o)
+    );
     let png = tmp.path().join("s.png");
-    let o = facespace(&["codebook", "similarity", cb.to_str().unwrap(), "--png", png.to_str().unwrap()]);
+    let o = facespace(&[
+        "codebook",
+        "similarity",
+        cb.to_str().unwrap(),
+        "--png",
+        png.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", text(&o));
     assert!(image::open(&png).unwrap().width() > 400);
     // A corpus of another model is refused.
     let faces = tmp.path().join("faces");
-    let o = facespace(&["model", "build", "--images", common::faces_dir().to_str().unwrap(), "--pixels", "3000", "-o", faces.to_str().unwrap()]);
+    let o = facespace(&[
+        "model",
+        "build",
+        "--images",
+        common::faces_dir().to_str().unwrap(),
+        "--pixels",
+        "3000",
+        "-o",
+        faces.to_str().unwrap(),
+    ]);
     assert!(o.status.success());
-    let o = facespace(&["codebook", "build", "--model", faces.to_str().unwrap(), "--corpus", corpus.join("train").to_str().unwrap(), "-o", tmp.path().join("cb2").to_str().unwrap()]);
+    let o = facespace(&[
+        "codebook",
+        "build",
+        "--model",
+        faces.to_str().unwrap(),
+        "--corpus",
+        corpus.join("train").to_str().unwrap(),
+        "-o",
+        tmp.path().join("cb2").to_str().unwrap(),
+    ]);
     assert_eq!(o.status.code(), Some(1));
     assert!(text(&o).contains("values per frame"), "{}", text(&o));
 }

@@ -4,7 +4,9 @@ mod common;
 use std::path::Path;
 
 use common::Rng;
-use facespace::codebook::{Codebook, CodebookError, Layout, Sentence, SimilarityOptions, load_corpus};
+use facespace::codebook::{
+    Codebook, CodebookError, Layout, Sentence, SimilarityOptions, load_corpus,
+};
 use facespace::npy;
 use facespace::phonemes::{self, Phone, PhoneMap, Segment};
 
@@ -12,27 +14,71 @@ fn ph(name: &str) -> Phone {
     Phone::parse(name).unwrap()
 }
 
-const LAYOUT: Layout = Layout { pose: 4, shape: 1, appearance: 2 };
+const LAYOUT: Layout = Layout {
+    pose: 4,
+    shape: 1,
+    appearance: 2,
+};
 
 /// A sentence of one phone whose frames hold `value` in every parameter dimension
 /// (pose fixed), 10 frames at 25 fps.
 fn constant_sentence(phone: &str, value: [f32; 3]) -> Sentence {
-    let frames = (0..10).flat_map(|_| [1.0, 0.0, 0.0, 0.0, value[0], value[1], value[2]]).collect();
-    Sentence { name: phone.into(), source: "test".into(), frames, segments: vec![Segment { start: 0.0, end: 0.4, phone: ph(phone) }] }
+    let frames = (0..10)
+        .flat_map(|_| [1.0, 0.0, 0.0, 0.0, value[0], value[1], value[2]])
+        .collect();
+    Sentence {
+        name: phone.into(),
+        source: "test".into(),
+        frames,
+        segments: vec![Segment {
+            start: 0.0,
+            end: 0.4,
+            phone: ph(phone),
+        }],
+    }
 }
 
 /// With uniform weights and v = 1: `D_ab = (1/d) Σ_k 5 (c_a,k − c_b,k)²`, `S = exp(−γ D)`.
 #[test]
 fn similarity_matches_the_formula_on_constant_trajectories() {
-    let values = [("m", [0.0, 1.0, 2.0]), ("p", [0.1, 1.0, 2.0]), ("aa", [3.0, -1.0, 0.0])];
-    let sentences = values.iter().map(|(p, v)| constant_sentence(p, *v)).collect();
-    let options = SimilarityOptions { gamma: Some(0.7), variance_weights: false, context_weights: false, ..Default::default() };
-    let cb = Codebook::build(sentences, 25.0, LAYOUT, None, options, &mut facespace::no_progress).unwrap();
+    let values = [
+        ("m", [0.0, 1.0, 2.0]),
+        ("p", [0.1, 1.0, 2.0]),
+        ("aa", [3.0, -1.0, 0.0]),
+    ];
+    let sentences = values
+        .iter()
+        .map(|(p, v)| constant_sentence(p, *v))
+        .collect();
+    let options = SimilarityOptions {
+        gamma: Some(0.7),
+        variance_weights: false,
+        context_weights: false,
+        ..Default::default()
+    };
+    let cb = Codebook::build(
+        sentences,
+        25.0,
+        LAYOUT,
+        None,
+        options,
+        &mut facespace::no_progress,
+    )
+    .unwrap();
     for (a, va) in &values {
         for (b, vb) in &values {
-            let d: f64 = va.iter().zip(vb).map(|(x, y)| 5.0 * ((x - y) as f64).powi(2)).sum::<f64>() / 3.0;
+            let d: f64 = va
+                .iter()
+                .zip(vb)
+                .map(|(x, y)| 5.0 * ((x - y) as f64).powi(2))
+                .sum::<f64>()
+                / 3.0;
             let s = cb.similarity(ph(a), ph(b));
-            assert!((s - (-0.7 * d).exp()).abs() < 1e-6, "S({a},{b}) = {s}, expected {}", (-0.7 * d).exp());
+            assert!(
+                (s - (-0.7 * d).exp()).abs() < 1e-6,
+                "S({a},{b}) = {s}, expected {}",
+                (-0.7 * d).exp()
+            );
         }
     }
     assert_eq!(cb.nearest(ph("m"), 1)[0].0, ph("p"));
@@ -45,11 +91,26 @@ fn similarity_matches_the_formula_on_constant_trajectories() {
 /// M (eq. 5 of [unitsel]) by hand: appearance means (1, 2) and (3, −1), γ_k = exp(0.1 |k − 12|).
 #[test]
 fn distance_matches_equation_5() {
-    let sentences = vec![constant_sentence("m", [9.0, 1.0, 2.0]), constant_sentence("aa", [0.0, 3.0, -1.0])];
-    let cb = Codebook::build(sentences, 25.0, LAYOUT, None, SimilarityOptions::default(), &mut facespace::no_progress).unwrap();
+    let sentences = vec![
+        constant_sentence("m", [9.0, 1.0, 2.0]),
+        constant_sentence("aa", [0.0, 3.0, -1.0]),
+    ];
+    let cb = Codebook::build(
+        sentences,
+        25.0,
+        LAYOUT,
+        None,
+        SimilarityOptions::default(),
+        &mut facespace::no_progress,
+    )
+    .unwrap();
     let (g1, g2) = ((0.1f64 * 11.0).exp(), (0.1f64 * 10.0).exp());
     let expected = ((g1 * 4.0 + g2 * 9.0) / (g1 + g2)).sqrt();
-    assert!((cb.distance(ph("m"), ph("aa")) - expected).abs() < 1e-6, "{} vs {expected}", cb.distance(ph("m"), ph("aa")));
+    assert!(
+        (cb.distance(ph("m"), ph("aa")) - expected).abs() < 1e-6,
+        "{} vs {expected}",
+        cb.distance(ph("m"), ph("aa"))
+    );
     assert_eq!(cb.distance(ph("m"), ph("m")), 0.0);
 }
 
@@ -57,14 +118,20 @@ fn distance_matches_equation_5() {
 /// share theirs: S must rank them as each other's nearest.
 fn coarticulated_corpus(n_sentences: usize, seed: u64) -> Vec<Sentence> {
     let mut rng = Rng::new(seed);
-    let inventory = ["p", "b", "m", "f", "v", "t", "d", "aa", "iy", "uw", "s", "k", "l", "ow"];
+    let inventory = [
+        "p", "b", "m", "f", "v", "t", "d", "aa", "iy", "uw", "s", "k", "l", "ow",
+    ];
     let targets: Vec<[f64; 3]> = inventory
         .iter()
         .map(|p| match *p {
             "p" | "b" | "m" => [-2.0, 0.0, 1.0],
             "f" | "v" => [-1.0, 2.0, 0.0],
             "t" | "d" => [0.5, -1.5, -1.0],
-            _ => [rng.range(-3.0, 3.0), rng.range(-3.0, 3.0), rng.range(-3.0, 3.0)],
+            _ => [
+                rng.range(-3.0, 3.0),
+                rng.range(-3.0, 3.0),
+                rng.range(-3.0, 3.0),
+            ],
         })
         .collect();
     (0..n_sentences)
@@ -72,10 +139,15 @@ fn coarticulated_corpus(n_sentences: usize, seed: u64) -> Vec<Sentence> {
             let mut segments = vec![];
             let mut t = 0.0;
             let mut seq = vec![0usize; 8];
-            seq.iter_mut().for_each(|s| *s = (rng.uniform() * inventory.len() as f64) as usize);
+            seq.iter_mut()
+                .for_each(|s| *s = (rng.uniform() * inventory.len() as f64) as usize);
             for &k in &seq {
                 let d = rng.range(0.06, 0.14);
-                segments.push(Segment { start: t, end: t + d, phone: ph(inventory[k]) });
+                segments.push(Segment {
+                    start: t,
+                    end: t + d,
+                    phone: ph(inventory[k]),
+                });
                 t += d;
             }
             let n = (t * 25.0).ceil() as usize;
@@ -87,7 +159,8 @@ fn coarticulated_corpus(n_sentences: usize, seed: u64) -> Vec<Sentence> {
                     for g in &segments {
                         let c = 0.5 * (g.start + g.end);
                         let w = (-((time - c) / 0.05).powi(2)).exp() + 1e-9;
-                        let target = targets[inventory.iter().position(|p| ph(p) == g.phone).unwrap()];
+                        let target =
+                            targets[inventory.iter().position(|p| ph(p) == g.phone).unwrap()];
                         (0..3).for_each(|k| acc[k] += w * target[k]);
                         wsum += w;
                     }
@@ -96,17 +169,37 @@ fn coarticulated_corpus(n_sentences: usize, seed: u64) -> Vec<Sentence> {
                     row
                 })
                 .collect();
-            Sentence { name: format!("s{i}"), source: "generated".into(), frames, segments }
+            Sentence {
+                name: format!("s{i}"),
+                source: "generated".into(),
+                frames,
+                segments,
+            }
         })
         .collect()
 }
 
 #[test]
 fn shared_targets_rank_nearest() {
-    let cb = Codebook::build(coarticulated_corpus(60, 3), 25.0, LAYOUT, None, SimilarityOptions::default(), &mut facespace::no_progress).unwrap();
-    for (p, partners) in [("p", vec!["b", "m"]), ("b", vec!["p", "m"]), ("m", vec!["p", "b"])] {
+    let cb = Codebook::build(
+        coarticulated_corpus(60, 3),
+        25.0,
+        LAYOUT,
+        None,
+        SimilarityOptions::default(),
+        &mut facespace::no_progress,
+    )
+    .unwrap();
+    for (p, partners) in [
+        ("p", vec!["b", "m"]),
+        ("b", vec!["p", "m"]),
+        ("m", vec!["p", "b"]),
+    ] {
         let top: Vec<&str> = cb.nearest(ph(p), 2).iter().map(|(q, _)| q.name()).collect();
-        assert!(partners.iter().all(|q| top.contains(q)), "{p}: nearest {top:?}");
+        assert!(
+            partners.iter().all(|q| top.contains(q)),
+            "{p}: nearest {top:?}"
+        );
     }
     for (a, b) in [("f", "v"), ("t", "d")] {
         assert_eq!(cb.nearest(ph(a), 1)[0].0, ph(b), "{a}");
@@ -114,7 +207,10 @@ fn shared_targets_rank_nearest() {
     for a in cb.present() {
         for b in cb.present() {
             let (s, t) = (cb.similarity(a, b), cb.similarity(b, a));
-            assert!((s - t).abs() < 1e-12 && s > 0.0 && s <= 1.0, "S({a},{b}) = {s}");
+            assert!(
+                (s - t).abs() < 1e-12 && s > 0.0 && s <= 1.0,
+                "S({a},{b}) = {s}"
+            );
         }
     }
     // Mean durations come from the corpus.
@@ -124,47 +220,116 @@ fn shared_targets_rank_nearest() {
 
 #[test]
 fn save_and_load_round_trip_and_validation() {
-    let cb = Codebook::build(coarticulated_corpus(8, 4), 25.0, LAYOUT, Some("abc".into()), SimilarityOptions::default(), &mut facespace::no_progress).unwrap();
+    let cb = Codebook::build(
+        coarticulated_corpus(8, 4),
+        25.0,
+        LAYOUT,
+        Some("abc".into()),
+        SimilarityOptions::default(),
+        &mut facespace::no_progress,
+    )
+    .unwrap();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("cb");
     cb.save(&path).unwrap();
     let back = Codebook::load(&path).unwrap();
-    assert!(back == cb, "loaded codebook differs (sentences equal: {})", back.sentences == cb.sentences);
+    assert!(
+        back == cb,
+        "loaded codebook differs (sentences equal: {})",
+        back.sentences == cb.sentences
+    );
 
     // A tampered similarity matrix is caught.
     let mut s = npy::read::<f64>(&path.join("similarity.npy")).unwrap();
     s.data[41] += 0.5;
     npy::write(&path.join("similarity.npy"), &s.shape, &s.data).unwrap();
-    assert!(Codebook::load(&path).unwrap_err().to_string().contains("differ"));
+    assert!(
+        Codebook::load(&path)
+            .unwrap_err()
+            .to_string()
+            .contains("differ")
+    );
     cb.save(&path).unwrap();
     // Truncated sentence array.
     let f = path.join("sentence_0003.npy");
     let bytes = std::fs::read(&f).unwrap();
     std::fs::write(&f, &bytes[..bytes.len() - 8]).unwrap();
     let err = Codebook::load(&path).unwrap_err();
-    assert!(err.to_string().contains("sentence_0003.npy") && err.to_string().contains("truncated"), "{err}");
+    assert!(
+        err.to_string().contains("sentence_0003.npy") && err.to_string().contains("truncated"),
+        "{err}"
+    );
     cb.save(&path).unwrap();
     let m = path.join("codebook.json");
-    std::fs::write(&m, std::fs::read_to_string(&m).unwrap().replace("\"version\": 1", "\"version\": 7")).unwrap();
-    assert!(matches!(Codebook::load(&path), Err(CodebookError::Version { found: 7, .. })));
+    std::fs::write(
+        &m,
+        std::fs::read_to_string(&m)
+            .unwrap()
+            .replace("\"version\": 1", "\"version\": 7"),
+    )
+    .unwrap();
+    assert!(matches!(
+        Codebook::load(&path),
+        Err(CodebookError::Version { found: 7, .. })
+    ));
 }
 
 #[test]
 fn bad_sentences_are_errors() {
     let mut s = constant_sentence("m", [0.0; 3]);
     s.segments[0].end = 2.0;
-    let err = Codebook::build(vec![s], 25.0, LAYOUT, None, SimilarityOptions::default(), &mut facespace::no_progress).unwrap_err();
+    let err = Codebook::build(
+        vec![s],
+        25.0,
+        LAYOUT,
+        None,
+        SimilarityOptions::default(),
+        &mut facespace::no_progress,
+    )
+    .unwrap_err();
     assert!(err.to_string().contains("labels end at 2.000 s"), "{err}");
     let mut s = constant_sentence("m", [0.0; 3]);
     s.frames.pop();
-    assert!(matches!(Codebook::build(vec![s], 25.0, LAYOUT, None, SimilarityOptions::default(), &mut facespace::no_progress), Err(CodebookError::BadSentence { .. })));
-    let bad = SimilarityOptions { samples: 1, ..Default::default() };
-    assert!(matches!(Codebook::build(vec![], 25.0, LAYOUT, None, bad, &mut facespace::no_progress), Err(CodebookError::Options(_))));
+    assert!(matches!(
+        Codebook::build(
+            vec![s],
+            25.0,
+            LAYOUT,
+            None,
+            SimilarityOptions::default(),
+            &mut facespace::no_progress
+        ),
+        Err(CodebookError::BadSentence { .. })
+    ));
+    let bad = SimilarityOptions {
+        samples: 1,
+        ..Default::default()
+    };
+    assert!(matches!(
+        Codebook::build(vec![], 25.0, LAYOUT, None, bad, &mut facespace::no_progress),
+        Err(CodebookError::Options(_))
+    ));
 }
 
 fn write_sentence(dir: &Path, name: &str, frames: usize, label_end: f64) {
-    npy::write(&dir.join(format!("{name}.npy")), &[frames, 7], &vec![0.5f32; frames * 7]).unwrap();
-    let segs = [Segment { start: 0.0, end: label_end / 2.0, phone: Phone::SIL }, Segment { start: label_end / 2.0, end: label_end, phone: ph("m") }];
+    npy::write(
+        &dir.join(format!("{name}.npy")),
+        &[frames, 7],
+        &vec![0.5f32; frames * 7],
+    )
+    .unwrap();
+    let segs = [
+        Segment {
+            start: 0.0,
+            end: label_end / 2.0,
+            phone: Phone::SIL,
+        },
+        Segment {
+            start: label_end / 2.0,
+            end: label_end,
+            phone: ph("m"),
+        },
+    ];
     phonemes::write_labels(&dir.join(format!("{name}.lab")), &segs).unwrap();
 }
 
@@ -180,11 +345,29 @@ fn corpus_folder_loading() {
     write_sentence(dir.path(), "c", 25, 1.5);
     let err = load_corpus(dir.path(), 25.0, 7, None, &PhoneMap::default()).unwrap_err();
     let msg = err.to_string();
-    assert!(matches!(err, CodebookError::DurationMismatch { .. }) && msg.contains("c.npy") && msg.contains("c.lab"), "{msg}");
+    assert!(
+        matches!(err, CodebookError::DurationMismatch { .. })
+            && msg.contains("c.npy")
+            && msg.contains("c.lab"),
+        "{msg}"
+    );
     std::fs::remove_file(dir.path().join("c.lab")).unwrap();
-    assert!(matches!(load_corpus(dir.path(), 25.0, 7, None, &PhoneMap::default()), Err(CodebookError::MissingLabels { .. })));
+    assert!(matches!(
+        load_corpus(dir.path(), 25.0, 7, None, &PhoneMap::default()),
+        Err(CodebookError::MissingLabels { .. })
+    ));
     std::fs::remove_file(dir.path().join("c.npy")).unwrap();
-    assert!(matches!(load_corpus(dir.path(), 25.0, 9, None, &PhoneMap::default()), Err(CodebookError::Dims { expected: 9, found: 7, .. })));
+    assert!(matches!(
+        load_corpus(dir.path(), 25.0, 9, None, &PhoneMap::default()),
+        Err(CodebookError::Dims {
+            expected: 9,
+            found: 7,
+            ..
+        })
+    ));
     let empty = tempfile::tempdir().unwrap();
-    assert!(matches!(load_corpus(empty.path(), 25.0, 7, None, &PhoneMap::default()), Err(CodebookError::EmptyCorpus { .. })));
+    assert!(matches!(
+        load_corpus(empty.path(), 25.0, 7, None, &PhoneMap::default()),
+        Err(CodebookError::EmptyCorpus { .. })
+    ));
 }

@@ -19,8 +19,19 @@ fn generation_is_deterministic_and_split() {
     let frames = load_training_set(&common::root().join("models/demo/training"), None).unwrap();
     let b = corpus::generate(&model, &frames, &CorpusOptions::default()).unwrap();
     assert!(a == b, "same seed, same corpus, bit for bit");
-    let other = corpus::generate(&model, &frames, &CorpusOptions { seed: 7, ..Default::default() }).unwrap();
-    assert!(other[0].frames != a[0].frames, "another seed, another corpus");
+    let other = corpus::generate(
+        &model,
+        &frames,
+        &CorpusOptions {
+            seed: 7,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert!(
+        other[0].frames != a[0].frames,
+        "another seed, another corpus"
+    );
     assert_eq!(a.len(), SENTENCES.len());
     assert_eq!(a.iter().filter(|s| s.held_out).count(), HELD_OUT);
     assert!(a[..SENTENCES.len() - HELD_OUT].iter().all(|s| !s.held_out));
@@ -28,7 +39,11 @@ fn generation_is_deterministic_and_split() {
     for s in &a {
         let n = s.frames.len() / dims;
         assert_eq!(s.frames.len(), n * dims);
-        assert!((s.segments.last().unwrap().end - n as f64 / 25.0).abs() < 1e-9, "{}: labels end with the frames", s.name);
+        assert!(
+            (s.segments.last().unwrap().end - n as f64 / 25.0).abs() < 1e-9,
+            "{}: labels end with the frames",
+            s.name
+        );
         assert_eq!(s.segments[0].phone, Phone::SIL);
         for w in s.segments.windows(2) {
             assert!((w[0].end - w[1].start).abs() < 1e-12 && w[0].duration() > 0.0);
@@ -49,15 +64,36 @@ fn similarity_on_the_demo_corpus_ranks_viseme_partners() {
     let sentences: Vec<Sentence> = generated
         .into_iter()
         .filter(|s| !s.held_out)
-        .map(|s| Sentence { name: s.name, source: "demo".into(), frames: s.frames, segments: s.segments })
+        .map(|s| Sentence {
+            name: s.name,
+            source: "demo".into(),
+            frames: s.frames,
+            segments: s.segments,
+        })
         .collect();
-    let cb = Codebook::build(sentences, 25.0, Layout::of(&model), Some(model.hash()), SimilarityOptions::default(), &mut facespace::no_progress).unwrap();
+    let cb = Codebook::build(
+        sentences,
+        25.0,
+        Layout::of(&model),
+        Some(model.hash()),
+        SimilarityOptions::default(),
+        &mut facespace::no_progress,
+    )
+    .unwrap();
     let ph = |s: &str| Phone::parse(s).unwrap();
-    let top = |p: &str, k: usize| -> Vec<&'static str> { cb.nearest(ph(p), k).iter().map(|(q, _)| q.name()).collect() };
+    let top = |p: &str, k: usize| -> Vec<&'static str> {
+        cb.nearest(ph(p), k).iter().map(|(q, _)| q.name()).collect()
+    };
     for p in ["p", "b", "m"] {
         let t = top(p, 2);
         eprintln!("{p}: {:?}", cb.nearest(ph(p), 3));
-        assert!(["p", "b", "m"].iter().filter(|q| **q != p).all(|q| t.contains(q)), "{p}: {t:?}");
+        assert!(
+            ["p", "b", "m"]
+                .iter()
+                .filter(|q| **q != p)
+                .all(|q| t.contains(q)),
+            "{p}: {t:?}"
+        );
     }
     eprintln!("f: {:?}", cb.nearest(ph("f"), 3));
     assert_eq!(top("f", 1), ["v"]);

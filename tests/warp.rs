@@ -203,8 +203,11 @@ fn warp_input_errors() {
 /// once reached across the whole frame).
 #[test]
 fn render_dilation_stays_next_to_the_mesh() {
-    let model = facespace::model::FaceModel::load(&common::root().join("models/demo/model")).unwrap();
-    let face = facespace::model::load_training_set(&common::root().join("tests/data/demo-heldout"), None).unwrap();
+    let model =
+        facespace::model::FaceModel::load(&common::root().join("models/demo/model")).unwrap();
+    let face =
+        facespace::model::load_training_set(&common::root().join("tests/data/demo-heldout"), None)
+            .unwrap();
     for e in face.iter().take(3) {
         let params = model.project(&e.image, &e.landmarks).unwrap();
         let sentinel = image::Rgb([1, 2, 3]);
@@ -225,8 +228,19 @@ fn render_dilation_stays_next_to_the_mesh() {
         let stray = canvas
             .enumerate_pixels()
             .filter(|(_, _, p)| **p != sentinel)
-            .filter(|(x, y, _)| !boxes.iter().any(|b| (*x as f64) >= b[0] && (*x as f64) <= b[1] && (*y as f64) >= b[2] && (*y as f64) <= b[3]))
+            .filter(|(x, y, _)| {
+                !boxes.iter().any(|b| {
+                    (*x as f64) >= b[0]
+                        && (*x as f64) <= b[1]
+                        && (*y as f64) >= b[2]
+                        && (*y as f64) <= b[3]
+                })
+            })
             .count();
-        assert_eq!(stray, 0, "{}: {stray} pixels painted away from the mesh", e.name);
+        assert_eq!(
+            stray, 0,
+            "{}: {stray} pixels painted away from the mesh",
+            e.name
+        );
     }
 }

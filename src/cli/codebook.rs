@@ -67,7 +67,8 @@ fn load(dir: &Path) -> Result<Codebook> {
 
 fn build(a: BuildArgs) -> Result<()> {
     let start = std::time::Instant::now();
-    let model = FaceModel::load(&a.model).with_context(|| format!("loading model {}", a.model.display()))?;
+    let model = FaceModel::load(&a.model)
+        .with_context(|| format!("loading model {}", a.model.display()))?;
     let map = match &a.phone_map {
         Some(p) => PhoneMap::read(p)?,
         None => PhoneMap::default(),
@@ -75,19 +76,42 @@ fn build(a: BuildArgs) -> Result<()> {
     let layout = Layout::of(&model);
     let sentences = load_corpus(&a.corpus, a.fps, layout.dims(), a.tier.as_deref(), &map)
         .with_context(|| format!("reading corpus {}", a.corpus.display()))?;
-    let options = SimilarityOptions { gamma: a.gamma, ..SimilarityOptions::default() };
+    let options = SimilarityOptions {
+        gamma: a.gamma,
+        ..SimilarityOptions::default()
+    };
     let (bar, mut progress) = super::progress_bar();
-    let cb = Codebook::build(sentences, a.fps, layout, Some(model.hash()), options, &mut progress)?;
+    let cb = Codebook::build(
+        sentences,
+        a.fps,
+        layout,
+        Some(model.hash()),
+        options,
+        &mut progress,
+    )?;
     bar.finish_and_clear();
-    cb.save(&a.output).with_context(|| format!("saving codebook {}", a.output.display()))?;
-    println!("built {} in {:.2} s", a.output.display(), start.elapsed().as_secs_f64());
+    cb.save(&a.output)
+        .with_context(|| format!("saving codebook {}", a.output.display()))?;
+    println!(
+        "built {} in {:.2} s",
+        a.output.display(),
+        start.elapsed().as_secs_f64()
+    );
     info(&cb)
 }
 
 pub fn info(cb: &Codebook) -> Result<()> {
-    let frames: usize = cb.sentences.iter().map(|s| s.frames.len() / cb.dims()).sum();
+    let frames: usize = cb
+        .sentences
+        .iter()
+        .map(|s| s.frames.len() / cb.dims())
+        .sum();
     println!("  sentences   {}", cb.sentences.len());
-    println!("  frames      {frames} at {} fps ({:.1} s)", cb.fps, frames as f64 / cb.fps);
+    println!(
+        "  frames      {frames} at {} fps ({:.1} s)",
+        cb.fps,
+        frames as f64 / cb.fps
+    );
     println!(
         "  face-space  {} values (pose {}, shape {}, appearance {}), model {}",
         cb.dims(),
@@ -96,15 +120,28 @@ pub fn info(cb: &Codebook) -> Result<()> {
         cb.layout.appearance,
         cb.model_hash.as_deref().unwrap_or("unknown")
     );
-    let absent: Vec<&str> = Phone::all().filter(|p| cb.occurrences[p.index()].is_empty()).map(|p| p.name()).collect();
+    let absent: Vec<&str> = Phone::all()
+        .filter(|p| cb.occurrences[p.index()].is_empty())
+        .map(|p| p.name())
+        .collect();
     if !absent.is_empty() {
         println!("  absent      {}", absent.join(" "));
     }
     println!("  phone  count  mean ms  most similar (S)");
     let durations = cb.mean_durations();
     for p in cb.present() {
-        let near: Vec<String> = cb.nearest(p, 3).iter().map(|(q, s)| format!("{q} {s:.3}")).collect();
-        println!("  {:<5} {:>6} {:>8.0}  {}", p.name(), cb.occurrences[p.index()].len(), 1000.0 * durations[p.index()], near.join(", "));
+        let near: Vec<String> = cb
+            .nearest(p, 3)
+            .iter()
+            .map(|(q, s)| format!("{q} {s:.3}"))
+            .collect();
+        println!(
+            "  {:<5} {:>6} {:>8.0}  {}",
+            p.name(),
+            cb.occurrences[p.index()].len(),
+            1000.0 * durations[p.index()],
+            near.join(", ")
+        );
     }
     Ok(())
 }
@@ -112,7 +149,10 @@ pub fn info(cb: &Codebook) -> Result<()> {
 fn similarity_png(cb: &Codebook, png: &Path) -> Result<()> {
     let present = cb.present();
     let labels: Vec<&str> = present.iter().map(|p| PHONES[p.index()]).collect();
-    let values: Vec<f64> = present.iter().flat_map(|a| present.iter().map(move |b| cb.similarity(*a, *b))).collect();
+    let values: Vec<f64> = present
+        .iter()
+        .flat_map(|a| present.iter().map(move |b| cb.similarity(*a, *b)))
+        .collect();
     let img = plot::heat_map(&values, &labels, "phoneme similarity S");
     super::model::save_png(&img, png)?;
     println!("wrote {} ({} phones)", png.display(), present.len());

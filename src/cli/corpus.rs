@@ -42,16 +42,28 @@ pub fn run(command: CorpusCommand) -> Result<()> {
 
 fn demo(a: DemoArgs) -> Result<()> {
     let start = std::time::Instant::now();
-    let model = FaceModel::load(&a.model).with_context(|| format!("loading model {}", a.model.display()))?;
-    let frames = load_training_set(&a.training, None).with_context(|| format!("loading {}", a.training.display()))?;
-    let options = CorpusOptions { seed: a.seed, ..CorpusOptions::default() };
+    let model = FaceModel::load(&a.model)
+        .with_context(|| format!("loading model {}", a.model.display()))?;
+    let frames = load_training_set(&a.training, None)
+        .with_context(|| format!("loading {}", a.training.display()))?;
+    let options = CorpusOptions {
+        seed: a.seed,
+        ..CorpusOptions::default()
+    };
     let sentences = corpus::generate(&model, &frames, &options)?;
     let dims = model.n_params();
     for s in &sentences {
         let dir = a.output.join(if s.held_out { "heldout" } else { "train" });
-        npy::write(&dir.join(format!("{}.npy", s.name)), &[s.frames.len() / dims, dims], &s.frames)?;
+        npy::write(
+            &dir.join(format!("{}.npy", s.name)),
+            &[s.frames.len() / dims, dims],
+            &s.frames,
+        )?;
         phonemes::write_labels(&dir.join(format!("{}.lab", s.name)), &s.segments)?;
-        atomic::write_file(&dir.join(format!("{}.txt", s.name)), format!("{}\n", s.text).as_bytes())?;
+        atomic::write_file(
+            &dir.join(format!("{}.txt", s.name)),
+            format!("{}\n", s.text).as_bytes(),
+        )?;
     }
     let manifest = serde_json::json!({
         "generator": "facespace corpus demo",
@@ -63,7 +75,10 @@ fn demo(a: DemoArgs) -> Result<()> {
         "heldout": sentences.iter().filter(|s| s.held_out).map(|s| &s.name).collect::<Vec<_>>(),
         "texts": sentences.iter().map(|s| (&s.name, &s.text)).collect::<std::collections::BTreeMap<_, _>>(),
     });
-    atomic::write_file(&a.output.join("corpus.json"), serde_json::to_string_pretty(&manifest)?.as_bytes())?;
+    atomic::write_file(
+        &a.output.join("corpus.json"),
+        serde_json::to_string_pretty(&manifest)?.as_bytes(),
+    )?;
     let total: usize = sentences.iter().map(|s| s.frames.len() / dims).sum();
     println!(
         "generated {} sentences ({} train, {} held out), {total} frames at {} fps, in {:.2} s → {}",
@@ -85,7 +100,11 @@ fn demo(a: DemoArgs) -> Result<()> {
                 model.render_into(&params, &mut canvas)?;
                 super::model::save_png(&canvas, &dir.join(format!("{k:04}.png")))?;
             }
-            progress(facespace::Progress { stage: "rendering", done: i + 1, total: sentences.len() });
+            progress(facespace::Progress {
+                stage: "rendering",
+                done: i + 1,
+                total: sentences.len(),
+            });
         }
         bar.finish_and_clear();
         println!("rendered frames → {}", a.output.join("frames").display());
