@@ -28,6 +28,7 @@ pub mod phonemes;
 pub mod plot;
 pub mod rng;
 pub mod shape;
+pub mod synth;
 pub mod trajectory;
 pub mod warp;
 
