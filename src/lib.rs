@@ -19,6 +19,7 @@ pub mod appearance;
 pub mod atomic;
 pub mod codebook;
 pub mod corpus;
+pub mod eval;
 pub mod manifest;
 pub mod mesh;
 pub mod model;
@@ -30,6 +31,7 @@ pub mod rng;
 pub mod shape;
 pub mod synth;
 pub mod trajectory;
+pub mod video;
 pub mod warp;
 
 /// A progress report from long-running work: `done` of `total` units of `stage`.

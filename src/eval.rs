@@ -1,0 +1,137 @@
+//! Objective measures of synthesised trajectories against real ones (DESIGN §9,
+//! [unitsel] §6–7): Pearson r of the first appearance parameter (r_pca) and of the mouth
+//! height (r_h), landmark RMSE in pixels, and the dynamic-time-warping cost.
+
+use serde::Serialize;
+
+use crate::codebook::Layout;
+use crate::model::FaceModel;
+use crate::shape::{Point, Similarity};
+
+/// Pearson correlation of two equally long series (0 when either is constant).
+pub fn pearson(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len().min(b.len());
+    if n < 2 {
+        return 0.0;
+    }
+    let (ma, mb) = (a[..n].iter().sum::<f64>() / n as f64, b[..n].iter().sum::<f64>() / n as f64);
+    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
+    for i in 0..n {
+        let (x, y) = (a[i] - ma, b[i] - mb);
+        sab += x * y;
+        saa += x * x;
+        sbb += y * y;
+    }
+    if saa == 0.0 || sbb == 0.0 { 0.0 } else { sab / (saa * sbb).sqrt() }
+}
+
+/// Dynamic time warping between two `frames × dims` series with Euclidean frame distance;
+/// the total cost of the best path divided by its length.
+pub fn dtw(a: &[f64], b: &[f64], dims: usize) -> f64 {
+    let (n, m) = (a.len() / dims, b.len() / dims);
+    if n == 0 || m == 0 {
+        return f64::INFINITY;
+    }
+    let d = |i: usize, j: usize| -> f64 {
+        a[i * dims..(i + 1) * dims].iter().zip(&b[j * dims..(j + 1) * dims]).map(|(x, y)| (x - y).powi(2)).sum::<f64>().sqrt()
+    };
+    // (cost, path length) per cell, one row at a time.
+    let mut prev = vec![(f64::INFINITY, 0usize); m];
+    let mut cur = vec![(0.0, 0usize); m];
+    for i in 0..n {
+        for j in 0..m {
+            let best = if i == 0 && j == 0 {
+                (0.0, 0)
+            } else {
+                let mut c = (f64::INFINITY, 0);
+                for cand in [(i > 0).then(|| prev[j]), (j > 0).then(|| cur[j - 1]), (i > 0 && j > 0).then(|| prev[j - 1])].into_iter().flatten() {
+                    if cand.0 < c.0 {
+                        c = cand;
+                    }
+                }
+                c
+            };
+            cur[j] = (best.0 + d(i, j), best.1 + 1);
+        }
+        std::mem::swap(&mut prev, &mut cur);
+    }
+    prev[m - 1].0 / prev[m - 1].1 as f64
+}
+
+/// Mouth height: the largest vertical extent of the outer lip contour (iBUG points 48–59).
+pub fn mouth_height(points: &[Point]) -> f64 {
+    let lips = &points[48..60];
+    let (lo, hi) = lips.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(p[1]), hi.max(p[1])));
+    hi - lo
+}
+
+/// Landmarks of every frame of a `frames × dims` face-space series.
+pub fn landmarks(model: &FaceModel, frames: &[f64], layout: &Layout) -> Vec<Vec<Point>> {
+    frames
+        .chunks_exact(layout.dims())
+        .map(|row| {
+            let pose = Similarity::from_array([row[0], row[1], row[2], row[3]]);
+            let b: Vec<f32> = row[layout.pose..layout.pose + layout.shape].iter().map(|&v| v as f32).collect();
+            model.shape.instance(&pose, &b).points
+        })
+        .collect()
+}
+
+/// The measures of one synthesised sentence against the real one.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Scores {
+    pub r_pca: f64,
+    pub r_h: f64,
+    pub rmse_px: f64,
+    pub dtw: f64,
+    /// Standard deviation of the mouth height over the sentence (articulation amplitude).
+    pub mouth_sd_px: f64,
+}
+
+/// Scores `synth` against `real` (both `frames × dims`, same frame rate; the shorter length
+/// is compared). DTW runs over the shape and appearance parameters.
+pub fn score(model: &FaceModel, layout: &Layout, synth: &[f64], real: &[f64]) -> Scores {
+    let dims = layout.dims();
+    let n = (synth.len() / dims).min(real.len() / dims);
+    let (s, r) = (&synth[..n * dims], &real[..n * dims]);
+    let first = layout.pose + layout.shape;
+    let col = |m: &[f64], k: usize| m.chunks_exact(dims).map(|row| row[k]).collect::<Vec<_>>();
+    let (ls, lr) = (landmarks(model, s, layout), landmarks(model, r, layout));
+    let (hs, hr): (Vec<f64>, Vec<f64>) = (ls.iter().map(|p| mouth_height(p)).collect(), lr.iter().map(|p| mouth_height(p)).collect());
+    let sq: f64 = ls.iter().zip(&lr).flat_map(|(a, b)| a.iter().zip(b).map(|(p, q)| (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2))).sum();
+    let count = (n * ls.first().map_or(1, |p| p.len())).max(1);
+    let params = |m: &[f64]| m.chunks_exact(dims).flat_map(|row| row[layout.params()].to_vec()).collect::<Vec<_>>();
+    let mean = hs.iter().sum::<f64>() / n.max(1) as f64;
+    Scores {
+        r_pca: if layout.appearance > 0 { pearson(&col(s, first), &col(r, first)) } else { 0.0 },
+        r_h: pearson(&hs, &hr),
+        rmse_px: (sq / count as f64).sqrt(),
+        dtw: dtw(&params(s), &params(r), layout.params().len()),
+        mouth_sd_px: (hs.iter().map(|h| (h - mean).powi(2)).sum::<f64>() / n.max(1) as f64).sqrt(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pearson_known_values() {
+        assert!((pearson(&[1.0, 2.0, 3.0], &[2.0, 4.0, 6.0]) - 1.0).abs() < 1e-12);
+        assert!((pearson(&[1.0, 2.0, 3.0], &[3.0, 2.0, 1.0]) + 1.0).abs() < 1e-12);
+        // Hand-computed: x = (1,2,3,4), y = (1,3,2,4): r = 0.8.
+        assert!((pearson(&[1.0, 2.0, 3.0, 4.0], &[1.0, 3.0, 2.0, 4.0]) - 0.8).abs() < 1e-12);
+        assert_eq!(pearson(&[1.0, 1.0], &[1.0, 2.0]), 0.0);
+    }
+
+    #[test]
+    fn dtw_aligns_a_stretched_copy_at_zero_cost() {
+        let a = [0.0, 1.0, 2.0, 3.0];
+        let b = [0.0, 0.0, 1.0, 1.0, 2.0, 3.0, 3.0];
+        assert_eq!(dtw(&a, &b, 1), 0.0);
+        // Shifted by one: the best path pairs a[i+1] with c[i], paying 1 only at both ends:
+        // (0,0) 1, (1,0) 0, (2,1) 0, (3,2) 0, (3,3) 1 → 2 over 5 steps.
+        let c: Vec<f64> = a.iter().map(|v| v + 1.0).collect();
+        assert!((dtw(&a, &c, 1) - 0.4).abs() < 1e-12, "{}", dtw(&a, &c, 1));
+    }
+}
