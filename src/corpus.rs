@@ -17,7 +17,8 @@
 //!   `τ = 50 ms`; the face-space point at t is the dominance-weighted mean of the targets.
 //!   Bilabials, labiodentals and silence dominate strongly (the lips must close or touch);
 //!   /hh/, /k g ng/ weakly (they take the shape of their neighbours).
-//! * The pose is held at the training frames' mean pose (a still head).
+//! * The pose is held still at that of the training frame nearest the mean pose, which
+//!   serves as the background when the corpus is rendered.
 
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
@@ -187,12 +188,28 @@ pub fn mouth_shape(points: &[[f64; 2]]) -> (f64, f64) {
     )
 }
 
+/// The generated corpus and the training frame whose pose it holds (its background).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Corpus {
+    pub sentences: Vec<GeneratedSentence>,
+    /// Index into the training frames.
+    pub still_frame: usize,
+}
+
+/// The frame whose pose `[a, b, tx, ty]` is nearest the mean pose (the rotation-scale part
+/// relative to the mean scale, translation in units of 10 pixels).
+fn still_frame(points: &[Vec<f32>]) -> usize {
+    let n = points.len() as f32;
+    let mean: Vec<f32> = (0..4).map(|k| points.iter().map(|p| p[k]).sum::<f32>() / n).collect();
+    let scale = mean[0].hypot(mean[1]).max(f32::MIN_POSITIVE);
+    let dist = |p: &Vec<f32>| {
+        ((p[0] - mean[0]) / scale).powi(2) + ((p[1] - mean[1]) / scale).powi(2) + ((p[2] - mean[2]).powi(2) + (p[3] - mean[3]).powi(2)) / 100.0
+    };
+    (0..points.len()).min_by(|&a, &b| dist(&points[a]).total_cmp(&dist(&points[b]))).unwrap_or(0)
+}
+
 /// Generates the demo corpus from the model and its (68-point) training frames.
-pub fn generate(
-    model: &FaceModel,
-    frames: &[TrainingExample],
-    options: &CorpusOptions,
-) -> Result<Vec<GeneratedSentence>, CorpusError> {
+pub fn generate(model: &FaceModel, frames: &[TrainingExample], options: &CorpusOptions) -> Result<Corpus, CorpusError> {
     if frames.len() < 3 {
         return Err(CorpusError::TooFewFrames(frames.len()));
     }
@@ -201,10 +218,10 @@ pub fn generate(
         .map(|f| model.project(&f.image, &f.landmarks).map(|p| p.to_vector()))
         .collect::<Result<_, _>>()?;
     let dims = model.n_params();
-    // The still head: mean pose of the training frames.
-    let pose: Vec<f32> = (0..4)
-        .map(|k| points.iter().map(|p| p[k]).sum::<f32>() / points.len() as f32)
-        .collect();
+    // The still head: the pose of the real frame nearest the mean pose, so the face can be
+    // drawn back onto that very frame.
+    let still = still_frame(&points);
+    let pose: Vec<f32> = points[still][..4].to_vec();
     // Mouth shapes as quantile ranks among the training frames.
     let shapes: Vec<(f64, f64)> = frames
         .iter()
@@ -313,5 +330,5 @@ pub fn generate(
             frames: frames_out,
         });
     }
-    Ok(out)
+    Ok(Corpus { sentences: out, still_frame: still })
 }

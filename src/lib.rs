@@ -27,6 +27,7 @@ pub mod npy;
 pub mod pca;
 pub mod phonemes;
 pub mod plot;
+pub mod render;
 pub mod rng;
 pub mod shape;
 pub mod synth;

@@ -50,9 +50,11 @@ fn demo(a: DemoArgs) -> Result<()> {
         seed: a.seed,
         ..CorpusOptions::default()
     };
-    let sentences = corpus::generate(&model, &frames, &options)?;
+    let generated = corpus::generate(&model, &frames, &options)?;
+    let sentences = &generated.sentences;
+    let background = &frames[generated.still_frame];
     let dims = model.n_params();
-    for s in &sentences {
+    for s in sentences {
         let dir = a.output.join(if s.held_out { "heldout" } else { "train" });
         npy::write(
             &dir.join(format!("{}.npy", s.name)),
@@ -70,6 +72,7 @@ fn demo(a: DemoArgs) -> Result<()> {
         "note": "Trajectories are GENERATED (dominance-function coarticulation over real face-space points of the demo training frames), not recorded. Phone sequences come from the CMU dictionary, durations from a table with seeded jitter.",
         "options": options,
         "model_hash": model.hash(),
+        "still_frame": std::path::Path::new(&background.name).file_name().map(|n| n.to_string_lossy().into_owned()),
         "fps": options.fps,
         "train": sentences.iter().filter(|s| !s.held_out).map(|s| &s.name).collect::<Vec<_>>(),
         "heldout": sentences.iter().filter(|s| s.held_out).map(|s| &s.name).collect::<Vec<_>>(),
@@ -90,13 +93,12 @@ fn demo(a: DemoArgs) -> Result<()> {
         a.output.display()
     );
     if a.frames {
-        let background = &frames[0].image;
         let (bar, mut progress) = super::progress_bar();
         for (i, s) in sentences.iter().enumerate() {
             let dir = a.output.join("frames").join(&s.name);
             for (k, row) in s.frames.chunks_exact(dims).enumerate() {
                 let params = model.params_from_vector(row)?;
-                let mut canvas: RgbImage = background.clone();
+                let mut canvas: RgbImage = background.image.clone();
                 model.render_into(&params, &mut canvas)?;
                 super::model::save_png(&canvas, &dir.join(format!("{k:04}.png")))?;
             }

@@ -4,6 +4,7 @@ mod codebook;
 mod corpus;
 mod demo;
 mod model;
+mod synth;
 
 use clap::{Parser, Subcommand};
 use facespace::Progress;
@@ -31,6 +32,10 @@ enum Command {
     /// Generate corpora.
     #[command(subcommand)]
     Corpus(corpus::CorpusCommand),
+    /// Synthesise a face-space trajectory and video from phonemes or text (top-N blending).
+    Synth(synth::SynthArgs),
+    /// Score synthesis against held-out sentences (r_pca, r_h, RMSE, DTW) with baselines.
+    Eval(synth::EvalArgs),
     /// Build a model from the bundled faces and write reconstructions to out/demo.
     Demo(demo::DemoArgs),
 }
@@ -40,6 +45,8 @@ pub fn run() -> anyhow::Result<()> {
         Command::Model(c) => model::run(c),
         Command::Codebook(c) => codebook::run(c),
         Command::Corpus(c) => corpus::run(c),
+        Command::Synth(a) => synth::synth(a),
+        Command::Eval(a) => synth::evaluate(a),
         Command::Demo(a) => demo::run(a),
     }
 }
