@@ -1,93 +1,110 @@
-//! `facespace demo`: the README's first command. Until the demo corpus lands (issue 3) it
-//! builds a model from the four bundled annotated faces and shows what the model does.
+//! `facespace demo`: the README's first command. From the committed demo model and its
+//! training frames: generate the demo corpus, build the codebook, synthesise a sentence that
+//! is not in the corpus, and write smoothed and unsmoothed videos, a blind side-by-side and a
+//! trajectory plot to out/demo.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use clap::Args;
-use facespace::model::{BuildOptions, FaceModel, FaceParams, load_training_set};
-use facespace::shape::Similarity;
-use image::RgbImage;
+use facespace::codebook::{Codebook, Layout, Sentence, SimilarityOptions};
+use facespace::corpus::{self, CorpusOptions};
+use facespace::model::{FaceModel, load_training_set};
+use facespace::phonemes;
+use facespace::synth::blend::{self, BlendOptions};
 
-use super::model::{print_summary, reconstruct_pair, save_png};
+use super::synth::{DEFAULT_LAMBDA, parameter_plot, smoothed, write_variant};
+
+/// The demo utterance; it must not be one of the corpus sentences.
+pub const DEMO_TEXT: &str = "A brave pilot found the hidden map.";
 
 #[derive(Args)]
 pub struct DemoArgs {
     /// Output folder.
     #[arg(short, long, default_value = "out/demo")]
     output: PathBuf,
-    /// Training images with .pts landmarks.
-    #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/models/faces/training"))]
+    /// Text to synthesise (not a corpus sentence).
+    #[arg(long, default_value = DEMO_TEXT)]
+    text: String,
+    #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/models/demo/model"))]
+    model: PathBuf,
+    #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/models/demo/training"))]
     training: PathBuf,
 }
 
 pub fn run(a: DemoArgs) -> Result<()> {
     let start = std::time::Instant::now();
-    let examples = load_training_set(&a.training, None)
-        .with_context(|| format!("loading {}", a.training.display()))?;
-    let (bar, mut progress) = super::progress_bar();
-    let model = FaceModel::build(&examples, &BuildOptions::default(), &mut progress)?;
-    bar.finish_and_clear();
-    let model_dir = a.output.join("model");
-    model.save(&model_dir)?;
-    println!(
-        "model of {} faces → {}",
-        examples.len(),
-        model_dir.display()
-    );
-    print_summary(&model);
-    // Each face reconstructed by a model of the other faces: what the model generalises to.
-    println!("leave-one-out reconstructions (model of the other faces):");
-    for (i, e) in examples.iter().enumerate() {
-        let others: Vec<_> = examples
-            .iter()
-            .enumerate()
-            .filter(|&(j, _)| j != i)
-            .map(|(_, x)| x.clone())
-            .collect();
-        let held_out = FaceModel::build(
-            &others,
-            &BuildOptions::default(),
-            &mut facespace::no_progress,
-        )?;
-        let (pair, psnr) = reconstruct_pair(&held_out, &e.image, &e.landmarks)?;
-        let stem = std::path::Path::new(&e.name)
-            .file_stem()
-            .unwrap_or_default()
-            .to_string_lossy()
-            .into_owned();
-        let path = a.output.join(format!("reconstruct-{stem}.png"));
-        save_png(&pair, &path)?;
-        println!("  {:<40} texture PSNR {psnr:5.1} dB", path.display());
+    let normalise = |s: &str| s.to_lowercase().chars().filter(|c| c.is_alphanumeric() || *c == ' ').collect::<String>();
+    if corpus::SENTENCES.iter().any(|s| normalise(s) == normalise(&a.text)) {
+        bail!("{:?} is a corpus sentence; the demo synthesises unseen text", a.text);
     }
-    // The first appearance mode at −2σ, mean, +2σ, drawn at the mean shape.
-    let sd = model.appearance.pca.variances[0].sqrt();
-    let pose = Similarity {
-        a: model.placement.scale,
-        b: 0.0,
-        tx: model.placement.offset[0],
-        ty: model.placement.offset[1],
-    };
-    let (w, h) = (model.frame.width as u32, model.frame.height as u32);
-    let mut strip = RgbImage::new(3 * w, h);
-    for (i, k) in [-2.0f32, 0.0, 2.0].iter().enumerate() {
-        let mut appearance = vec![0.0; model.appearance.n_params()];
-        appearance[0] = k * sd;
-        let params = FaceParams {
-            pose,
-            shape: vec![0.0; model.shape.n_params()],
-            appearance,
-        };
-        let mut tile = RgbImage::new(w, h);
-        model.render_into(&params, &mut tile)?;
-        image::imageops::replace(&mut strip, &tile, (i as u32 * w) as i64, 0);
+    let model = FaceModel::load(&a.model).with_context(|| format!("loading model {}", a.model.display()))?;
+    let frames = load_training_set(&a.training, None).with_context(|| format!("loading {}", a.training.display()))?;
+    println!("model {} ({} shape + {} appearance parameters, from {} real frames)", a.model.display(), model.shape.n_params(), model.appearance.n_params(), frames.len());
+
+    let generated = corpus::generate(&model, &frames, &CorpusOptions::default())?;
+    let background = &frames[generated.still_frame].image;
+    let train: Vec<Sentence> = generated
+        .sentences
+        .iter()
+        .filter(|s| !s.held_out)
+        .map(|s| Sentence { name: s.name.clone(), source: "generated demo corpus".into(), frames: s.frames.clone(), segments: s.segments.clone() })
+        .collect();
+    println!("demo corpus: {} generated sentences (trajectories generated over real face-space points, not recorded)", train.len());
+    let layout = Layout::of(&model);
+    let cb = Codebook::build(train, 25.0, layout, Some(model.hash()), SimilarityOptions::default(), &mut facespace::no_progress)?;
+    cb.save(&a.output.join("codebook"))?;
+
+    let target = phonemes::text_to_segments(&a.text, &cb.mean_durations())?;
+    let s = blend::blend(&cb, &target, &BlendOptions::default())?;
+    let smooth = smoothed(&s, DEFAULT_LAMBDA)?;
+    println!("synthesised {:?}: {} phones, {} frames at 25 fps", a.text, target.len(), s.n_frames());
+    let sm = write_variant(&a.output.join("smoothed"), &model, &layout, &smooth, 25.0, background)?;
+    let un = write_variant(&a.output.join("unsmoothed"), &model, &layout, &s.frames, 25.0, background)?;
+    facespace::video::write_y4m(&a.output.join("side_by_side.y4m"), &facespace::video::side_by_side(&sm, &un), 25.0)?;
+    super::model::save_png(&parameter_plot(&layout, 25.0, &[("smoothed", &smooth), ("unsmoothed", &s.frames)], &target), &a.output.join("plot.png"))?;
+    phonemes::write_labels(&a.output.join("utterance.lab"), &target)?;
+    let report = serde_json::json!({ "text": a.text, "phones": s.phones, "warnings": s.warnings, "smoothing_lambda": DEFAULT_LAMBDA });
+    facespace::atomic::write_file(&a.output.join("report.json"), serde_json::to_string_pretty(&report)?.as_bytes())?;
+
+    let o = &a.output;
+    println!("wrote to {}:", o.display());
+    for (what, path) in [
+        ("smoothed video", o.join("smoothed/video.y4m")),
+        ("smoothed frames", o.join("smoothed/frames")),
+        ("unsmoothed video", o.join("unsmoothed/video.y4m")),
+        ("side by side (smoothed | unsmoothed)", o.join("side_by_side.y4m")),
+        ("trajectory plot", o.join("plot.png")),
+        ("phone timings", o.join("utterance.lab")),
+        ("codebook", o.join("codebook")),
+    ] {
+        println!("  {what:<38} {}", path.display());
     }
-    let path = a.output.join("appearance-mode1.png");
-    save_png(&strip, &path)?;
-    println!(
-        "  {:<40} first appearance mode at −2σ, mean, +2σ",
-        path.display()
-    );
+    for video in ["smoothed/video", "unsmoothed/video", "side_by_side"] {
+        if let Some(mp4) = to_mp4(&o.join(format!("{video}.y4m")))? {
+            println!("  {:<38} {}", "MP4 (system ffmpeg)", mp4.display());
+        }
+    }
+    if which_ffmpeg().is_none() {
+        println!("  (no ffmpeg on PATH: videos are Y4M, e.g. `ffplay {}`; MP4 arrives with the video issue)", o.join("side_by_side.y4m").display());
+    }
     println!("done in {:.1} s", start.elapsed().as_secs_f64());
     Ok(())
+}
+
+fn which_ffmpeg() -> Option<PathBuf> {
+    std::env::var_os("PATH").and_then(|paths| std::env::split_paths(&paths).map(|p| p.join("ffmpeg")).find(|p| p.is_file()))
+}
+
+/// Converts a Y4M file to H.264 MP4 with a system ffmpeg, when one is installed.
+fn to_mp4(y4m: &Path) -> Result<Option<PathBuf>> {
+    let Some(ffmpeg) = which_ffmpeg() else { return Ok(None) };
+    let mp4 = y4m.with_extension("mp4");
+    let status = std::process::Command::new(ffmpeg)
+        .args(["-y", "-loglevel", "error", "-i"])
+        .arg(y4m)
+        .args(["-pix_fmt", "yuv420p", "-vf", "pad=ceil(iw/2)*2:ceil(ih/2)*2"])
+        .arg(&mp4)
+        .status()?;
+    Ok(status.success().then_some(mp4))
 }
