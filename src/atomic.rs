@@ -12,7 +12,8 @@ pub fn write_file(path: &Path, bytes: &[u8]) -> io::Result<()> {
     tmp.write_all(bytes)?;
     // tempfile creates 0600 files; a written artefact is an ordinary readable file.
     #[cfg(unix)]
-    tmp.as_file().set_permissions(std::os::unix::fs::PermissionsExt::from_mode(0o644))?;
+    tmp.as_file()
+        .set_permissions(std::os::unix::fs::PermissionsExt::from_mode(0o644))?;
     tmp.as_file().sync_all()?;
     tmp.persist(path).map_err(|e| e.error)?;
     Ok(())
@@ -48,7 +49,8 @@ pub fn replace_dir<E>(
     fill(tmp.path())?;
     let staged = tmp.keep();
     #[cfg(unix)]
-    std::fs::set_permissions(&staged, std::os::unix::fs::PermissionsExt::from_mode(0o755)).map_err(&io)?;
+    std::fs::set_permissions(&staged, std::os::unix::fs::PermissionsExt::from_mode(0o755))
+        .map_err(&io)?;
     let swap = || -> io::Result<()> {
         if target.exists() {
             let old = tempfile::Builder::new()

@@ -200,16 +200,26 @@ pub struct Corpus {
 /// relative to the mean scale, translation in units of 10 pixels).
 fn still_frame(points: &[Vec<f32>]) -> usize {
     let n = points.len() as f32;
-    let mean: Vec<f32> = (0..4).map(|k| points.iter().map(|p| p[k]).sum::<f32>() / n).collect();
+    let mean: Vec<f32> = (0..4)
+        .map(|k| points.iter().map(|p| p[k]).sum::<f32>() / n)
+        .collect();
     let scale = mean[0].hypot(mean[1]).max(f32::MIN_POSITIVE);
     let dist = |p: &Vec<f32>| {
-        ((p[0] - mean[0]) / scale).powi(2) + ((p[1] - mean[1]) / scale).powi(2) + ((p[2] - mean[2]).powi(2) + (p[3] - mean[3]).powi(2)) / 100.0
+        ((p[0] - mean[0]) / scale).powi(2)
+            + ((p[1] - mean[1]) / scale).powi(2)
+            + ((p[2] - mean[2]).powi(2) + (p[3] - mean[3]).powi(2)) / 100.0
     };
-    (0..points.len()).min_by(|&a, &b| dist(&points[a]).total_cmp(&dist(&points[b]))).unwrap_or(0)
+    (0..points.len())
+        .min_by(|&a, &b| dist(&points[a]).total_cmp(&dist(&points[b])))
+        .unwrap_or(0)
 }
 
 /// Generates the demo corpus from the model and its (68-point) training frames.
-pub fn generate(model: &FaceModel, frames: &[TrainingExample], options: &CorpusOptions) -> Result<Corpus, CorpusError> {
+pub fn generate(
+    model: &FaceModel,
+    frames: &[TrainingExample],
+    options: &CorpusOptions,
+) -> Result<Corpus, CorpusError> {
     if frames.len() < 3 {
         return Err(CorpusError::TooFewFrames(frames.len()));
     }
@@ -330,5 +340,8 @@ pub fn generate(model: &FaceModel, frames: &[TrainingExample], options: &CorpusO
             frames: frames_out,
         });
     }
-    Ok(Corpus { sentences: out, still_frame: still })
+    Ok(Corpus {
+        sentences: out,
+        still_frame: still,
+    })
 }

@@ -14,7 +14,10 @@ pub fn pearson(a: &[f64], b: &[f64]) -> f64 {
     if n < 2 {
         return 0.0;
     }
-    let (ma, mb) = (a[..n].iter().sum::<f64>() / n as f64, b[..n].iter().sum::<f64>() / n as f64);
+    let (ma, mb) = (
+        a[..n].iter().sum::<f64>() / n as f64,
+        b[..n].iter().sum::<f64>() / n as f64,
+    );
     let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
     for i in 0..n {
         let (x, y) = (a[i] - ma, b[i] - mb);
@@ -22,7 +25,11 @@ pub fn pearson(a: &[f64], b: &[f64]) -> f64 {
         saa += x * x;
         sbb += y * y;
     }
-    if saa == 0.0 || sbb == 0.0 { 0.0 } else { sab / (saa * sbb).sqrt() }
+    if saa == 0.0 || sbb == 0.0 {
+        0.0
+    } else {
+        sab / (saa * sbb).sqrt()
+    }
 }
 
 /// Dynamic time warping between two `frames × dims` series with Euclidean frame distance;
@@ -33,7 +40,12 @@ pub fn dtw(a: &[f64], b: &[f64], dims: usize) -> f64 {
         return f64::INFINITY;
     }
     let d = |i: usize, j: usize| -> f64 {
-        a[i * dims..(i + 1) * dims].iter().zip(&b[j * dims..(j + 1) * dims]).map(|(x, y)| (x - y).powi(2)).sum::<f64>().sqrt()
+        a[i * dims..(i + 1) * dims]
+            .iter()
+            .zip(&b[j * dims..(j + 1) * dims])
+            .map(|(x, y)| (x - y).powi(2))
+            .sum::<f64>()
+            .sqrt()
     };
     // (cost, path length) per cell, one row at a time.
     let mut prev = vec![(f64::INFINITY, 0usize); m];
@@ -44,7 +56,14 @@ pub fn dtw(a: &[f64], b: &[f64], dims: usize) -> f64 {
                 (0.0, 0)
             } else {
                 let mut c = (f64::INFINITY, 0);
-                for cand in [(i > 0).then(|| prev[j]), (j > 0).then(|| cur[j - 1]), (i > 0 && j > 0).then(|| prev[j - 1])].into_iter().flatten() {
+                for cand in [
+                    (i > 0).then(|| prev[j]),
+                    (j > 0).then(|| cur[j - 1]),
+                    (i > 0 && j > 0).then(|| prev[j - 1]),
+                ]
+                .into_iter()
+                .flatten()
+                {
                     if cand.0 < c.0 {
                         c = cand;
                     }
@@ -61,7 +80,11 @@ pub fn dtw(a: &[f64], b: &[f64], dims: usize) -> f64 {
 /// Mouth height: the largest vertical extent of the outer lip contour (iBUG points 48–59).
 pub fn mouth_height(points: &[Point]) -> f64 {
     let lips = &points[48..60];
-    let (lo, hi) = lips.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(p[1]), hi.max(p[1])));
+    let (lo, hi) = lips
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(p[1]), hi.max(p[1]))
+        });
     hi - lo
 }
 
@@ -71,7 +94,10 @@ pub fn landmarks(model: &FaceModel, frames: &[f64], layout: &Layout) -> Vec<Vec<
         .chunks_exact(layout.dims())
         .map(|row| {
             let pose = Similarity::from_array([row[0], row[1], row[2], row[3]]);
-            let b: Vec<f32> = row[layout.pose..layout.pose + layout.shape].iter().map(|&v| v as f32).collect();
+            let b: Vec<f32> = row[layout.pose..layout.pose + layout.shape]
+                .iter()
+                .map(|&v| v as f32)
+                .collect();
             model.shape.instance(&pose, &b).points
         })
         .collect()
@@ -97,13 +123,32 @@ pub fn score(model: &FaceModel, layout: &Layout, synth: &[f64], real: &[f64]) ->
     let first = layout.pose + layout.shape;
     let col = |m: &[f64], k: usize| m.chunks_exact(dims).map(|row| row[k]).collect::<Vec<_>>();
     let (ls, lr) = (landmarks(model, s, layout), landmarks(model, r, layout));
-    let (hs, hr): (Vec<f64>, Vec<f64>) = (ls.iter().map(|p| mouth_height(p)).collect(), lr.iter().map(|p| mouth_height(p)).collect());
-    let sq: f64 = ls.iter().zip(&lr).flat_map(|(a, b)| a.iter().zip(b).map(|(p, q)| (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2))).sum();
+    let (hs, hr): (Vec<f64>, Vec<f64>) = (
+        ls.iter().map(|p| mouth_height(p)).collect(),
+        lr.iter().map(|p| mouth_height(p)).collect(),
+    );
+    let sq: f64 = ls
+        .iter()
+        .zip(&lr)
+        .flat_map(|(a, b)| {
+            a.iter()
+                .zip(b)
+                .map(|(p, q)| (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2))
+        })
+        .sum();
     let count = (n * ls.first().map_or(1, |p| p.len())).max(1);
-    let params = |m: &[f64]| m.chunks_exact(dims).flat_map(|row| row[layout.params()].to_vec()).collect::<Vec<_>>();
+    let params = |m: &[f64]| {
+        m.chunks_exact(dims)
+            .flat_map(|row| row[layout.params()].to_vec())
+            .collect::<Vec<_>>()
+    };
     let mean = hs.iter().sum::<f64>() / n.max(1) as f64;
     Scores {
-        r_pca: if layout.appearance > 0 { pearson(&col(s, first), &col(r, first)) } else { 0.0 },
+        r_pca: if layout.appearance > 0 {
+            pearson(&col(s, first), &col(r, first))
+        } else {
+            0.0
+        },
         r_h: pearson(&hs, &hr),
         rmse_px: (sq / count as f64).sqrt(),
         dtw: dtw(&params(s), &params(r), layout.params().len()),

@@ -216,7 +216,7 @@ pub fn line_plot(
     let (mut y_min, mut y_max) = ys.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
         (a.min(v), b.max(v))
     });
-    if !(y_max > y_min) {
+    if y_max <= y_min || !y_max.is_finite() || !y_min.is_finite() {
         y_min -= 1.0;
         y_max += 1.0;
     }

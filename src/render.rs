@@ -9,7 +9,12 @@ use crate::model::{FaceModel, ModelError};
 
 pub trait Renderer {
     /// Renders each `dims`-long face-space row over a copy of `background`.
-    fn render(&self, model: &FaceModel, frames: &[f64], background: &RgbImage) -> Result<Vec<RgbImage>, ModelError>;
+    fn render(
+        &self,
+        model: &FaceModel,
+        frames: &[f64],
+        background: &RgbImage,
+    ) -> Result<Vec<RgbImage>, ModelError>;
 }
 
 /// The reference renderer on the CPU.
@@ -17,7 +22,12 @@ pub trait Renderer {
 pub struct CpuRenderer;
 
 impl Renderer for CpuRenderer {
-    fn render(&self, model: &FaceModel, frames: &[f64], background: &RgbImage) -> Result<Vec<RgbImage>, ModelError> {
+    fn render(
+        &self,
+        model: &FaceModel,
+        frames: &[f64],
+        background: &RgbImage,
+    ) -> Result<Vec<RgbImage>, ModelError> {
         frames
             .par_chunks_exact(model.n_params())
             .map(|row| {

@@ -139,8 +139,8 @@ impl Trajectory {
             s3 - s2,
         );
         let (a, b) = (i * dims, (i + 1) * dims);
-        for k in 0..dims {
-            out[k] = h00 * self.values[a + k]
+        for (k, o) in out.iter_mut().enumerate() {
+            *o = h00 * self.values[a + k]
                 + h10 * h * self.slopes[a + k]
                 + h01 * self.values[b + k]
                 + h11 * h * self.slopes[b + k];
@@ -174,7 +174,7 @@ impl Trajectory {
         end: f64,
         duration: f64,
     ) -> Result<TimeWarp<'_>, TrajectoryError> {
-        if !(end > start) || !start.is_finite() || !end.is_finite() {
+        if end <= start || !start.is_finite() || !end.is_finite() {
             return Err(TrajectoryError::BadSegment { start, end });
         }
         if !(duration > 0.0 && duration.is_finite()) {
@@ -233,9 +233,9 @@ pub fn pchip_slopes(x: &[f64], y: &[f64], d: &mut [f64]) {
         d[1] = m(0);
         return;
     }
-    for i in 1..n - 1 {
+    for (i, di) in d.iter_mut().enumerate().take(n - 1).skip(1) {
         let (m0, m1) = (m(i - 1), m(i));
-        d[i] = if m0 == 0.0 || m1 == 0.0 || sign(m0) != sign(m1) {
+        *di = if m0 == 0.0 || m1 == 0.0 || sign(m0) != sign(m1) {
             0.0
         } else {
             let (w1, w2) = (2.0 * h(i) + h(i - 1), h(i) + 2.0 * h(i - 1));

@@ -14,7 +14,11 @@ pub fn write_png_frames(dir: &Path, frames: &[RgbImage]) -> std::io::Result<()> 
     std::fs::create_dir_all(dir)?;
     frames.par_iter().enumerate().try_for_each(|(i, f)| {
         let mut bytes = Vec::new();
-        f.write_to(&mut std::io::Cursor::new(&mut bytes), image::ImageFormat::Png).map_err(std::io::Error::other)?;
+        f.write_to(
+            &mut std::io::Cursor::new(&mut bytes),
+            image::ImageFormat::Png,
+        )
+        .map_err(std::io::Error::other)?;
         atomic::write_file(&dir.join(format!("{i:04}.png")), &bytes)
     })
 }
@@ -25,7 +29,7 @@ pub fn y4m_bytes(frames: &[RgbImage], fps: f64) -> Vec<u8> {
     let (w, h) = frames.first().map_or((0, 0), |f| (f.width(), f.height()));
     let (num, den) = ((fps * 1000.0).round() as u64, 1000u64);
     let mut out = Vec::with_capacity(frames.len() * (w * h * 3 + 6) as usize + 64);
-    let _ = write!(out, "YUV4MPEG2 W{w} H{h} F{num}:{den} Ip A1:1 C444\n");
+    let _ = writeln!(out, "YUV4MPEG2 W{w} H{h} F{num}:{den} Ip A1:1 C444");
     for f in frames {
         out.extend_from_slice(b"FRAME\n");
         let px: Vec<[f32; 3]> = f.pixels().map(|p| p.0.map(|v| v as f32)).collect();

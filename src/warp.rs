@@ -315,9 +315,7 @@ pub fn from_reference_into(
                         px.copy_from_slice(&v.map(to_u8));
                         sx += t.sx[0];
                         sy += t.sx[1];
-                        for i in 0..3 {
-                            l[i] += t.lx[i];
-                        }
+                        l.iter_mut().zip(&t.lx).for_each(|(v, d)| *v += d);
                     }
                 }
             }

@@ -3,7 +3,11 @@ use facespace::codebook::{Codebook, Layout, Sentence, SimilarityOptions};
 use facespace::phonemes::{Phone, Segment};
 use facespace::synth::blend::{self, BlendOptions, SynthError};
 
-const LAYOUT: Layout = Layout { pose: 4, shape: 1, appearance: 1 };
+const LAYOUT: Layout = Layout {
+    pose: 4,
+    shape: 1,
+    appearance: 1,
+};
 const FPS: f64 = 25.0;
 
 fn ph(s: &str) -> Phone {
@@ -18,59 +22,126 @@ fn value(p: Phone) -> f64 {
 /// A sentence of 0.2 s phones whose frames hold each phone's value (plus `bump` in the
 /// appearance dimension, to tell sentences apart).
 fn sentence(name: &str, phones: &[&str], bump: f32) -> Sentence {
-    let segments: Vec<Segment> = phones.iter().enumerate().map(|(i, p)| Segment { start: 0.2 * i as f64, end: 0.2 * (i + 1) as f64, phone: ph(p) }).collect();
+    let segments: Vec<Segment> = phones
+        .iter()
+        .enumerate()
+        .map(|(i, p)| Segment {
+            start: 0.2 * i as f64,
+            end: 0.2 * (i + 1) as f64,
+            phone: ph(p),
+        })
+        .collect();
     let n = (0.2 * phones.len() as f64 * FPS).round() as usize;
     let frames = (0..n)
         .flat_map(|f| {
             let t = f as f64 / FPS;
-            let s = segments.iter().find(|s| t >= s.start && t < s.end).unwrap_or(segments.last().unwrap());
+            let s = segments
+                .iter()
+                .find(|s| t >= s.start && t < s.end)
+                .unwrap_or(segments.last().unwrap());
             let v = value(s.phone) as f32;
             [1.0, 0.0, 0.0, 0.0, v, v + bump]
         })
         .collect();
-    Sentence { name: name.into(), source: "hand".into(), frames, segments }
+    Sentence {
+        name: name.into(),
+        source: "hand".into(),
+        frames,
+        segments,
+    }
 }
 
 fn codebook() -> Codebook {
     let sentences = vec![
-        sentence("A", &["sil", "aa", "m", "iy", "sil"], 0.0),  // m in (aa, iy)
-        sentence("B", &["sil", "aa", "m", "ow", "sil"], 0.1),  // m in (aa, ow)
-        sentence("C", &["sil", "uw", "m", "iy", "sil"], 0.2),  // m in (uw, iy)
-        sentence("D", &["f", "aa", "m", "iy", "s"], 0.3),      // m in (aa, iy), second left f
+        sentence("A", &["sil", "aa", "m", "iy", "sil"], 0.0), // m in (aa, iy)
+        sentence("B", &["sil", "aa", "m", "ow", "sil"], 0.1), // m in (aa, ow)
+        sentence("C", &["sil", "uw", "m", "iy", "sil"], 0.2), // m in (uw, iy)
+        sentence("D", &["f", "aa", "m", "iy", "s"], 0.3),     // m in (aa, iy), second left f
         sentence("E", &["sil", "f", "s", "uw", "ow"], 0.4),
     ];
-    let options = SimilarityOptions { gamma: Some(1.0), variance_weights: false, context_weights: false, ..Default::default() };
-    Codebook::build(sentences, FPS, LAYOUT, None, options, &mut facespace::no_progress).unwrap()
+    let options = SimilarityOptions {
+        gamma: Some(1.0),
+        variance_weights: false,
+        context_weights: false,
+        ..Default::default()
+    };
+    Codebook::build(
+        sentences,
+        FPS,
+        LAYOUT,
+        None,
+        options,
+        &mut facespace::no_progress,
+    )
+    .unwrap()
 }
 
 fn target(phones: &[&str], dur: f64) -> Vec<Segment> {
-    phones.iter().enumerate().map(|(i, p)| Segment { start: dur * i as f64, end: dur * (i + 1) as f64, phone: ph(p) }).collect()
+    phones
+        .iter()
+        .enumerate()
+        .map(|(i, p)| Segment {
+            start: dur * i as f64,
+            end: dur * (i + 1) as f64,
+            phone: ph(p),
+        })
+        .collect()
 }
 
 #[test]
 fn selection_follows_the_context_score() {
     let cb = codebook();
     let t = target(&["sil", "aa", "m", "iy", "sil"], 0.2);
-    let opts = BlendOptions { context: 1, top_n: 4, fps: FPS };
+    let opts = BlendOptions {
+        context: 1,
+        top_n: 4,
+        fps: FPS,
+    };
     let chosen = blend::select(&cb, &t, 2, ph("m"), &opts);
     // Independent evaluation of s_j = S(l, l_j)/2 + S(r, r_j)/2 for the four occurrences.
     let s = |a: &str, b: &str| cb.similarity(ph(a), ph(b));
-    let expected = [("A", s("aa", "aa") / 2.0 + s("iy", "iy") / 2.0), ("B", s("aa", "aa") / 2.0 + s("iy", "ow") / 2.0), ("C", s("aa", "uw") / 2.0 + s("iy", "iy") / 2.0), ("D", 1.0)];
+    let expected = [
+        ("A", s("aa", "aa") / 2.0 + s("iy", "iy") / 2.0),
+        ("B", s("aa", "aa") / 2.0 + s("iy", "ow") / 2.0),
+        ("C", s("aa", "uw") / 2.0 + s("iy", "iy") / 2.0),
+        ("D", 1.0),
+    ];
     for (o, score) in &chosen {
         let name = &cb.sentences[o.sentence].name;
         let want = expected.iter().find(|(n, _)| n == name).unwrap().1;
         assert!((score - want).abs() < 1e-12, "{name}: {score} vs {want}");
     }
-    assert!(chosen.windows(2).all(|w| w[0].1 >= w[1].1), "sorted best first");
+    assert!(
+        chosen.windows(2).all(|w| w[0].1 >= w[1].1),
+        "sorted best first"
+    );
     // C = 1: A and D tie at 1.0 and the earlier (A) comes first.
-    let names: Vec<&str> = chosen.iter().map(|(o, _)| cb.sentences[o.sentence].name.as_str()).collect();
+    let names: Vec<&str> = chosen
+        .iter()
+        .map(|(o, _)| cb.sentences[o.sentence].name.as_str())
+        .collect();
     assert_eq!(&names[..2], ["A", "D"]);
     // C = 2: a target whose second contexts are f … s (as in D) prefers D, at weight 1/3.
     let t2 = target(&["f", "aa", "m", "iy", "s"], 0.2);
-    let c2 = BlendOptions { context: 2, top_n: 1, fps: FPS };
-    assert_eq!(cb.sentences[blend::select(&cb, &t2, 2, ph("m"), &c2)[0].0.sentence].name, "D");
-    let c1 = BlendOptions { context: 1, top_n: 1, fps: FPS };
-    assert_eq!(cb.sentences[blend::select(&cb, &t2, 2, ph("m"), &c1)[0].0.sentence].name, "A", "C = 1 cannot see f or s");
+    let c2 = BlendOptions {
+        context: 2,
+        top_n: 1,
+        fps: FPS,
+    };
+    assert_eq!(
+        cb.sentences[blend::select(&cb, &t2, 2, ph("m"), &c2)[0].0.sentence].name,
+        "D"
+    );
+    let c1 = BlendOptions {
+        context: 1,
+        top_n: 1,
+        fps: FPS,
+    };
+    assert_eq!(
+        cb.sentences[blend::select(&cb, &t2, 2, ph("m"), &c1)[0].0.sentence].name,
+        "A",
+        "C = 1 cannot see f or s"
+    );
 }
 
 #[test]
@@ -78,7 +149,16 @@ fn top_n_and_weights() {
     let cb = codebook();
     let t = target(&["sil", "aa", "m", "iy", "sil"], 0.2);
     for n in 1..=4 {
-        let s = blend::blend(&cb, &t, &BlendOptions { context: 1, top_n: n, fps: FPS }).unwrap();
+        let s = blend::blend(
+            &cb,
+            &t,
+            &BlendOptions {
+                context: 1,
+                top_n: n,
+                fps: FPS,
+            },
+        )
+        .unwrap();
         let m = &s.phones[2];
         assert_eq!(m.chosen.len(), n);
         let total: f64 = m.chosen.iter().map(|c| c.score).sum();
@@ -95,18 +175,46 @@ fn top_n_and_weights() {
 fn single_example_is_copied_and_time_warped() {
     let cb = codebook();
     let t = target(&["sil", "aa", "m", "iy", "sil"], 0.2);
-    let s = blend::blend(&cb, &t, &BlendOptions { context: 1, top_n: 1, fps: FPS }).unwrap();
+    let s = blend::blend(
+        &cb,
+        &t,
+        &BlendOptions {
+            context: 1,
+            top_n: 1,
+            fps: FPS,
+        },
+    )
+    .unwrap();
     let a = &cb.trajectories[0];
     // Frames inside /m/ (0.4–0.6 s) come from sentence A's /m/.
-    for (k, &time) in s.times().iter().enumerate().filter(|(_, t)| **t >= 0.4 && **t < 0.6) {
+    for (k, &time) in s
+        .times()
+        .iter()
+        .enumerate()
+        .filter(|(_, t)| **t >= 0.4 && **t < 0.6)
+    {
         let want = a.eval(time);
         for d in 0..s.dims {
             assert!((s.frames[k * s.dims + d] - want[d]).abs() < 1e-9);
         }
     }
     let slow = target(&["sil", "aa", "m", "iy", "sil"], 0.4);
-    let s = blend::blend(&cb, &slow, &BlendOptions { context: 1, top_n: 1, fps: FPS }).unwrap();
-    for (k, &time) in s.times().iter().enumerate().filter(|(_, t)| **t >= 0.8 && **t < 1.2) {
+    let s = blend::blend(
+        &cb,
+        &slow,
+        &BlendOptions {
+            context: 1,
+            top_n: 1,
+            fps: FPS,
+        },
+    )
+    .unwrap();
+    for (k, &time) in s
+        .times()
+        .iter()
+        .enumerate()
+        .filter(|(_, t)| **t >= 0.8 && **t < 1.2)
+    {
         let want = a.eval(0.4 + (time - 0.8) / 2.0);
         assert!((s.frames[k * s.dims + 5] - want[5]).abs() < 1e-9);
     }
@@ -123,15 +231,38 @@ fn fallbacks_and_bad_input() {
     assert!(s.warnings[0].contains("/b/ is absent"), "{:?}", s.warnings);
     // /k/: no phone of its class in the codebook.
     let t = target(&["sil", "k", "sil"], 0.2);
-    assert_eq!(blend::blend(&cb, &t, &BlendOptions::default()).unwrap_err(), SynthError::NoFallback { phone: ph("k") });
-    assert_eq!(blend::blend(&cb, &[], &BlendOptions::default()).unwrap_err(), SynthError::Empty);
+    assert_eq!(
+        blend::blend(&cb, &t, &BlendOptions::default()).unwrap_err(),
+        SynthError::NoFallback { phone: ph("k") }
+    );
+    assert_eq!(
+        blend::blend(&cb, &[], &BlendOptions::default()).unwrap_err(),
+        SynthError::Empty
+    );
     let mut t = target(&["sil", "aa", "m", "sil"], 0.2);
     t[2].end = t[2].start; // zero length
     t[3].start = t[2].end;
     let s = blend::blend(&cb, &t, &BlendOptions::default()).unwrap();
-    assert!(s.warnings.iter().any(|w| w.contains("zero length")), "{:?}", s.warnings);
+    assert!(
+        s.warnings.iter().any(|w| w.contains("zero length")),
+        "{:?}",
+        s.warnings
+    );
     let mut bad = target(&["sil", "aa"], 0.2);
     bad[1].end = f64::NAN;
-    assert!(matches!(blend::blend(&cb, &bad, &BlendOptions::default()), Err(SynthError::BadSegment { index: 1, .. })));
-    assert!(matches!(blend::blend(&cb, &target(&["sil"], 0.2), &BlendOptions { top_n: 0, ..Default::default() }), Err(SynthError::Options(_))));
+    assert!(matches!(
+        blend::blend(&cb, &bad, &BlendOptions::default()),
+        Err(SynthError::BadSegment { index: 1, .. })
+    ));
+    assert!(matches!(
+        blend::blend(
+            &cb,
+            &target(&["sil"], 0.2),
+            &BlendOptions {
+                top_n: 0,
+                ..Default::default()
+            }
+        ),
+        Err(SynthError::Options(_))
+    ));
 }

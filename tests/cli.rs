@@ -127,10 +127,21 @@ fn demo_writes_its_outputs() {
     }
     let y4m = std::fs::read(tmp.path().join("smoothed/video.y4m")).unwrap();
     let frames = y4m.windows(6).filter(|w| w == b"FRAME\n").count();
-    let pngs = std::fs::read_dir(tmp.path().join("smoothed/frames")).unwrap().count();
-    assert!(frames > 25 && frames == pngs, "{frames} Y4M frames, {pngs} PNGs");
+    let pngs = std::fs::read_dir(tmp.path().join("smoothed/frames"))
+        .unwrap()
+        .count();
+    assert!(
+        frames > 25 && frames == pngs,
+        "{frames} Y4M frames, {pngs} PNGs"
+    );
     // A corpus sentence is refused: the demo shows unseen text.
-    let o = facespace(&["demo", "-o", tmp.path().to_str().unwrap(), "--text", "Bob bought a big blue boat."]);
+    let o = facespace(&[
+        "demo",
+        "-o",
+        tmp.path().to_str().unwrap(),
+        "--text",
+        "Bob bought a big blue boat.",
+    ]);
     assert_eq!(o.status.code(), Some(1));
 }
 
@@ -175,22 +186,68 @@ fn corpus_then_codebook() {
     assert!(image::open(&png).unwrap().width() > 400);
     // Synthesis of a held-out sentence from its labels, A/B, against its real trajectory.
     let syn = tmp.path().join("syn");
-    let (lab, real) = (corpus.join("heldout/demo60.lab"), corpus.join("heldout/demo60.npy"));
+    let (lab, real) = (
+        corpus.join("heldout/demo60.lab"),
+        corpus.join("heldout/demo60.npy"),
+    );
     let o = facespace(&[
-        "synth", "--model", model.to_str().unwrap(), "--codebook", cb.to_str().unwrap(), "--labels", lab.to_str().unwrap(),
-        "--smooth", "ab", "--real", real.to_str().unwrap(), "-o", syn.to_str().unwrap(),
+        "synth",
+        "--model",
+        model.to_str().unwrap(),
+        "--codebook",
+        cb.to_str().unwrap(),
+        "--labels",
+        lab.to_str().unwrap(),
+        "--smooth",
+        "ab",
+        "--real",
+        real.to_str().unwrap(),
+        "-o",
+        syn.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", text(&o));
-    for f in ["key.json", "side_by_side.y4m", "plot.png", "report.json", "smoothed/trajectory.npy", "unsmoothed/landmarks.npy"] {
+    for f in [
+        "key.json",
+        "side_by_side.y4m",
+        "plot.png",
+        "report.json",
+        "smoothed/trajectory.npy",
+        "unsmoothed/landmarks.npy",
+    ] {
         assert!(syn.join(f).is_file(), "missing {f}");
     }
-    let key: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(syn.join("key.json")).unwrap()).unwrap();
+    let key: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(syn.join("key.json")).unwrap()).unwrap();
     assert_ne!(key["left"], key["right"]);
-    let o = facespace(&["eval", "--model", model.to_str().unwrap(), "--codebook", cb.to_str().unwrap(), "--heldout", corpus.join("heldout").to_str().unwrap()]);
-    assert!(o.status.success() && text(&o).contains("baseline: per-phoneme mean"), "{}", text(&o));
-    let o = facespace(&["synth", "--codebook", cb.to_str().unwrap(), "--text", "qwxzy", "-o", syn.to_str().unwrap()]);
+    let o = facespace(&[
+        "eval",
+        "--model",
+        model.to_str().unwrap(),
+        "--codebook",
+        cb.to_str().unwrap(),
+        "--heldout",
+        corpus.join("heldout").to_str().unwrap(),
+    ]);
+    assert!(
+        o.status.success() && text(&o).contains("baseline: per-phoneme mean"),
+        "{}",
+        text(&o)
+    );
+    let o = facespace(&[
+        "synth",
+        "--codebook",
+        cb.to_str().unwrap(),
+        "--text",
+        "qwxzy",
+        "-o",
+        syn.to_str().unwrap(),
+    ]);
     assert_eq!(o.status.code(), Some(1));
-    assert!(text(&o).contains("not in the pronouncing dictionary: qwxzy"), "{}", text(&o));
+    assert!(
+        text(&o).contains("not in the pronouncing dictionary: qwxzy"),
+        "{}",
+        text(&o)
+    );
     // A corpus of another model is refused.
     let faces = tmp.path().join("faces");
     let o = facespace(&[

@@ -9,7 +9,9 @@ use facespace::phonemes::Phone;
 fn demo() -> (FaceModel, Vec<corpus::GeneratedSentence>) {
     let model = FaceModel::load(&common::root().join("models/demo/model")).unwrap();
     let frames = load_training_set(&common::root().join("models/demo/training"), None).unwrap();
-    let sentences = corpus::generate(&model, &frames, &CorpusOptions::default()).unwrap().sentences;
+    let sentences = corpus::generate(&model, &frames, &CorpusOptions::default())
+        .unwrap()
+        .sentences;
     (model, sentences)
 }
 
@@ -17,7 +19,9 @@ fn demo() -> (FaceModel, Vec<corpus::GeneratedSentence>) {
 fn generation_is_deterministic_and_split() {
     let (model, a) = demo();
     let frames = load_training_set(&common::root().join("models/demo/training"), None).unwrap();
-    let b = corpus::generate(&model, &frames, &CorpusOptions::default()).unwrap().sentences;
+    let b = corpus::generate(&model, &frames, &CorpusOptions::default())
+        .unwrap()
+        .sentences;
     assert!(a == b, "same seed, same corpus, bit for bit");
     let other = corpus::generate(
         &model,
@@ -27,7 +31,8 @@ fn generation_is_deterministic_and_split() {
             ..Default::default()
         },
     )
-    .unwrap();
+    .unwrap()
+    .sentences;
     assert!(
         other[0].frames != a[0].frames,
         "another seed, another corpus"

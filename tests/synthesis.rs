@@ -15,18 +15,56 @@ const LAMBDA: f64 = 1e-5;
 fn blend_beats_baselines_on_held_out_sentences() {
     let model = FaceModel::load(&common::root().join("models/demo/model")).unwrap();
     let frames = load_training_set(&common::root().join("models/demo/training"), None).unwrap();
-    let generated = corpus::generate(&model, &frames, &CorpusOptions::default()).unwrap().sentences;
-    let to_sentence = |s: &corpus::GeneratedSentence| Sentence { name: s.name.clone(), source: "demo".into(), frames: s.frames.clone(), segments: s.segments.clone() };
-    let train: Vec<Sentence> = generated.iter().filter(|s| !s.held_out).map(to_sentence).collect();
-    let held: Vec<Sentence> = generated.iter().filter(|s| s.held_out).map(to_sentence).collect();
+    let generated = corpus::generate(&model, &frames, &CorpusOptions::default())
+        .unwrap()
+        .sentences;
+    let to_sentence = |s: &corpus::GeneratedSentence| Sentence {
+        name: s.name.clone(),
+        source: "demo".into(),
+        frames: s.frames.clone(),
+        segments: s.segments.clone(),
+    };
+    let train: Vec<Sentence> = generated
+        .iter()
+        .filter(|s| !s.held_out)
+        .map(to_sentence)
+        .collect();
+    let held: Vec<Sentence> = generated
+        .iter()
+        .filter(|s| s.held_out)
+        .map(to_sentence)
+        .collect();
     let layout = Layout::of(&model);
-    let cb = Codebook::build(train, 25.0, layout, Some(model.hash()), SimilarityOptions::default(), &mut facespace::no_progress).unwrap();
+    let cb = Codebook::build(
+        train,
+        25.0,
+        layout,
+        Some(model.hash()),
+        SimilarityOptions::default(),
+        &mut facespace::no_progress,
+    )
+    .unwrap();
 
     let systems: [(&str, BlendOptions, Option<f64>); 4] = [
         ("blend smoothed", BlendOptions::default(), Some(LAMBDA)),
         ("blend unsmoothed", BlendOptions::default(), None),
-        ("N=1 unsmoothed", BlendOptions { top_n: 1, ..Default::default() }, None),
-        ("per-phoneme mean", BlendOptions { context: 0, top_n: usize::MAX, ..Default::default() }, None),
+        (
+            "N=1 unsmoothed",
+            BlendOptions {
+                top_n: 1,
+                ..Default::default()
+            },
+            None,
+        ),
+        (
+            "per-phoneme mean",
+            BlendOptions {
+                context: 0,
+                top_n: usize::MAX,
+                ..Default::default()
+            },
+            None,
+        ),
     ];
     let mut means = Vec::new();
     for (name, opts, lambda) in &systems {
@@ -35,7 +73,10 @@ fn blend_beats_baselines_on_held_out_sentences() {
             let syn = blend::blend(&cb, &s.segments, opts).unwrap();
             let mut out = syn.frames.clone();
             if let Some(l) = lambda {
-                SmoothingSpline::new(&syn.times(), None, *l).unwrap().smooth_rows(&mut out, syn.dims).unwrap();
+                SmoothingSpline::new(&syn.times(), None, *l)
+                    .unwrap()
+                    .smooth_rows(&mut out, syn.dims)
+                    .unwrap();
             }
             let real: Vec<f64> = s.frames.iter().map(|&v| v as f64).collect();
             let sc = eval::score(&model, &layout, &out, &real);
@@ -48,9 +89,21 @@ fn blend_beats_baselines_on_held_out_sentences() {
     }
     let (blend_r, blend_d, blend_sd) = means[0];
     for (i, name) in [(2, "N=1"), (3, "per-phoneme mean")] {
-        assert!(blend_r > means[i].0, "r_pca: blend {blend_r:.3} vs {name} {:.3}", means[i].0);
-        assert!(blend_d < means[i].1, "DTW: blend {blend_d:.1} vs {name} {:.1}", means[i].1);
+        assert!(
+            blend_r > means[i].0,
+            "r_pca: blend {blend_r:.3} vs {name} {:.3}",
+            means[i].0
+        );
+        assert!(
+            blend_d < means[i].1,
+            "DTW: blend {blend_d:.1} vs {name} {:.1}",
+            means[i].1
+        );
     }
     // Smoothing lowers the articulation amplitude (std of mouth height).
-    assert!(blend_sd < means[1].2, "smoothed {blend_sd:.3} vs unsmoothed {:.3}", means[1].2);
+    assert!(
+        blend_sd < means[1].2,
+        "smoothed {blend_sd:.3} vs unsmoothed {:.3}",
+        means[1].2
+    );
 }

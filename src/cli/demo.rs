@@ -34,13 +34,32 @@ pub struct DemoArgs {
 
 pub fn run(a: DemoArgs) -> Result<()> {
     let start = std::time::Instant::now();
-    let normalise = |s: &str| s.to_lowercase().chars().filter(|c| c.is_alphanumeric() || *c == ' ').collect::<String>();
-    if corpus::SENTENCES.iter().any(|s| normalise(s) == normalise(&a.text)) {
-        bail!("{:?} is a corpus sentence; the demo synthesises unseen text", a.text);
+    let normalise = |s: &str| {
+        s.to_lowercase()
+            .chars()
+            .filter(|c| c.is_alphanumeric() || *c == ' ')
+            .collect::<String>()
+    };
+    if corpus::SENTENCES
+        .iter()
+        .any(|s| normalise(s) == normalise(&a.text))
+    {
+        bail!(
+            "{:?} is a corpus sentence; the demo synthesises unseen text",
+            a.text
+        );
     }
-    let model = FaceModel::load(&a.model).with_context(|| format!("loading model {}", a.model.display()))?;
-    let frames = load_training_set(&a.training, None).with_context(|| format!("loading {}", a.training.display()))?;
-    println!("model {} ({} shape + {} appearance parameters, from {} real frames)", a.model.display(), model.shape.n_params(), model.appearance.n_params(), frames.len());
+    let model = FaceModel::load(&a.model)
+        .with_context(|| format!("loading model {}", a.model.display()))?;
+    let frames = load_training_set(&a.training, None)
+        .with_context(|| format!("loading {}", a.training.display()))?;
+    println!(
+        "model {} ({} shape + {} appearance parameters, from {} real frames)",
+        a.model.display(),
+        model.shape.n_params(),
+        model.appearance.n_params(),
+        frames.len()
+    );
 
     let generated = corpus::generate(&model, &frames, &CorpusOptions::default())?;
     let background = &frames[generated.still_frame].image;
@@ -48,24 +67,73 @@ pub fn run(a: DemoArgs) -> Result<()> {
         .sentences
         .iter()
         .filter(|s| !s.held_out)
-        .map(|s| Sentence { name: s.name.clone(), source: "generated demo corpus".into(), frames: s.frames.clone(), segments: s.segments.clone() })
+        .map(|s| Sentence {
+            name: s.name.clone(),
+            source: "generated demo corpus".into(),
+            frames: s.frames.clone(),
+            segments: s.segments.clone(),
+        })
         .collect();
-    println!("demo corpus: {} generated sentences (trajectories generated over real face-space points, not recorded)", train.len());
+    println!(
+        "demo corpus: {} generated sentences (trajectories generated over real face-space points, not recorded)",
+        train.len()
+    );
     let layout = Layout::of(&model);
-    let cb = Codebook::build(train, 25.0, layout, Some(model.hash()), SimilarityOptions::default(), &mut facespace::no_progress)?;
+    let cb = Codebook::build(
+        train,
+        25.0,
+        layout,
+        Some(model.hash()),
+        SimilarityOptions::default(),
+        &mut facespace::no_progress,
+    )?;
     cb.save(&a.output.join("codebook"))?;
 
     let target = phonemes::text_to_segments(&a.text, &cb.mean_durations())?;
     let s = blend::blend(&cb, &target, &BlendOptions::default())?;
     let smooth = smoothed(&s, DEFAULT_LAMBDA)?;
-    println!("synthesised {:?}: {} phones, {} frames at 25 fps", a.text, target.len(), s.n_frames());
-    let sm = write_variant(&a.output.join("smoothed"), &model, &layout, &smooth, 25.0, background)?;
-    let un = write_variant(&a.output.join("unsmoothed"), &model, &layout, &s.frames, 25.0, background)?;
-    facespace::video::write_y4m(&a.output.join("side_by_side.y4m"), &facespace::video::side_by_side(&sm, &un), 25.0)?;
-    super::model::save_png(&parameter_plot(&layout, 25.0, &[("smoothed", &smooth), ("unsmoothed", &s.frames)], &target), &a.output.join("plot.png"))?;
+    println!(
+        "synthesised {:?}: {} phones, {} frames at 25 fps",
+        a.text,
+        target.len(),
+        s.n_frames()
+    );
+    let sm = write_variant(
+        &a.output.join("smoothed"),
+        &model,
+        &layout,
+        &smooth,
+        25.0,
+        background,
+    )?;
+    let un = write_variant(
+        &a.output.join("unsmoothed"),
+        &model,
+        &layout,
+        &s.frames,
+        25.0,
+        background,
+    )?;
+    facespace::video::write_y4m(
+        &a.output.join("side_by_side.y4m"),
+        &facespace::video::side_by_side(&sm, &un),
+        25.0,
+    )?;
+    super::model::save_png(
+        &parameter_plot(
+            &layout,
+            25.0,
+            &[("smoothed", &smooth), ("unsmoothed", &s.frames)],
+            &target,
+        ),
+        &a.output.join("plot.png"),
+    )?;
     phonemes::write_labels(&a.output.join("utterance.lab"), &target)?;
     let report = serde_json::json!({ "text": a.text, "phones": s.phones, "warnings": s.warnings, "smoothing_lambda": DEFAULT_LAMBDA });
-    facespace::atomic::write_file(&a.output.join("report.json"), serde_json::to_string_pretty(&report)?.as_bytes())?;
+    facespace::atomic::write_file(
+        &a.output.join("report.json"),
+        serde_json::to_string_pretty(&report)?.as_bytes(),
+    )?;
 
     let o = &a.output;
     println!("wrote to {}:", o.display());
@@ -73,7 +141,10 @@ pub fn run(a: DemoArgs) -> Result<()> {
         ("smoothed video", o.join("smoothed/video.y4m")),
         ("smoothed frames", o.join("smoothed/frames")),
         ("unsmoothed video", o.join("unsmoothed/video.y4m")),
-        ("side by side (smoothed | unsmoothed)", o.join("side_by_side.y4m")),
+        (
+            "side by side (smoothed | unsmoothed)",
+            o.join("side_by_side.y4m"),
+        ),
         ("trajectory plot", o.join("plot.png")),
         ("phone timings", o.join("utterance.lab")),
         ("codebook", o.join("codebook")),
@@ -86,24 +157,38 @@ pub fn run(a: DemoArgs) -> Result<()> {
         }
     }
     if which_ffmpeg().is_none() {
-        println!("  (no ffmpeg on PATH: videos are Y4M, e.g. `ffplay {}`; MP4 arrives with the video issue)", o.join("side_by_side.y4m").display());
+        println!(
+            "  (no ffmpeg on PATH: videos are Y4M, e.g. `ffplay {}`; MP4 arrives with the video issue)",
+            o.join("side_by_side.y4m").display()
+        );
     }
     println!("done in {:.1} s", start.elapsed().as_secs_f64());
     Ok(())
 }
 
 fn which_ffmpeg() -> Option<PathBuf> {
-    std::env::var_os("PATH").and_then(|paths| std::env::split_paths(&paths).map(|p| p.join("ffmpeg")).find(|p| p.is_file()))
+    std::env::var_os("PATH").and_then(|paths| {
+        std::env::split_paths(&paths)
+            .map(|p| p.join("ffmpeg"))
+            .find(|p| p.is_file())
+    })
 }
 
 /// Converts a Y4M file to H.264 MP4 with a system ffmpeg, when one is installed.
 fn to_mp4(y4m: &Path) -> Result<Option<PathBuf>> {
-    let Some(ffmpeg) = which_ffmpeg() else { return Ok(None) };
+    let Some(ffmpeg) = which_ffmpeg() else {
+        return Ok(None);
+    };
     let mp4 = y4m.with_extension("mp4");
     let status = std::process::Command::new(ffmpeg)
         .args(["-y", "-loglevel", "error", "-i"])
         .arg(y4m)
-        .args(["-pix_fmt", "yuv420p", "-vf", "pad=ceil(iw/2)*2:ceil(ih/2)*2"])
+        .args([
+            "-pix_fmt",
+            "yuv420p",
+            "-vf",
+            "pad=ceil(iw/2)*2:ceil(ih/2)*2",
+        ])
         .arg(&mp4)
         .status()?;
     Ok(status.success().then_some(mp4))

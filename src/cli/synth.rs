@@ -74,14 +74,24 @@ pub struct SynthArgs {
 
 pub fn load_pair(model: &Path, codebook: &Path) -> Result<(FaceModel, Codebook)> {
     let m = FaceModel::load(model).with_context(|| format!("loading model {}", model.display()))?;
-    let cb = Codebook::load(codebook).with_context(|| format!("loading codebook {}", codebook.display()))?;
+    let cb = Codebook::load(codebook)
+        .with_context(|| format!("loading codebook {}", codebook.display()))?;
     if let Some(h) = &cb.model_hash
         && *h != m.hash()
     {
-        bail!("codebook {} was built with model {h}, but {} is model {}", codebook.display(), model.display(), m.hash());
+        bail!(
+            "codebook {} was built with model {h}, but {} is model {}",
+            codebook.display(),
+            model.display(),
+            m.hash()
+        );
     }
     if cb.layout != Layout::of(&m) {
-        bail!("codebook layout {:?} does not match the model's {:?}", cb.layout, Layout::of(&m));
+        bail!(
+            "codebook layout {:?} does not match the model's {:?}",
+            cb.layout,
+            Layout::of(&m)
+        );
     }
     Ok((m, cb))
 }
@@ -96,14 +106,29 @@ pub fn smoothed(s: &Synthesis, lambda: f64) -> Result<Vec<f64>> {
 }
 
 /// Writes one variant: trajectory.npy, landmarks.npy, frames/, video.y4m. Returns the frames.
-pub fn write_variant(dir: &Path, model: &FaceModel, layout: &Layout, frames: &[f64], fps: f64, background: &RgbImage) -> Result<Vec<RgbImage>> {
+pub fn write_variant(
+    dir: &Path,
+    model: &FaceModel,
+    layout: &Layout,
+    frames: &[f64],
+    fps: f64,
+    background: &RgbImage,
+) -> Result<Vec<RgbImage>> {
     let dims = layout.dims();
     let n = frames.len() / dims;
     let f32s: Vec<f32> = frames.iter().map(|&v| v as f32).collect();
     npy::write(&dir.join("trajectory.npy"), &[n, dims], &f32s)?;
     let lm = eval::landmarks(model, frames, layout);
-    let flat: Vec<f32> = lm.iter().flatten().flat_map(|p| [p[0] as f32, p[1] as f32]).collect();
-    npy::write(&dir.join("landmarks.npy"), &[n, model.shape.n_landmarks(), 2], &flat)?;
+    let flat: Vec<f32> = lm
+        .iter()
+        .flatten()
+        .flat_map(|p| [p[0] as f32, p[1] as f32])
+        .collect();
+    npy::write(
+        &dir.join("landmarks.npy"),
+        &[n, model.shape.n_landmarks(), 2],
+        &flat,
+    )?;
     let images = CpuRenderer.render(model, frames, background)?;
     video::write_png_frames(&dir.join("frames"), &images)?;
     video::write_y4m(&dir.join("video.y4m"), &images, fps)?;
@@ -111,23 +136,42 @@ pub fn write_variant(dir: &Path, model: &FaceModel, layout: &Layout, frames: &[f
 }
 
 /// First shape and first appearance parameter of each series over time, with the phones.
-pub fn parameter_plot(layout: &Layout, fps: f64, series: &[(&str, &[f64])], target: &[Segment]) -> RgbImage {
+pub fn parameter_plot(
+    layout: &Layout,
+    fps: f64,
+    series: &[(&str, &[f64])],
+    target: &[Segment],
+) -> RgbImage {
     let dims = layout.dims();
-    let spans: Vec<(f64, f64, &str)> = target.iter().map(|s| (s.start, s.end, s.phone.name())).collect();
+    let spans: Vec<(f64, f64, &str)> = target
+        .iter()
+        .map(|s| (s.start, s.end, s.phone.name()))
+        .collect();
     let mut panels = Vec::new();
-    for (title, k) in [("first shape parameter", layout.pose), ("first appearance parameter", layout.pose + layout.shape)] {
+    for (title, k) in [
+        ("first shape parameter", layout.pose),
+        ("first appearance parameter", layout.pose + layout.shape),
+    ] {
         let cols: Vec<(Vec<f64>, Vec<f64>)> = series
             .iter()
             .map(|(_, m)| {
                 let rows: Vec<&[f64]> = m.chunks_exact(dims).collect();
-                ((0..rows.len()).map(|i| i as f64 / fps).collect(), rows.iter().map(|r| r[k]).collect())
+                (
+                    (0..rows.len()).map(|i| i as f64 / fps).collect(),
+                    rows.iter().map(|r| r[k]).collect(),
+                )
             })
             .collect();
         let s: Vec<plot::Series> = series
             .iter()
             .zip(&cols)
             .enumerate()
-            .map(|(i, ((label, _), (x, y)))| plot::Series { label, x, y, color: plot::PALETTE[i % plot::PALETTE.len()] })
+            .map(|(i, ((label, _), (x, y)))| plot::Series {
+                label,
+                x,
+                y,
+                color: plot::PALETTE[i % plot::PALETTE.len()],
+            })
             .collect();
         panels.push(plot::line_plot(title, "time (s)", &s, &spans, 900, 260));
     }
@@ -137,7 +181,13 @@ pub fn parameter_plot(layout: &Layout, fps: f64, series: &[(&str, &[f64])], targ
     out
 }
 
-pub fn target_segments(cb: &Codebook, labels: Option<&Path>, text: Option<&str>, tier: Option<&str>, map: Option<&Path>) -> Result<Vec<Segment>> {
+pub fn target_segments(
+    cb: &Codebook,
+    labels: Option<&Path>,
+    text: Option<&str>,
+    tier: Option<&str>,
+    map: Option<&Path>,
+) -> Result<Vec<Segment>> {
     match (labels, text) {
         (Some(path), _) => {
             let map = match map {
@@ -156,19 +206,37 @@ pub fn synth(a: SynthArgs) -> Result<()> {
         bail!("--audio: muxing audio needs the MP4 writer of the video issue, not yet available");
     }
     let (model, cb) = load_pair(&a.model, &a.codebook)?;
-    let target = target_segments(&cb, a.labels.as_deref(), a.text.as_deref(), a.tier.as_deref(), a.phone_map.as_deref())?;
-    let options = BlendOptions { context: a.context, top_n: a.top_n, fps: a.fps };
+    let target = target_segments(
+        &cb,
+        a.labels.as_deref(),
+        a.text.as_deref(),
+        a.tier.as_deref(),
+        a.phone_map.as_deref(),
+    )?;
+    let options = BlendOptions {
+        context: a.context,
+        top_n: a.top_n,
+        fps: a.fps,
+    };
     let start = std::time::Instant::now();
     let s = blend::blend(&cb, &target, &options)?;
     let smooth = smoothed(&s, a.smoothing)?;
     let synth_ms = start.elapsed().as_secs_f64() * 1e3;
     let layout = cb.layout;
     let background = match &a.background {
-        Some(p) => image::open(p).with_context(|| format!("reading background {}", p.display()))?.to_rgb8(),
+        Some(p) => image::open(p)
+            .with_context(|| format!("reading background {}", p.display()))?
+            .to_rgb8(),
         None => plain_background(&model, &s.frames),
     };
     let real = match &a.real {
-        Some(p) => Some(npy::read::<f32>(p)?.data.iter().map(|&v| v as f64).collect::<Vec<f64>>()),
+        Some(p) => Some(
+            npy::read::<f32>(p)?
+                .data
+                .iter()
+                .map(|&v| v as f64)
+                .collect::<Vec<f64>>(),
+        ),
         None => None,
     };
     let mut report = serde_json::json!({
@@ -177,33 +245,87 @@ pub fn synth(a: SynthArgs) -> Result<()> {
     });
     match a.smooth {
         Smooth::On | Smooth::Off => {
-            let frames = if a.smooth == Smooth::On { &smooth } else { &s.frames };
+            let frames = if a.smooth == Smooth::On {
+                &smooth
+            } else {
+                &s.frames
+            };
             write_variant(&a.output, &model, &layout, frames, a.fps, &background)?;
-            let mut series = vec![(if a.smooth == Smooth::On { "smoothed" } else { "unsmoothed" }, frames.as_slice())];
+            let mut series = vec![(
+                if a.smooth == Smooth::On {
+                    "smoothed"
+                } else {
+                    "unsmoothed"
+                },
+                frames.as_slice(),
+            )];
             if let Some(r) = &real {
                 series.push(("real", r));
             }
-            super::model::save_png(&parameter_plot(&layout, a.fps, &series, &target), &a.output.join("plot.png"))?;
+            super::model::save_png(
+                &parameter_plot(&layout, a.fps, &series, &target),
+                &a.output.join("plot.png"),
+            )?;
         }
         Smooth::Ab => {
-            let sm = write_variant(&a.output.join("smoothed"), &model, &layout, &smooth, a.fps, &background)?;
-            let un = write_variant(&a.output.join("unsmoothed"), &model, &layout, &s.frames, a.fps, &background)?;
+            let sm = write_variant(
+                &a.output.join("smoothed"),
+                &model,
+                &layout,
+                &smooth,
+                a.fps,
+                &background,
+            )?;
+            let un = write_variant(
+                &a.output.join("unsmoothed"),
+                &model,
+                &layout,
+                &s.frames,
+                a.fps,
+                &background,
+            )?;
             // Blind order: a seeded coin decides which side is which; the key goes to a file.
             let smoothed_left = Rng::new(a.seed).uniform() < 0.5;
-            let (l, r) = if smoothed_left { (&sm, &un) } else { (&un, &sm) };
-            video::write_y4m(&a.output.join("side_by_side.y4m"), &video::side_by_side(l, r), a.fps)?;
+            let (l, r) = if smoothed_left {
+                (&sm, &un)
+            } else {
+                (&un, &sm)
+            };
+            video::write_y4m(
+                &a.output.join("side_by_side.y4m"),
+                &video::side_by_side(l, r),
+                a.fps,
+            )?;
             let key = serde_json::json!({ "left": if smoothed_left { "smoothed" } else { "unsmoothed" }, "right": if smoothed_left { "unsmoothed" } else { "smoothed" }, "seed": a.seed });
-            atomic::write_file(&a.output.join("key.json"), serde_json::to_string_pretty(&key)?.as_bytes())?;
-            let mut series = vec![("smoothed", smooth.as_slice()), ("unsmoothed", s.frames.as_slice())];
+            atomic::write_file(
+                &a.output.join("key.json"),
+                serde_json::to_string_pretty(&key)?.as_bytes(),
+            )?;
+            let mut series = vec![
+                ("smoothed", smooth.as_slice()),
+                ("unsmoothed", s.frames.as_slice()),
+            ];
             if let Some(r) = &real {
                 series.push(("real", r));
             }
-            super::model::save_png(&parameter_plot(&layout, a.fps, &series, &target), &a.output.join("plot.png"))?;
+            super::model::save_png(
+                &parameter_plot(&layout, a.fps, &series, &target),
+                &a.output.join("plot.png"),
+            )?;
             report["ab_key"] = key;
         }
     }
-    atomic::write_file(&a.output.join("report.json"), serde_json::to_string_pretty(&report)?.as_bytes())?;
-    println!("synthesised {} phones, {} frames at {} fps in {synth_ms:.1} ms → {}", target.len(), s.n_frames(), a.fps, a.output.display());
+    atomic::write_file(
+        &a.output.join("report.json"),
+        serde_json::to_string_pretty(&report)?.as_bytes(),
+    )?;
+    println!(
+        "synthesised {} phones, {} frames at {} fps in {synth_ms:.1} ms → {}",
+        target.len(),
+        s.n_frames(),
+        a.fps,
+        a.output.display()
+    );
     for w in &s.warnings {
         println!("  warning: {w}");
     }
@@ -233,31 +355,76 @@ pub struct EvalArgs {
 fn mean(scores: &[Scores]) -> Scores {
     let n = scores.len() as f64;
     let avg = |f: fn(&Scores) -> f64| scores.iter().map(f).sum::<f64>() / n;
-    Scores { r_pca: avg(|s| s.r_pca), r_h: avg(|s| s.r_h), rmse_px: avg(|s| s.rmse_px), dtw: avg(|s| s.dtw), mouth_sd_px: avg(|s| s.mouth_sd_px) }
+    Scores {
+        r_pca: avg(|s| s.r_pca),
+        r_h: avg(|s| s.r_h),
+        rmse_px: avg(|s| s.rmse_px),
+        dtw: avg(|s| s.dtw),
+        mouth_sd_px: avg(|s| s.mouth_sd_px),
+    }
 }
 
 pub fn evaluate(a: EvalArgs) -> Result<()> {
     let (model, cb) = load_pair(&a.model, &a.codebook)?;
-    let sentences = facespace::codebook::load_corpus(&a.heldout, cb.fps, cb.dims(), None, &PhoneMap::default())
-        .with_context(|| format!("reading held-out sentences {}", a.heldout.display()))?;
+    let sentences =
+        facespace::codebook::load_corpus(&a.heldout, cb.fps, cb.dims(), None, &PhoneMap::default())
+            .with_context(|| format!("reading held-out sentences {}", a.heldout.display()))?;
     let fps = cb.fps;
     type System = (String, BlendOptions, Option<f64>);
-    let blend_opts = BlendOptions { context: 1, top_n: 3, fps };
+    let blend_opts = BlendOptions {
+        context: 1,
+        top_n: 3,
+        fps,
+    };
     let mut systems: Vec<System> = vec![
-        (format!("blend C=1 N=3, smoothed λ={}", a.smoothing), blend_opts, Some(a.smoothing)),
+        (
+            format!("blend C=1 N=3, smoothed λ={}", a.smoothing),
+            blend_opts,
+            Some(a.smoothing),
+        ),
         ("blend C=1 N=3, unsmoothed".into(), blend_opts, None),
-        ("baseline: N=1, unsmoothed".into(), BlendOptions { top_n: 1, ..blend_opts }, None),
-        ("baseline: per-phoneme mean".into(), BlendOptions { context: 0, top_n: usize::MAX, fps }, None),
+        (
+            "baseline: N=1, unsmoothed".into(),
+            BlendOptions {
+                top_n: 1,
+                ..blend_opts
+            },
+            None,
+        ),
+        (
+            "baseline: per-phoneme mean".into(),
+            BlendOptions {
+                context: 0,
+                top_n: usize::MAX,
+                fps,
+            },
+            None,
+        ),
     ];
     if a.lambda_grid {
         for l in [1e-6, 1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 1e-2] {
             systems.push((format!("blend C=1 N=3, λ={l:e}"), blend_opts, Some(l)));
         }
     }
-    let real: Vec<Vec<f64>> = sentences.iter().map(|s| s.frames.iter().map(|&v| v as f64).collect()).collect();
-    println!("{} held-out sentences; mean over sentences", sentences.len());
-    println!("{:<36} {:>7} {:>7} {:>9} {:>8} {:>12}", "system", "r_pca", "r_h", "RMSE px", "DTW", "mouth sd px");
-    let real_sd = mean(&real.iter().map(|r| eval::score(&model, &cb.layout, r, r)).collect::<Vec<_>>()).mouth_sd_px;
+    let real: Vec<Vec<f64>> = sentences
+        .iter()
+        .map(|s| s.frames.iter().map(|&v| v as f64).collect())
+        .collect();
+    println!(
+        "{} held-out sentences; mean over sentences",
+        sentences.len()
+    );
+    println!(
+        "{:<36} {:>7} {:>7} {:>9} {:>8} {:>12}",
+        "system", "r_pca", "r_h", "RMSE px", "DTW", "mouth sd px"
+    );
+    let real_sd = mean(
+        &real
+            .iter()
+            .map(|r| eval::score(&model, &cb.layout, r, r))
+            .collect::<Vec<_>>(),
+    )
+    .mouth_sd_px;
     let mut table = Vec::new();
     for (name, opts, lambda) in &systems {
         let mut scores = Vec::new();
@@ -270,10 +437,16 @@ pub fn evaluate(a: EvalArgs) -> Result<()> {
             scores.push(eval::score(&model, &cb.layout, &frames, r));
         }
         let m = mean(&scores);
-        println!("{name:<36} {:>7.3} {:>7.3} {:>9.3} {:>8.3} {:>12.3}", m.r_pca, m.r_h, m.rmse_px, m.dtw, m.mouth_sd_px);
+        println!(
+            "{name:<36} {:>7.3} {:>7.3} {:>9.3} {:>8.3} {:>12.3}",
+            m.r_pca, m.r_h, m.rmse_px, m.dtw, m.mouth_sd_px
+        );
         table.push(serde_json::json!({ "system": name, "mean": m, "per_sentence": scores }));
     }
-    println!("{:<36} {:>7} {:>7} {:>9} {:>8} {:>12.3}", "real (reference)", "", "", "", "", real_sd);
+    println!(
+        "{:<36} {:>7} {:>7} {:>9} {:>8} {:>12.3}",
+        "real (reference)", "", "", "", "", real_sd
+    );
     if let Some(out) = &a.output {
         atomic::write_file(out, serde_json::to_string_pretty(&table)?.as_bytes())?;
     }

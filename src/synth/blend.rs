@@ -20,7 +20,9 @@ pub enum SynthError {
     BadSegment { index: usize, phone: Phone },
     #[error("target phones overlap or are out of order at phone {0}")]
     Unsorted(usize),
-    #[error("phone {phone} is absent from the codebook and no phone of its viseme class is present")]
+    #[error(
+        "phone {phone} is absent from the codebook and no phone of its viseme class is present"
+    )]
     NoFallback { phone: Phone },
     #[error("invalid option: {0}")]
     Options(String),
@@ -39,7 +41,11 @@ pub struct BlendOptions {
 
 impl Default for BlendOptions {
     fn default() -> Self {
-        BlendOptions { context: 1, top_n: 3, fps: 25.0 }
+        BlendOptions {
+            context: 1,
+            top_n: 3,
+            fps: 25.0,
+        }
     }
 }
 
@@ -93,7 +99,10 @@ pub fn validate_target(target: &[Segment]) -> Result<(), SynthError> {
     }
     for (index, s) in target.iter().enumerate() {
         if !(s.start.is_finite() && s.end.is_finite()) || s.end < s.start || s.start < 0.0 {
-            return Err(SynthError::BadSegment { index, phone: s.phone });
+            return Err(SynthError::BadSegment {
+                index,
+                phone: s.phone,
+            });
         }
         if index > 0 && s.start < target[index - 1].end - 1e-9 {
             return Err(SynthError::Unsorted(index));
@@ -111,17 +120,31 @@ pub fn stand_in(codebook: &Codebook, p: Phone) -> Option<Phone> {
     if !codebook.occurrences[p.index()].is_empty() {
         return Some(p);
     }
-    codebook.present().into_iter().filter(|q| q.viseme() == p.viseme()).max_by_key(|q| (codebook.occurrences[q.index()].len(), std::cmp::Reverse(*q)))
+    codebook
+        .present()
+        .into_iter()
+        .filter(|q| q.viseme() == p.viseme())
+        .max_by_key(|q| (codebook.occurrences[q.index()].len(), std::cmp::Reverse(*q)))
 }
 
 /// Context phone at `offset` from position `i` (negative: left), `sil` beyond the edges.
 fn context(segments: &[Segment], i: usize, offset: isize) -> Phone {
     let j = i as isize + offset;
-    if j < 0 || j as usize >= segments.len() { Phone::SIL } else { segments[j as usize].phone }
+    if j < 0 || j as usize >= segments.len() {
+        Phone::SIL
+    } else {
+        segments[j as usize].phone
+    }
 }
 
 /// Context score `s_j` of an occurrence for the target phone at `i` (eq. of [blend] §5).
-pub fn context_score(codebook: &Codebook, target: &[Segment], i: usize, o: Occurrence, width: usize) -> f64 {
+pub fn context_score(
+    codebook: &Codebook,
+    target: &[Segment],
+    i: usize,
+    o: Occurrence,
+    width: usize,
+) -> f64 {
     let source = &codebook.sentences[o.sentence].segments;
     (1..=width)
         .map(|k| {
@@ -135,18 +158,33 @@ pub fn context_score(codebook: &Codebook, target: &[Segment], i: usize, o: Occur
 
 /// The N best-scoring occurrences of `phone` for target position `i`, best first (ties: the
 /// earlier occurrence), with their scores.
-pub fn select(codebook: &Codebook, target: &[Segment], i: usize, phone: Phone, options: &BlendOptions) -> Vec<(Occurrence, f64)> {
-    let mut scored: Vec<(Occurrence, f64)> =
-        codebook.occurrences[phone.index()].iter().map(|&o| (o, context_score(codebook, target, i, o, options.context))).collect();
+pub fn select(
+    codebook: &Codebook,
+    target: &[Segment],
+    i: usize,
+    phone: Phone,
+    options: &BlendOptions,
+) -> Vec<(Occurrence, f64)> {
+    let mut scored: Vec<(Occurrence, f64)> = codebook.occurrences[phone.index()]
+        .iter()
+        .map(|&o| (o, context_score(codebook, target, i, o, options.context)))
+        .collect();
     scored.sort_by(|a, b| b.1.total_cmp(&a.1));
     scored.truncate(options.top_n);
     scored
 }
 
 /// Synthesises a trajectory for `target` by top-N context blending.
-pub fn blend(codebook: &Codebook, target: &[Segment], options: &BlendOptions) -> Result<Synthesis, SynthError> {
+pub fn blend(
+    codebook: &Codebook,
+    target: &[Segment],
+    options: &BlendOptions,
+) -> Result<Synthesis, SynthError> {
     if options.top_n == 0 || !(options.fps > 0.0 && options.fps.is_finite()) {
-        return Err(SynthError::Options(format!("top-n {} and fps {} must be positive", options.top_n, options.fps)));
+        return Err(SynthError::Options(format!(
+            "top-n {} and fps {} must be positive",
+            options.top_n, options.fps
+        )));
     }
     validate_target(target)?;
     let dims = codebook.dims();
@@ -155,17 +193,35 @@ pub fn blend(codebook: &Codebook, target: &[Segment], options: &BlendOptions) ->
     // Per target phone: (occurrence, weight) pairs.
     let mut mixes: Vec<Vec<(Occurrence, f64)>> = Vec::with_capacity(target.len());
     for (i, seg) in target.iter().enumerate() {
-        let used = stand_in(codebook, seg.phone).ok_or(SynthError::NoFallback { phone: seg.phone })?;
+        let used =
+            stand_in(codebook, seg.phone).ok_or(SynthError::NoFallback { phone: seg.phone })?;
         if used != seg.phone {
-            warnings.push(format!("phone {i} /{}/ is absent from the codebook: used /{used}/ (same viseme class)", seg.phone));
+            warnings.push(format!(
+                "phone {i} /{}/ is absent from the codebook: used /{used}/ (same viseme class)",
+                seg.phone
+            ));
         }
         if seg.duration() <= 0.0 {
-            warnings.push(format!("phone {i} /{}/ has zero length and was skipped", seg.phone));
+            warnings.push(format!(
+                "phone {i} /{}/ has zero length and was skipped",
+                seg.phone
+            ));
         }
         let chosen = select(codebook, target, i, used, options);
         let total: f64 = chosen.iter().map(|c| c.1).sum();
-        let mix: Vec<(Occurrence, f64)> =
-            chosen.iter().map(|&(o, s)| (o, if total > 0.0 { s / total } else { 1.0 / chosen.len() as f64 })).collect();
+        let mix: Vec<(Occurrence, f64)> = chosen
+            .iter()
+            .map(|&(o, s)| {
+                (
+                    o,
+                    if total > 0.0 {
+                        s / total
+                    } else {
+                        1.0 / chosen.len() as f64
+                    },
+                )
+            })
+            .collect();
         phones.push(PhoneReport {
             phone: seg.phone,
             used,
@@ -174,7 +230,12 @@ pub fn blend(codebook: &Codebook, target: &[Segment], options: &BlendOptions) ->
             chosen: mix
                 .iter()
                 .zip(&chosen)
-                .map(|(&(o, w), &(_, s))| Chosen { sentence: codebook.sentences[o.sentence].name.clone(), segment: o.segment, score: s, weight: w })
+                .map(|(&(o, w), &(_, s))| Chosen {
+                    sentence: codebook.sentences[o.sentence].name.clone(),
+                    segment: o.segment,
+                    score: s,
+                    weight: w,
+                })
                 .collect(),
         });
         mixes.push(mix);
@@ -193,10 +254,18 @@ pub fn blend(codebook: &Codebook, target: &[Segment], options: &BlendOptions) ->
         let s = &target[seg];
         for &(o, w) in &mixes[seg] {
             let g = codebook.segment(o);
-            let warp = codebook.trajectories[o.sentence].warp(g.start, g.end, s.duration().max(1e-9)).expect("valid segments");
+            let warp = codebook.trajectories[o.sentence]
+                .warp(g.start, g.end, s.duration().max(1e-9))
+                .expect("valid segments");
             warp.eval_into((t - s.start).clamp(0.0, s.duration()), &mut value);
             row.iter_mut().zip(&value).for_each(|(r, v)| *r += w * v);
         }
     }
-    Ok(Synthesis { fps: options.fps, dims, frames, phones, warnings })
+    Ok(Synthesis {
+        fps: options.fps,
+        dims,
+        frames,
+        phones,
+        warnings,
+    })
 }

@@ -42,14 +42,19 @@ impl SmoothingSpline {
         if n < 3 {
             return Err(SmoothError::TooFewPoints(n));
         }
-        if let Some(i) = (1..n).find(|&i| !(x[i] > x[i - 1])) {
+        if let Some(i) = (1..n).find(|&i| x[i] <= x[i - 1] || x[i].is_nan()) {
             return Err(SmoothError::NotIncreasing(i));
         }
         if !(lambda >= 0.0 && lambda.is_finite()) {
             return Err(SmoothError::BadLambda(lambda));
         }
         let w = match w {
-            Some(w) if w.len() != n => return Err(SmoothError::Length { expected: n, found: w.len() }),
+            Some(w) if w.len() != n => {
+                return Err(SmoothError::Length {
+                    expected: n,
+                    found: w.len(),
+                });
+            }
             Some(w) => {
                 if let Some(i) = w.iter().position(|v| !(*v > 0.0 && v.is_finite())) {
                     return Err(SmoothError::BadWeight(i));
@@ -68,11 +73,13 @@ impl SmoothingSpline {
         let mut a2 = vec![0.0; m];
         for j in 0..m {
             let qj = q(j);
-            a0[j] = (h[j] + h[j + 1]) / 3.0 + lambda * (0..3).map(|r| qj[r] * qj[r] / w[j + r]).sum::<f64>();
+            a0[j] = (h[j] + h[j + 1]) / 3.0
+                + lambda * (0..3).map(|r| qj[r] * qj[r] / w[j + r]).sum::<f64>();
             if j + 1 < m {
                 let qk = q(j + 1);
                 // Rows shared by columns j and j+1: j+1 and j+2.
-                a1[j + 1] = h[j + 1] / 6.0 + lambda * (qj[1] * qk[0] / w[j + 1] + qj[2] * qk[1] / w[j + 2]);
+                a1[j + 1] =
+                    h[j + 1] / 6.0 + lambda * (qj[1] * qk[0] / w[j + 1] + qj[2] * qk[1] / w[j + 2]);
             }
             if j + 2 < m {
                 let qk = q(j + 2);
@@ -92,20 +99,31 @@ impl SmoothingSpline {
             let d = a0[i] - l1[i] * l1[i] - l2[i] * l2[i];
             l0[i] = d.max(f64::MIN_POSITIVE).sqrt();
         }
-        Ok(SmoothingSpline { x: x.to_vec(), w, lambda, l0, l1, l2 })
+        Ok(SmoothingSpline {
+            x: x.to_vec(),
+            w,
+            lambda,
+            l0,
+            l1,
+            l2,
+        })
     }
 
     /// Fitted values at the knots.
     pub fn smooth(&self, y: &[f64]) -> Result<Vec<f64>, SmoothError> {
         let n = self.x.len();
         if y.len() != n {
-            return Err(SmoothError::Length { expected: n, found: y.len() });
+            return Err(SmoothError::Length {
+                expected: n,
+                found: y.len(),
+            });
         }
         let (x, m) = (&self.x, n - 2);
         let h: Vec<f64> = x.windows(2).map(|p| p[1] - p[0]).collect();
         // Qᵀy.
-        let mut b: Vec<f64> =
-            (0..m).map(|j| (y[j + 2] - y[j + 1]) / h[j + 1] - (y[j + 1] - y[j]) / h[j]).collect();
+        let mut b: Vec<f64> = (0..m)
+            .map(|j| (y[j + 2] - y[j + 1]) / h[j + 1] - (y[j + 1] - y[j]) / h[j])
+            .collect();
         // Forward (L z = b) and back (Lᵀ γ = z) substitution.
         for i in 0..m {
             let mut v = b[i];
@@ -143,7 +161,10 @@ impl SmoothingSpline {
     pub fn smooth_rows(&self, values: &mut [f64], dims: usize) -> Result<(), SmoothError> {
         let n = self.x.len();
         if values.len() != n * dims {
-            return Err(SmoothError::Length { expected: n * dims, found: values.len() });
+            return Err(SmoothError::Length {
+                expected: n * dims,
+                found: values.len(),
+            });
         }
         let mut column = vec![0.0; n];
         for k in 0..dims {

@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 
 use facespace::model::{BuildOptions, FaceModel, TrainingExample, load_training_set};
 
+#[allow(unused_imports)]
 pub use facespace::rng::Rng;
 
 pub fn root() -> PathBuf {
