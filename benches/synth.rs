@@ -3,7 +3,7 @@
 //! Run: cargo bench --bench synth
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use facespace::codebook::{Codebook, Layout, Sentence, SimilarityOptions};
+use facespace::codebook::{Codebook, Layout, SimilarityOptions};
 use facespace::corpus::{self, CorpusOptions};
 use facespace::model::{FaceModel, load_training_set};
 use facespace::phonemes::{self, Segment};
@@ -14,19 +14,9 @@ fn bench(c: &mut Criterion) {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     let model = FaceModel::load(&root.join("models/demo/model")).unwrap();
     let frames = load_training_set(&root.join("models/demo/training"), None).unwrap();
-    let generated = corpus::generate(&model, &frames, &CorpusOptions::default())
+    let (train, _) = corpus::generate(&model, &frames, &CorpusOptions::default())
         .unwrap()
-        .sentences;
-    let train: Vec<Sentence> = generated
-        .iter()
-        .filter(|s| !s.held_out)
-        .map(|s| Sentence {
-            name: s.name.clone(),
-            source: "demo".into(),
-            frames: s.frames.clone(),
-            segments: s.segments.clone(),
-        })
-        .collect();
+        .split();
     c.bench_function("codebook build, 54 demo sentences", |b| {
         b.iter(|| {
             Codebook::build(

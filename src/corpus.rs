@@ -23,6 +23,7 @@
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
+use crate::codebook::Sentence;
 use crate::model::{FaceModel, ModelError, TrainingExample};
 use crate::phonemes::{self, DEFAULT_DURATIONS, N_VISEMES, Phone, PhonemeError, Segment};
 use crate::rng::Rng;
@@ -194,6 +195,30 @@ pub struct Corpus {
     pub sentences: Vec<GeneratedSentence>,
     /// Index into the training frames.
     pub still_frame: usize,
+}
+
+impl Corpus {
+    /// The training and held-out sentences as codebook sentences.
+    pub fn split(&self) -> (Vec<Sentence>, Vec<Sentence>) {
+        let to_sentence = |s: &GeneratedSentence| Sentence {
+            name: s.name.clone(),
+            source: "generated demo corpus".into(),
+            frames: s.frames.clone(),
+            segments: s.segments.clone(),
+        };
+        (
+            self.sentences
+                .iter()
+                .filter(|s| !s.held_out)
+                .map(to_sentence)
+                .collect(),
+            self.sentences
+                .iter()
+                .filter(|s| s.held_out)
+                .map(to_sentence)
+                .collect(),
+        )
+    }
 }
 
 /// The frame whose pose `[a, b, tx, ty]` is nearest the mean pose (the rotation-scale part

@@ -119,6 +119,7 @@ fn demo_writes_its_outputs() {
         "smoothed/video.y4m",
         "unsmoothed/video.y4m",
         "side_by_side.y4m",
+        "key.json",
         "plot.png",
         "codebook/codebook.json",
         "smoothed/frames/0000.png",

@@ -1,7 +1,7 @@
 //! The generated demo corpus: determinism, split, labels, and S on it.
 mod common;
 
-use facespace::codebook::{Codebook, Layout, Sentence, SimilarityOptions};
+use facespace::codebook::{Codebook, Layout, SimilarityOptions};
 use facespace::corpus::{self, CorpusOptions, HELD_OUT, SENTENCES};
 use facespace::model::{FaceModel, load_training_set};
 use facespace::phonemes::Phone;
@@ -65,17 +65,11 @@ fn generation_is_deterministic_and_split() {
 ///   target in the generator, and n shares t's durations and word-final contexts)
 #[test]
 fn similarity_on_the_demo_corpus_ranks_viseme_partners() {
-    let (model, generated) = demo();
-    let sentences: Vec<Sentence> = generated
-        .into_iter()
-        .filter(|s| !s.held_out)
-        .map(|s| Sentence {
-            name: s.name,
-            source: "demo".into(),
-            frames: s.frames,
-            segments: s.segments,
-        })
-        .collect();
+    let model = FaceModel::load(&common::root().join("models/demo/model")).unwrap();
+    let frames = load_training_set(&common::root().join("models/demo/training"), None).unwrap();
+    let (sentences, _) = corpus::generate(&model, &frames, &CorpusOptions::default())
+        .unwrap()
+        .split();
     let cb = Codebook::build(
         sentences,
         25.0,

@@ -1,7 +1,7 @@
 //! Blend synthesis on the demo corpus: it must beat the baselines on the held-out split.
 mod common;
 
-use facespace::codebook::{Codebook, Layout, Sentence, SimilarityOptions};
+use facespace::codebook::{Codebook, Layout, SimilarityOptions};
 use facespace::corpus::{self, CorpusOptions};
 use facespace::eval;
 use facespace::model::{FaceModel, load_training_set};
@@ -15,25 +15,9 @@ const LAMBDA: f64 = 1e-5;
 fn blend_beats_baselines_on_held_out_sentences() {
     let model = FaceModel::load(&common::root().join("models/demo/model")).unwrap();
     let frames = load_training_set(&common::root().join("models/demo/training"), None).unwrap();
-    let generated = corpus::generate(&model, &frames, &CorpusOptions::default())
+    let (train, held) = corpus::generate(&model, &frames, &CorpusOptions::default())
         .unwrap()
-        .sentences;
-    let to_sentence = |s: &corpus::GeneratedSentence| Sentence {
-        name: s.name.clone(),
-        source: "demo".into(),
-        frames: s.frames.clone(),
-        segments: s.segments.clone(),
-    };
-    let train: Vec<Sentence> = generated
-        .iter()
-        .filter(|s| !s.held_out)
-        .map(to_sentence)
-        .collect();
-    let held: Vec<Sentence> = generated
-        .iter()
-        .filter(|s| s.held_out)
-        .map(to_sentence)
-        .collect();
+        .split();
     let layout = Layout::of(&model);
     let cb = Codebook::build(
         train,

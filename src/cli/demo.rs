@@ -7,13 +7,13 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use facespace::codebook::{Codebook, Layout, Sentence, SimilarityOptions};
+use facespace::codebook::{Codebook, Layout, SimilarityOptions};
 use facespace::corpus::{self, CorpusOptions};
 use facespace::model::{FaceModel, load_training_set};
 use facespace::phonemes;
 use facespace::synth::blend::{self, BlendOptions};
 
-use super::synth::{DEFAULT_LAMBDA, parameter_plot, smoothed, write_variant};
+use super::synth::{Ab, DEFAULT_LAMBDA, smoothed, write_ab};
 
 /// The demo utterance; it must not be one of the corpus sentences.
 pub const DEMO_TEXT: &str = "A brave pilot found the hidden map.";
@@ -63,17 +63,7 @@ pub fn run(a: DemoArgs) -> Result<()> {
 
     let generated = corpus::generate(&model, &frames, &CorpusOptions::default())?;
     let background = &frames[generated.still_frame].image;
-    let train: Vec<Sentence> = generated
-        .sentences
-        .iter()
-        .filter(|s| !s.held_out)
-        .map(|s| Sentence {
-            name: s.name.clone(),
-            source: "generated demo corpus".into(),
-            frames: s.frames.clone(),
-            segments: s.segments.clone(),
-        })
-        .collect();
+    let (train, _) = generated.split();
     println!(
         "demo corpus: {} generated sentences (trajectories generated over real face-space points, not recorded)",
         train.len()
@@ -98,38 +88,17 @@ pub fn run(a: DemoArgs) -> Result<()> {
         target.len(),
         s.n_frames()
     );
-    let sm = write_variant(
-        &a.output.join("smoothed"),
-        &model,
-        &layout,
-        &smooth,
-        25.0,
-        background,
-    )?;
-    let un = write_variant(
-        &a.output.join("unsmoothed"),
-        &model,
-        &layout,
-        &s.frames,
-        25.0,
-        background,
-    )?;
-    facespace::video::write_y4m(
-        &a.output.join("side_by_side.y4m"),
-        &facespace::video::side_by_side(&sm, &un),
-        25.0,
-    )?;
-    super::model::save_png(
-        &parameter_plot(
-            &layout,
-            25.0,
-            &[("smoothed", &smooth), ("unsmoothed", &s.frames)],
-            &target,
-        ),
-        &a.output.join("plot.png"),
-    )?;
+    let ab = Ab {
+        smoothed: &smooth,
+        unsmoothed: &s.frames,
+        real: None,
+        target: &target,
+        fps: 25.0,
+        seed: 1,
+    };
+    let key = write_ab(&a.output, &model, &layout, &ab, background)?;
     phonemes::write_labels(&a.output.join("utterance.lab"), &target)?;
-    let report = serde_json::json!({ "text": a.text, "phones": s.phones, "warnings": s.warnings, "smoothing_lambda": DEFAULT_LAMBDA });
+    let report = serde_json::json!({ "text": a.text, "phones": s.phones, "warnings": s.warnings, "smoothing_lambda": DEFAULT_LAMBDA, "ab_key": key });
     facespace::atomic::write_file(
         &a.output.join("report.json"),
         serde_json::to_string_pretty(&report)?.as_bytes(),
@@ -142,7 +111,7 @@ pub fn run(a: DemoArgs) -> Result<()> {
         ("smoothed frames", o.join("smoothed/frames")),
         ("unsmoothed video", o.join("unsmoothed/video.y4m")),
         (
-            "side by side (smoothed | unsmoothed)",
+            "blind side by side (order in key.json)",
             o.join("side_by_side.y4m"),
         ),
         ("trajectory plot", o.join("plot.png")),

@@ -181,6 +181,76 @@ pub fn parameter_plot(
     out
 }
 
+/// The two variants of one synthesis, for an A/B comparison.
+pub struct Ab<'a> {
+    pub smoothed: &'a [f64],
+    pub unsmoothed: &'a [f64],
+    /// The real trajectory, when the target is a recorded sentence.
+    pub real: Option<&'a [f64]>,
+    pub target: &'a [Segment],
+    pub fps: f64,
+    /// Seed of the blind order.
+    pub seed: u64,
+}
+
+/// Writes both variants (`smoothed/`, `unsmoothed/`), a blind `side_by_side.y4m` whose order
+/// a seeded coin decides, its `key.json`, and `plot.png` of both (and of the real
+/// trajectory). Returns the key.
+pub fn write_ab(
+    dir: &Path,
+    model: &FaceModel,
+    layout: &Layout,
+    ab: &Ab,
+    background: &RgbImage,
+) -> Result<serde_json::Value> {
+    let sm = write_variant(
+        &dir.join("smoothed"),
+        model,
+        layout,
+        ab.smoothed,
+        ab.fps,
+        background,
+    )?;
+    let un = write_variant(
+        &dir.join("unsmoothed"),
+        model,
+        layout,
+        ab.unsmoothed,
+        ab.fps,
+        background,
+    )?;
+    let smoothed_left = Rng::new(ab.seed).uniform() < 0.5;
+    let (l, r) = if smoothed_left {
+        (&sm, &un)
+    } else {
+        (&un, &sm)
+    };
+    video::write_y4m(
+        &dir.join("side_by_side.y4m"),
+        &video::side_by_side(l, r),
+        ab.fps,
+    )?;
+    let (left, right) = if smoothed_left {
+        ("smoothed", "unsmoothed")
+    } else {
+        ("unsmoothed", "smoothed")
+    };
+    let key = serde_json::json!({ "left": left, "right": right, "seed": ab.seed });
+    atomic::write_file(
+        &dir.join("key.json"),
+        serde_json::to_string_pretty(&key)?.as_bytes(),
+    )?;
+    let mut series = vec![("smoothed", ab.smoothed), ("unsmoothed", ab.unsmoothed)];
+    if let Some(r) = ab.real {
+        series.push(("real", r));
+    }
+    super::model::save_png(
+        &parameter_plot(layout, ab.fps, &series, ab.target),
+        &dir.join("plot.png"),
+    )?;
+    Ok(key)
+}
+
 pub fn target_segments(
     cb: &Codebook,
     labels: Option<&Path>,
@@ -268,51 +338,15 @@ pub fn synth(a: SynthArgs) -> Result<()> {
             )?;
         }
         Smooth::Ab => {
-            let sm = write_variant(
-                &a.output.join("smoothed"),
-                &model,
-                &layout,
-                &smooth,
-                a.fps,
-                &background,
-            )?;
-            let un = write_variant(
-                &a.output.join("unsmoothed"),
-                &model,
-                &layout,
-                &s.frames,
-                a.fps,
-                &background,
-            )?;
-            // Blind order: a seeded coin decides which side is which; the key goes to a file.
-            let smoothed_left = Rng::new(a.seed).uniform() < 0.5;
-            let (l, r) = if smoothed_left {
-                (&sm, &un)
-            } else {
-                (&un, &sm)
+            let ab = Ab {
+                smoothed: &smooth,
+                unsmoothed: &s.frames,
+                real: real.as_deref(),
+                target: &target,
+                fps: a.fps,
+                seed: a.seed,
             };
-            video::write_y4m(
-                &a.output.join("side_by_side.y4m"),
-                &video::side_by_side(l, r),
-                a.fps,
-            )?;
-            let key = serde_json::json!({ "left": if smoothed_left { "smoothed" } else { "unsmoothed" }, "right": if smoothed_left { "unsmoothed" } else { "smoothed" }, "seed": a.seed });
-            atomic::write_file(
-                &a.output.join("key.json"),
-                serde_json::to_string_pretty(&key)?.as_bytes(),
-            )?;
-            let mut series = vec![
-                ("smoothed", smooth.as_slice()),
-                ("unsmoothed", s.frames.as_slice()),
-            ];
-            if let Some(r) = &real {
-                series.push(("real", r));
-            }
-            super::model::save_png(
-                &parameter_plot(&layout, a.fps, &series, &target),
-                &a.output.join("plot.png"),
-            )?;
-            report["ab_key"] = key;
+            report["ab_key"] = write_ab(&a.output, &model, &layout, &ab, &background)?;
         }
     }
     atomic::write_file(
