@@ -20,6 +20,7 @@ pub mod atomic;
 pub mod codebook;
 pub mod corpus;
 pub mod eval;
+pub mod fit;
 pub mod manifest;
 pub mod mesh;
 pub mod model;

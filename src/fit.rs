@@ -1,0 +1,446 @@
+//! AAM search (DESIGN §4): project-out inverse compositional fitting (Matthews & Baker 2004,
+//! "Active Appearance Models Revisited") over the shape model plus a global similarity.
+//!
+//! Precomputed once per model, on the mean appearance in the reference frame (greyscale):
+//! the steepest-descent images `SD = ∇A₀ · ∂W/∂p` with the appearance variation projected
+//! out, and the Hessian `H = SDᵀ SD`. Each iteration warps the image to the reference frame at
+//! the current landmarks, takes `Δp = H⁻¹ SDᵀ (I(W) − A₀)`, and composes the inverse
+//! increment: the mesh `s₀ − B Δp` is mapped through the current piecewise affine warp
+//! (each vertex averaged over its triangles), then projected onto the shape model (pose +
+//! parameters, clamped to ±3σ). Greyscale: a third of the work of RGB for the same geometry.
+
+use image::RgbImage;
+use nalgebra::{DMatrix, DVector};
+use thiserror::Error;
+
+use crate::mesh::{BarycentricMap, ReferenceFrame};
+use crate::model::{FaceModel, ModelError};
+use crate::shape::{Landmarks, Point};
+use crate::warp;
+
+#[derive(Debug, Error)]
+pub enum FitError {
+    #[error("the model has no appearance components to project out")]
+    NoAppearance,
+    #[error("the fitting Hessian is singular")]
+    Singular,
+    #[error(transparent)]
+    Model(#[from] ModelError),
+}
+
+/// Options of the search.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FitOptions {
+    pub max_iterations: usize,
+    /// Stop when no landmark moves more than this (pixels).
+    pub tolerance: f64,
+    /// Shape parameters are clamped to ±this many standard deviations.
+    pub clamp_sd: f64,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        FitOptions {
+            max_iterations: 40,
+            tolerance: 0.01,
+            clamp_sd: 3.0,
+        }
+    }
+}
+
+/// The outcome of one fit.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FitResult {
+    pub landmarks: Landmarks,
+    pub iterations: usize,
+    /// RMS of the residual left after projecting out the appearance model (grey levels).
+    pub error: f64,
+    pub converged: bool,
+}
+
+/// A fitter: per pyramid level, the precomputed steepest-descent images and Hessian.
+pub struct Fitter<'m> {
+    model: &'m FaceModel,
+    /// Coarsest first; level `k` works on images downsampled by `2^k`.
+    levels: Vec<Level>,
+    options: FitOptions,
+}
+
+/// One pyramid level: its reference frame and the precomputed quantities on it.
+struct Level {
+    /// Image downsampling factor of this level (1, 2, 4, …).
+    factor: usize,
+    frame: ReferenceFrame,
+    /// Mean appearance, grey, one value per mask pixel.
+    a0: Vec<f64>,
+    /// Orthonormal grey appearance basis (rows), projected out of the error.
+    appearance: Vec<Vec<f64>>,
+    /// Project-out steepest-descent images: one row of `n_pixels` per motion parameter.
+    sd: Vec<Vec<f64>>,
+    h_inv: DMatrix<f64>,
+    /// Orthonormal basis of mesh motions in this frame's pixels: 4 similarity + shape
+    /// modes, each a `2L` vector.
+    basis: Vec<Vec<f64>>,
+    /// Triangles around each vertex (for composing through the piecewise warp).
+    vertex_triangles: Vec<Vec<usize>>,
+}
+
+fn grey(rgb: &[f32]) -> Vec<f64> {
+    rgb.chunks_exact(3)
+        .map(|c| (c[0] as f64 + c[1] as f64 + c[2] as f64) / 3.0)
+        .collect()
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// Gram–Schmidt: orthonormal versions of the vectors, dropping (near) dependent ones.
+fn orthonormalise(vectors: Vec<Vec<f64>>) -> Vec<Vec<f64>> {
+    let mut out: Vec<Vec<f64>> = Vec::new();
+    for mut v in vectors {
+        let norm0 = dot(&v, &v).sqrt();
+        for u in &out {
+            let p = dot(&v, u);
+            v.iter_mut().zip(u).for_each(|(a, b)| *a -= p * b);
+        }
+        let norm = dot(&v, &v).sqrt();
+        if norm > 1e-8 * norm0.max(1e-300) {
+            v.iter_mut().for_each(|a| *a /= norm);
+            out.push(v);
+        }
+    }
+    out
+}
+
+/// Halves an image by 2×2 averaging (odd last rows/columns are dropped).
+pub fn half(image: &RgbImage) -> RgbImage {
+    let (w, h) = ((image.width() / 2).max(1), (image.height() / 2).max(1));
+    RgbImage::from_fn(w, h, |x, y| {
+        let (x0, y0) = (
+            (2 * x).min(image.width() - 1),
+            (2 * y).min(image.height() - 1),
+        );
+        let (x1, y1) = (
+            (x0 + 1).min(image.width() - 1),
+            (y0 + 1).min(image.height() - 1),
+        );
+        let p = [
+            image.get_pixel(x0, y0).0,
+            image.get_pixel(x1, y0).0,
+            image.get_pixel(x0, y1).0,
+            image.get_pixel(x1, y1).0,
+        ];
+        image::Rgb(std::array::from_fn(|c| {
+            ((p[0][c] as u16 + p[1][c] as u16 + p[2][c] as u16 + p[3][c] as u16 + 2) / 4) as u8
+        }))
+    })
+}
+
+/// Pixel-centre coordinates scaled by `1/factor` (and back with `1/factor` = factor).
+fn scale_points(points: &[Point], s: f64) -> Vec<Point> {
+    points
+        .iter()
+        .map(|p| [(p[0] + 0.5) * s - 0.5, (p[1] + 0.5) * s - 0.5])
+        .collect()
+}
+
+impl Level {
+    /// Builds level `factor` from the model: the reference frame is the model's scaled by
+    /// `1/factor`; grey templates are box-sampled from the full-resolution textures.
+    fn new(model: &FaceModel, factor: usize) -> Result<Self, FitError> {
+        let full = &model.frame;
+        let s = 1.0 / factor as f64;
+        let frame = if factor == 1 {
+            full.clone()
+        } else {
+            let placement = crate::mesh::Placement {
+                scale: model.placement.scale * s,
+                offset: [
+                    (model.placement.offset[0] + 0.5) * s - 0.5,
+                    (model.placement.offset[1] + 0.5) * s - 0.5,
+                ],
+            };
+            ReferenceFrame::place(&model.shape.mean(), full.triangles.clone(), placement)
+                .map_err(ModelError::from)?
+        };
+        // A full-resolution texture → this level's grey texture (mean of the factor² block).
+        let resample = |texture: &[f32]| -> Result<Vec<f64>, FitError> {
+            if factor == 1 {
+                return Ok(grey(texture));
+            }
+            let img = warp::texture_to_image(full, texture).map_err(ModelError::from)?;
+            let (w, h) = (full.width, full.height);
+            Ok(frame
+                .pixels
+                .iter()
+                .map(|p| {
+                    let mut sum = 0.0;
+                    for dy in 0..factor {
+                        for dx in 0..factor {
+                            let (x, y) = (
+                                (p.x as usize * factor + dx).min(w - 1),
+                                (p.y as usize * factor + dy).min(h - 1),
+                            );
+                            let i = (y * w + x) * 3;
+                            sum += (img[i] + img[i + 1] + img[i + 2]) as f64 / 3.0;
+                        }
+                    }
+                    sum / (factor * factor) as f64
+                })
+                .collect())
+        };
+        let a0 = resample(&model.appearance.pca.mean)?;
+        let appearance = orthonormalise(
+            (0..model.appearance.n_params())
+                .map(|k| resample(model.appearance.pca.component(k)))
+                .collect::<Result<_, _>>()?,
+        );
+        let l = frame.landmarks.len();
+        let c = crate::shape::centroid(&frame.landmarks);
+        let mut basis = vec![
+            frame
+                .landmarks
+                .iter()
+                .flat_map(|p| [p[0] - c[0], p[1] - c[1]])
+                .collect::<Vec<f64>>(),
+            frame
+                .landmarks
+                .iter()
+                .flat_map(|p| [-(p[1] - c[1]), p[0] - c[0]])
+                .collect(),
+            (0..l).flat_map(|_| [1.0, 0.0]).collect(),
+            (0..l).flat_map(|_| [0.0, 1.0]).collect(),
+        ];
+        for k in 0..model.shape.n_params() {
+            basis.push(
+                model
+                    .shape
+                    .pca
+                    .component(k)
+                    .iter()
+                    .map(|&v| v as f64)
+                    .collect(),
+            );
+        }
+        let basis = orthonormalise(basis);
+        // Gradient of A₀ by central differences over the mask (one-sided at its edge).
+        let (w, h) = (frame.width, frame.height);
+        let mut img = vec![f64::NAN; w * h];
+        for (p, v) in frame.pixels.iter().zip(&a0) {
+            img[p.y as usize * w + p.x as usize] = *v;
+        }
+        let value = |x: i64, y: i64| -> Option<f64> {
+            (x >= 0 && y >= 0 && (x as usize) < w && (y as usize) < h)
+                .then(|| img[y as usize * w + x as usize])
+                .filter(|v| v.is_finite())
+        };
+        let diff = |x: i64, y: i64, dx: i64, dy: i64, centre: f64| match (
+            value(x + dx, y + dy),
+            value(x - dx, y - dy),
+        ) {
+            (Some(a), Some(b)) => (a - b) / 2.0,
+            (Some(a), None) => a - centre,
+            (None, Some(b)) => centre - b,
+            (None, None) => 0.0,
+        };
+        let n = frame.n_pixels();
+        let mut sd = vec![vec![0.0; n]; basis.len()];
+        for (i, px) in frame.pixels.iter().enumerate() {
+            let (x, y) = (px.x as i64, px.y as i64);
+            let (gx, gy) = (diff(x, y, 1, 0, a0[i]), diff(x, y, 0, 1, a0[i]));
+            let tri = frame.triangles[px.triangle as usize];
+            for (k, b) in basis.iter().enumerate() {
+                // ∂W/∂p_k at this pixel: the barycentric mix of the vertices' motions.
+                let (mut dx, mut dy) = (0.0, 0.0);
+                for (j, &v) in tri.iter().enumerate() {
+                    dx += px.bary[j] as f64 * b[2 * v as usize];
+                    dy += px.bary[j] as f64 * b[2 * v as usize + 1];
+                }
+                sd[k][i] = gx * dx + gy * dy;
+            }
+        }
+        for row in &mut sd {
+            for a in &appearance {
+                let p = dot(row, a);
+                row.iter_mut().zip(a).for_each(|(r, v)| *r -= p * v);
+            }
+        }
+        let m = sd.len();
+        let h_inv = DMatrix::from_fn(m, m, |i, j| dot(&sd[i], &sd[j]))
+            .try_inverse()
+            .ok_or(FitError::Singular)?;
+        let mut vertex_triangles = vec![Vec::new(); l];
+        for (t, tri) in frame.triangles.iter().enumerate() {
+            tri.iter()
+                .for_each(|&v| vertex_triangles[v as usize].push(t));
+        }
+        Ok(Level {
+            factor,
+            frame,
+            a0,
+            appearance,
+            sd,
+            h_inv,
+            basis,
+            vertex_triangles,
+        })
+    }
+
+    /// RMS of the error image with the appearance subspace projected out.
+    fn residual(&self, e: &[f64]) -> f64 {
+        let mut r = e.to_vec();
+        for a in &self.appearance {
+            let p = dot(&r, a);
+            r.iter_mut().zip(a).for_each(|(x, v)| *x -= p * v);
+        }
+        (dot(&r, &r) / r.len() as f64).sqrt()
+    }
+
+    /// Maps reference-frame points (one per vertex) through the piecewise affine warp from the
+    /// reference mesh to `current`, averaging each vertex over its triangles.
+    fn compose(&self, moved: &[Point], current: &[Point]) -> Vec<Point> {
+        moved
+            .iter()
+            .enumerate()
+            .map(|(v, p)| {
+                let (mut sx, mut sy, mut n) = (0.0, 0.0, 0.0);
+                for &t in &self.vertex_triangles[v] {
+                    let tri = self.frame.triangles[t];
+                    let [a, b, c] = tri.map(|i| self.frame.landmarks[i as usize]);
+                    if let Some(map) = BarycentricMap::new(a, b, c) {
+                        let l = map.at(*p);
+                        let [ca, cb, cc] = tri.map(|i| current[i as usize]);
+                        sx += l[0] * ca[0] + l[1] * cb[0] + l[2] * cc[0];
+                        sy += l[0] * ca[1] + l[1] * cb[1] + l[2] * cc[1];
+                        n += 1.0;
+                    }
+                }
+                if n > 0.0 {
+                    [sx / n, sy / n]
+                } else {
+                    current[v]
+                }
+            })
+            .collect()
+    }
+}
+
+impl<'m> Fitter<'m> {
+    /// Precomputes `levels` pyramid levels (at least 1; the default is 2).
+    pub fn new(model: &'m FaceModel, options: FitOptions, levels: usize) -> Result<Self, FitError> {
+        if model.appearance.n_params() == 0 {
+            return Err(FitError::NoAppearance);
+        }
+        let levels = (0..levels.max(1))
+            .rev()
+            .map(|k| Level::new(model, 1 << k))
+            .collect::<Result<_, _>>()?;
+        Ok(Fitter {
+            model,
+            levels,
+            options,
+        })
+    }
+
+    /// Fits the model to `image` starting from `init` landmarks, coarse to fine.
+    pub fn fit(&self, image: &RgbImage, init: &Landmarks) -> Result<FitResult, FitError> {
+        let mut pyramid = vec![image.clone()];
+        while pyramid.len() < self.levels.len() {
+            let next = half(pyramid.last().expect("non-empty"));
+            pyramid.push(next);
+        }
+        let mut current = init.points.clone();
+        let mut total = 0;
+        let mut last = None;
+        for level in &self.levels {
+            let img = &pyramid[level.factor.trailing_zeros() as usize];
+            let start = Landmarks {
+                points: scale_points(&current, 1.0 / level.factor as f64),
+            };
+            let (fitted, iterations, converged, error) = self.fit_level(level, img, &start)?;
+            total += iterations;
+            current = scale_points(&fitted.points, level.factor as f64);
+            last = Some((converged, error));
+        }
+        let (converged, error) = last.unwrap_or((false, f64::INFINITY));
+        Ok(FitResult {
+            landmarks: Landmarks { points: current },
+            iterations: total,
+            error,
+            converged,
+        })
+    }
+
+    fn fit_level(
+        &self,
+        level: &Level,
+        image: &RgbImage,
+        init: &Landmarks,
+    ) -> Result<(Landmarks, usize, bool, f64), FitError> {
+        let frame = &level.frame;
+        let mut current = self.constrain(init)?;
+        let mut texture = vec![0f32; frame.n_pixels() * 3];
+        let error_at =
+            |current: &Landmarks, texture: &mut Vec<f32>| -> Result<Vec<f64>, FitError> {
+                warp::to_reference_into(frame, image, &current.points, texture)
+                    .map_err(ModelError::from)?;
+                Ok(grey(texture)
+                    .iter()
+                    .zip(&level.a0)
+                    .map(|(i, a)| i - a)
+                    .collect())
+            };
+        for it in 1..=self.options.max_iterations {
+            let e = error_at(&current, &mut texture)?;
+            let b = DVector::from_iterator(level.sd.len(), level.sd.iter().map(|row| dot(row, &e)));
+            let dp = &level.h_inv * b;
+            // The inverse increment in the reference frame, mapped through the current warp.
+            let moved: Vec<Point> = frame
+                .landmarks
+                .iter()
+                .enumerate()
+                .map(|(v, p)| {
+                    let (mut x, mut y) = (p[0], p[1]);
+                    for (k, basis) in level.basis.iter().enumerate() {
+                        x -= dp[k] * basis[2 * v];
+                        y -= dp[k] * basis[2 * v + 1];
+                    }
+                    [x, y]
+                })
+                .collect();
+            let next = self.constrain(&Landmarks {
+                points: level.compose(&moved, &current.points),
+            })?;
+            let shift = next
+                .points
+                .iter()
+                .zip(&current.points)
+                .map(|(a, b)| (a[0] - b[0]).hypot(a[1] - b[1]))
+                .fold(0.0, f64::max);
+            current = next;
+            if shift < self.options.tolerance / level.factor as f64 {
+                let e = error_at(&current, &mut texture)?;
+                return Ok((current, it, true, level.residual(&e)));
+            }
+        }
+        let e = error_at(&current, &mut texture)?;
+        Ok((
+            current,
+            self.options.max_iterations,
+            false,
+            level.residual(&e),
+        ))
+    }
+
+    /// Projects landmarks onto the shape model (pose + parameters clamped to ±clamp_sd σ).
+    fn constrain(&self, l: &Landmarks) -> Result<Landmarks, FitError> {
+        let shape = &self.model.shape;
+        let (pose, mut b) = shape.project(l).map_err(ModelError::from)?;
+        for (bk, var) in b.iter_mut().zip(&shape.pca.variances) {
+            let limit = self.options.clamp_sd as f32 * var.sqrt();
+            *bk = bk.clamp(-limit, limit);
+        }
+        Ok(shape.instance(&pose, &b))
+    }
+}
