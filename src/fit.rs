@@ -287,14 +287,11 @@ impl Level {
         })
     }
 
-    /// RMS of the error image with the appearance subspace projected out.
+    /// RMS of the error image with the appearance subspace projected out: with an
+    /// orthonormal basis, `|r|² = |e|² − Σᵢ (aᵢ·e)²` (dot products only, no copy).
     fn residual(&self, e: &[f64]) -> f64 {
-        let mut r = e.to_vec();
-        for a in &self.appearance {
-            let p = dot(&r, a);
-            r.iter_mut().zip(a).for_each(|(x, v)| *x -= p * v);
-        }
-        (dot(&r, &r) / r.len() as f64).sqrt()
+        let total = dot(e, e) - self.appearance.iter().map(|a| dot(a, e).powi(2)).sum::<f64>();
+        (total.max(0.0) / e.len() as f64).sqrt()
     }
 
     /// Maps reference-frame points (one per vertex) through the piecewise affine warp from the
