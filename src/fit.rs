@@ -290,7 +290,12 @@ impl Level {
     /// RMS of the error image with the appearance subspace projected out: with an
     /// orthonormal basis, `|r|² = |e|² − Σᵢ (aᵢ·e)²` (dot products only, no copy).
     fn residual(&self, e: &[f64]) -> f64 {
-        let total = dot(e, e) - self.appearance.iter().map(|a| dot(a, e).powi(2)).sum::<f64>();
+        let total = dot(e, e)
+            - self
+                .appearance
+                .iter()
+                .map(|a| dot(a, e).powi(2))
+                .sum::<f64>();
         (total.max(0.0) / e.len() as f64).sqrt()
     }
 
@@ -439,5 +444,139 @@ impl<'m> Fitter<'m> {
             *bk = bk.clamp(-limit, limit);
         }
         Ok(shape.instance(&pose, &b))
+    }
+}
+
+impl Fitter<'_> {
+    /// The model this fitter searches with.
+    pub fn model(&self) -> &FaceModel {
+        self.model
+    }
+
+    /// A first-frame start with no landmarks: the mean shape tried on a grid of positions
+    /// (steps of a tenth of the face width) and scales (0.6–1.5 of the model's reference
+    /// size) on the coarsest pyramid level; the pose whose projected-out residual against
+    /// the mean appearance is smallest wins. Costs a few hundred coarse warps.
+    pub fn search_start(&self, image: &RgbImage) -> Result<Landmarks, FitError> {
+        let level = &self.levels[0];
+        let mut coarse = image.clone();
+        for _ in 1..level.factor {
+            if coarse.width() < 2 || coarse.height() < 2 {
+                break;
+            }
+            coarse = half(&coarse);
+        }
+        let coarse = if level.factor > 1 {
+            coarse
+        } else {
+            image.clone()
+        };
+        let mean = self.model.shape.mean();
+        let mut texture = vec![0f32; level.frame.n_pixels() * 3];
+        let mut best = (f64::INFINITY, Vec::new());
+        let base = self.model.placement.scale / level.factor as f64;
+        for scale in [0.6, 0.75, 0.9, 1.05, 1.25, 1.5] {
+            let s = base * scale;
+            let pts: Vec<Point> = mean.iter().map(|p| [s * p[0], s * p[1]]).collect();
+            let (lo, hi) = Landmarks {
+                points: pts.clone(),
+            }
+            .bounds();
+            let step = (0.1 * (hi[0] - lo[0])).max(1.0);
+            let (w, h) = (coarse.width() as f64, coarse.height() as f64);
+            let mut cy = -lo[1];
+            while cy + hi[1] <= h {
+                let mut cx = -lo[0];
+                while cx + hi[0] <= w {
+                    let placed: Vec<Point> = pts.iter().map(|p| [p[0] + cx, p[1] + cy]).collect();
+                    warp::to_reference_into(&level.frame, &coarse, &placed, &mut texture)
+                        .map_err(ModelError::from)?;
+                    let e: Vec<f64> = grey(&texture)
+                        .iter()
+                        .zip(&level.a0)
+                        .map(|(i, a)| i - a)
+                        .collect();
+                    let r = level.residual(&e);
+                    if r < best.0 {
+                        best = (r, placed);
+                    }
+                    cx += step;
+                }
+                cy += step;
+            }
+        }
+        Ok(Landmarks {
+            points: scale_points(&best.1, level.factor as f64),
+        })
+    }
+}
+
+/// One tracked frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrackedFrame {
+    pub landmarks: Landmarks,
+    /// Projected-out residual RMS (grey levels) of the kept fit.
+    pub error: f64,
+    pub iterations: usize,
+    /// The fit from the previous frame failed the error threshold and the frame was
+    /// re-initialised from the mean shape at the last good pose.
+    pub reinitialised: bool,
+}
+
+/// Tracks a sequence: frame t starts from frame t−1's fit (DESIGN §4).
+pub struct Tracker<'m> {
+    fitter: Fitter<'m>,
+    previous: Landmarks,
+    last_good_pose: crate::shape::Similarity,
+    /// Residual RMS (grey levels) above which a fit counts as lost.
+    pub reinit_error: f64,
+}
+
+impl<'m> Tracker<'m> {
+    pub fn new(fitter: Fitter<'m>, start: Landmarks, reinit_error: f64) -> Result<Self, FitError> {
+        let (pose, _) = fitter
+            .model
+            .shape
+            .project(&start)
+            .map_err(ModelError::from)?;
+        Ok(Tracker {
+            fitter,
+            previous: start,
+            last_good_pose: pose,
+            reinit_error,
+        })
+    }
+
+    pub fn track(&mut self, image: &RgbImage) -> Result<TrackedFrame, FitError> {
+        let mut fit = self.fitter.fit(image, &self.previous)?;
+        let mut reinitialised = false;
+        if fit.error > self.reinit_error {
+            let shape = &self.fitter.model.shape;
+            let start = shape.instance(&self.last_good_pose, &vec![0.0; shape.n_params()]);
+            let again = self.fitter.fit(image, &start)?;
+            reinitialised = true;
+            if again.error < fit.error {
+                fit = FitResult {
+                    iterations: fit.iterations + again.iterations,
+                    ..again
+                };
+            }
+        }
+        if fit.error <= self.reinit_error {
+            self.last_good_pose = self
+                .fitter
+                .model
+                .shape
+                .project(&fit.landmarks)
+                .map_err(ModelError::from)?
+                .0;
+        }
+        self.previous = fit.landmarks.clone();
+        Ok(TrackedFrame {
+            landmarks: fit.landmarks,
+            error: fit.error,
+            iterations: fit.iterations,
+            reinitialised,
+        })
     }
 }

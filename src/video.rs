@@ -69,3 +69,91 @@ pub fn side_by_side(left: &[RgbImage], right: &[RgbImage]) -> Vec<RgbImage> {
         })
         .collect()
 }
+
+/// Errors of frame sources.
+#[derive(Debug, thiserror::Error)]
+pub enum VideoError {
+    #[error("{path}: {source}")]
+    Io {
+        path: std::path::PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{0}: no frames (png, jpg, ppm)")]
+    NoFrames(std::path::PathBuf),
+    #[error("{path}: cannot read frame: {source}")]
+    Image {
+        path: std::path::PathBuf,
+        source: image::ImageError,
+    },
+    #[error(
+        "{0}: reading video files needs a system ffmpeg (not found on PATH) until the built-in MP4 reader lands; give a folder of frames instead"
+    )]
+    NeedsFfmpeg(std::path::PathBuf),
+    #[error("{path}: ffmpeg could not decode it ({status})")]
+    Ffmpeg {
+        path: std::path::PathBuf,
+        status: String,
+    },
+}
+
+/// The image files of a frame folder, in name order.
+pub fn frame_files(dir: &Path) -> Result<Vec<std::path::PathBuf>, VideoError> {
+    let mut files: Vec<std::path::PathBuf> = std::fs::read_dir(dir)
+        .map_err(|source| VideoError::Io {
+            path: dir.into(),
+            source,
+        })?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            p.extension()
+                .and_then(|e| e.to_str())
+                .map(str::to_ascii_lowercase)
+                .is_some_and(|e| crate::model::IMAGE_EXTENSIONS.contains(&e.as_str()))
+        })
+        .collect();
+    files.sort();
+    if files.is_empty() {
+        return Err(VideoError::NoFrames(dir.into()));
+    }
+    Ok(files)
+}
+
+pub fn read_frame(path: &Path) -> Result<RgbImage, VideoError> {
+    Ok(image::open(path)
+        .map_err(|source| VideoError::Image {
+            path: path.into(),
+            source,
+        })?
+        .to_rgb8())
+}
+
+/// A system ffmpeg on PATH, if any (detected at run time, never required).
+pub fn system_ffmpeg() -> Option<std::path::PathBuf> {
+    std::env::var_os("PATH").and_then(|paths| {
+        std::env::split_paths(&paths)
+            .map(|p| p.join("ffmpeg"))
+            .find(|p| p.is_file())
+    })
+}
+
+/// Decodes a video file to PNG frames in `dir` with the system ffmpeg.
+pub fn decode_with_ffmpeg(video: &Path, dir: &Path) -> Result<Vec<std::path::PathBuf>, VideoError> {
+    let ffmpeg = system_ffmpeg().ok_or_else(|| VideoError::NeedsFfmpeg(video.into()))?;
+    let status = std::process::Command::new(ffmpeg)
+        .args(["-v", "error", "-i"])
+        .arg(video)
+        .args(["-vsync", "0"])
+        .arg(dir.join("%06d.png"))
+        .status()
+        .map_err(|source| VideoError::Io {
+            path: video.into(),
+            source,
+        })?;
+    if !status.success() {
+        return Err(VideoError::Ffmpeg {
+            path: video.into(),
+            status: status.to_string(),
+        });
+    }
+    frame_files(dir).map_err(|_| VideoError::NoFrames(video.into()))
+}

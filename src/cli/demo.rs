@@ -125,7 +125,7 @@ pub fn run(a: DemoArgs) -> Result<()> {
             println!("  {:<38} {}", "MP4 (system ffmpeg)", mp4.display());
         }
     }
-    if which_ffmpeg().is_none() {
+    if facespace::video::system_ffmpeg().is_none() {
         println!(
             "  (no ffmpeg on PATH: videos are Y4M, e.g. `ffplay {}`; MP4 arrives with the video issue)",
             o.join("side_by_side.y4m").display()
@@ -135,17 +135,9 @@ pub fn run(a: DemoArgs) -> Result<()> {
     Ok(())
 }
 
-fn which_ffmpeg() -> Option<PathBuf> {
-    std::env::var_os("PATH").and_then(|paths| {
-        std::env::split_paths(&paths)
-            .map(|p| p.join("ffmpeg"))
-            .find(|p| p.is_file())
-    })
-}
-
 /// Converts a Y4M file to H.264 MP4 with a system ffmpeg, when one is installed.
 fn to_mp4(y4m: &Path) -> Result<Option<PathBuf>> {
-    let Some(ffmpeg) = which_ffmpeg() else {
+    let Some(ffmpeg) = facespace::video::system_ffmpeg() else {
         return Ok(None);
     };
     let mp4 = y4m.with_extension("mp4");

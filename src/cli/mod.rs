@@ -5,6 +5,7 @@ mod corpus;
 mod demo;
 mod model;
 mod synth;
+mod track;
 
 use clap::{Parser, Subcommand};
 use facespace::Progress;
@@ -32,6 +33,8 @@ enum Command {
     /// Generate corpora.
     #[command(subcommand)]
     Corpus(corpus::CorpusCommand),
+    /// Track faces through a video or frame folder by AAM search.
+    Track(track::TrackArgs),
     /// Synthesise a face-space trajectory and video from phonemes or text (top-N blending).
     Synth(synth::SynthArgs),
     /// Score synthesis against held-out sentences (r_pca, r_h, RMSE, DTW) with baselines.
@@ -45,6 +48,7 @@ pub fn run() -> anyhow::Result<()> {
         Command::Model(c) => model::run(c),
         Command::Codebook(c) => codebook::run(c),
         Command::Corpus(c) => corpus::run(c),
+        Command::Track(a) => track::run(a),
         Command::Synth(a) => synth::synth(a),
         Command::Eval(a) => synth::evaluate(a),
         Command::Demo(a) => demo::run(a),

@@ -1,0 +1,120 @@
+//! Tracking a real clip end to end, against dlib's landmarks of the same frames.
+mod common;
+
+use std::process::Command;
+
+use facespace::fit::{FitOptions, Fitter, Tracker};
+use facespace::model::FaceModel;
+use facespace::shape::{centroid, read_pts};
+use facespace::video;
+
+/// 50 consecutive frames of the FGNet video, started by the grid search (no landmarks):
+/// no frame is lost, and the mean error stays small relative to the inter-ocular distance.
+#[test]
+fn tracks_a_real_clip_from_a_searched_start() {
+    let model = FaceModel::load(&common::root().join("models/demo/model")).unwrap();
+    let files = video::frame_files(&common::root().join("tests/data/clip")).unwrap();
+    let fitter = Fitter::new(&model, FitOptions::default(), 2).unwrap();
+    let first = video::read_frame(&files[0]).unwrap();
+    let start = fitter.search_start(&first).unwrap();
+    let mut tracker = Tracker::new(fitter, start, 25.0).unwrap();
+    let mut normalised = Vec::new();
+    for f in &files {
+        let t = tracker.track(&video::read_frame(f).unwrap()).unwrap();
+        let reference = read_pts(&f.with_extension("pts")).unwrap();
+        let (l, r) = (
+            centroid(&reference.points[36..42]),
+            centroid(&reference.points[42..48]),
+        );
+        let iod = (l[0] - r[0]).hypot(l[1] - r[1]);
+        let e = t
+            .landmarks
+            .points
+            .iter()
+            .zip(&reference.points)
+            .map(|(a, b)| (a[0] - b[0]).hypot(a[1] - b[1]))
+            .sum::<f64>()
+            / 68.0;
+        normalised.push(e / iod);
+    }
+    let mean = normalised.iter().sum::<f64>() / normalised.len() as f64;
+    let worst = normalised.iter().cloned().fold(0.0, f64::max);
+    eprintln!(
+        "clip: {} frames, error / inter-ocular distance: mean {mean:.4}, worst {worst:.4}",
+        normalised.len()
+    );
+    assert!(worst < 0.08, "a frame is lost: worst {worst:.4}");
+    assert!(mean < 0.04, "mean {mean:.4}");
+}
+
+fn facespace(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_facespace"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn track_command_and_bad_input() {
+    let tmp = tempfile::tempdir().unwrap();
+    let clip = common::root().join("tests/data/clip");
+    let out = tmp.path().join("lm.npy");
+    let o = facespace(&["track", clip.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(
+        facespace::npy::read::<f32>(&out).unwrap().shape,
+        vec![50, 68, 2]
+    );
+    let text = |o: &std::process::Output| {
+        format!(
+            "{}{}",
+            String::from_utf8_lossy(&o.stdout),
+            String::from_utf8_lossy(&o.stderr)
+        )
+    };
+    // An empty folder.
+    let empty = tmp.path().join("empty");
+    std::fs::create_dir(&empty).unwrap();
+    let o = facespace(&[
+        "track",
+        empty.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(text(&o).contains("no frames"), "{}", text(&o));
+    // An unreadable frame.
+    let bad = tmp.path().join("bad");
+    std::fs::create_dir(&bad).unwrap();
+    std::fs::copy(clip.join("01000.jpg"), bad.join("0001.jpg")).unwrap();
+    std::fs::write(bad.join("0002.jpg"), b"not a jpeg").unwrap();
+    let o = facespace(&[
+        "track",
+        bad.to_str().unwrap(),
+        "--init",
+        clip.join("01000.pts").to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(text(&o).contains("0002.jpg"), "{}", text(&o));
+    // An init file with the wrong point count.
+    let pts = tmp.path().join("short.pts");
+    let mut l = read_pts(&clip.join("01000.pts")).unwrap();
+    l.points.truncate(60);
+    facespace::shape::write_pts(&pts, &l).unwrap();
+    let o = facespace(&[
+        "track",
+        clip.to_str().unwrap(),
+        "--init",
+        pts.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        text(&o).contains("60 landmarks where 68 were expected"),
+        "{}",
+        text(&o)
+    );
+}
