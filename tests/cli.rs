@@ -1,23 +1,8 @@
 //! End to end through the `facespace` binary.
 mod common;
 
+use common::{facespace, text};
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn facespace(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_facespace"))
-        .args(args)
-        .output()
-        .expect("binary runs")
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
 
 #[test]
 fn build_info_reconstruct() {

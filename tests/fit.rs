@@ -11,15 +11,6 @@ fn demo_model() -> FaceModel {
     FaceModel::load(&common::root().join("models/demo/model")).unwrap()
 }
 
-fn mean_error(a: &Landmarks, b: &Landmarks) -> f64 {
-    a.points
-        .iter()
-        .zip(&b.points)
-        .map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1]))
-        .sum::<f64>()
-        / a.len() as f64
-}
-
 /// Renders the model at random parameters (shape ±2σ, appearance ±1σ) at a real frame's
 /// pose on a plain background, plus Gaussian noise (σ = 2 grey levels).
 fn synthetic(
@@ -90,7 +81,7 @@ fn converges_from_nearby_starts() {
             [rng.range(-2.0, 2.0), rng.range(-2.0, 2.0)],
         );
         let fit = fitter.fit(&img, &init).unwrap();
-        errors.push(mean_error(&fit.landmarks, &truth));
+        errors.push(common::mean_error(&fit.landmarks, &truth));
     }
     errors.sort_by(f64::total_cmp);
     eprintln!(
@@ -129,7 +120,7 @@ fn synthetic_protocol_distribution() {
             [rng.range(-0.1, 0.1) * width, rng.range(-0.1, 0.1) * width],
         );
         let fit = fitter.fit(&img, &init).unwrap();
-        errors.push(mean_error(&fit.landmarks, &truth));
+        errors.push(common::mean_error(&fit.landmarks, &truth));
     }
     errors.sort_by(f64::total_cmp);
     let under = errors.iter().filter(|&&e| e < 1.0).count();
@@ -161,10 +152,7 @@ fn real_held_out_frames() {
             [3.0, -3.0],
         );
         let fit = fitter.fit(&e.image, &init).unwrap();
-        let eye = |r: std::ops::Range<usize>| centroid(&e.landmarks.points[r]);
-        let (l, r) = (eye(36..42), eye(42..48));
-        let iod = (l[0] - r[0]).hypot(l[1] - r[1]);
-        normalised.push(mean_error(&fit.landmarks, &e.landmarks) / iod);
+        normalised.push(common::iod_error(&fit.landmarks, &e.landmarks));
     }
     let mean = normalised.iter().sum::<f64>() / normalised.len() as f64;
     eprintln!(

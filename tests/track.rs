@@ -1,11 +1,11 @@
 //! Tracking a real clip end to end, against dlib's landmarks of the same frames.
 mod common;
 
-use std::process::Command;
+use common::{facespace, text};
 
 use facespace::fit::{FitOptions, Fitter, Tracker};
 use facespace::model::FaceModel;
-use facespace::shape::{centroid, read_pts};
+use facespace::shape::read_pts;
 use facespace::video;
 
 /// 50 consecutive frames of the FGNet video, started by the grid search (no landmarks):
@@ -22,20 +22,7 @@ fn tracks_a_real_clip_from_a_searched_start() {
     for f in &files {
         let t = tracker.track(&video::read_frame(f).unwrap()).unwrap();
         let reference = read_pts(&f.with_extension("pts")).unwrap();
-        let (l, r) = (
-            centroid(&reference.points[36..42]),
-            centroid(&reference.points[42..48]),
-        );
-        let iod = (l[0] - r[0]).hypot(l[1] - r[1]);
-        let e = t
-            .landmarks
-            .points
-            .iter()
-            .zip(&reference.points)
-            .map(|(a, b)| (a[0] - b[0]).hypot(a[1] - b[1]))
-            .sum::<f64>()
-            / 68.0;
-        normalised.push(e / iod);
+        normalised.push(common::iod_error(&t.landmarks, &reference));
     }
     let mean = normalised.iter().sum::<f64>() / normalised.len() as f64;
     let worst = normalised.iter().cloned().fold(0.0, f64::max);
@@ -45,13 +32,6 @@ fn tracks_a_real_clip_from_a_searched_start() {
     );
     assert!(worst < 0.08, "a frame is lost: worst {worst:.4}");
     assert!(mean < 0.04, "mean {mean:.4}");
-}
-
-fn facespace(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_facespace"))
-        .args(args)
-        .output()
-        .unwrap()
 }
 
 #[test]
@@ -65,13 +45,6 @@ fn track_command_and_bad_input() {
         facespace::npy::read::<f32>(&out).unwrap().shape,
         vec![50, 68, 2]
     );
-    let text = |o: &std::process::Output| {
-        format!(
-            "{}{}",
-            String::from_utf8_lossy(&o.stdout),
-            String::from_utf8_lossy(&o.stderr)
-        )
-    };
     // An empty folder.
     let empty = tmp.path().join("empty");
     std::fs::create_dir(&empty).unwrap();

@@ -29,3 +29,40 @@ pub fn small_model() -> FaceModel {
     };
     FaceModel::build(&faces(), &options, &mut facespace::no_progress).expect("model builds")
 }
+
+/// Runs the `facespace` binary.
+pub fn facespace(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_facespace"))
+        .args(args)
+        .output()
+        .expect("binary runs")
+}
+
+/// Standard output and error of a run, together.
+pub fn text(o: &std::process::Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+/// Mean point-to-point distance between two landmark sets.
+pub fn mean_error(a: &facespace::shape::Landmarks, b: &facespace::shape::Landmarks) -> f64 {
+    a.points
+        .iter()
+        .zip(&b.points)
+        .map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1]))
+        .sum::<f64>()
+        / a.len() as f64
+}
+
+/// [`mean_error`] over the reference's inter-ocular distance (eye centres, iBUG 36–41, 42–47).
+pub fn iod_error(
+    fitted: &facespace::shape::Landmarks,
+    reference: &facespace::shape::Landmarks,
+) -> f64 {
+    let eye = |r: std::ops::Range<usize>| facespace::shape::centroid(&reference.points[r]);
+    let (l, r) = (eye(36..42), eye(42..48));
+    mean_error(fitted, reference) / (l[0] - r[0]).hypot(l[1] - r[1])
+}
