@@ -16,7 +16,7 @@ use thiserror::Error;
 use crate::mesh::{BarycentricMap, ReferenceFrame};
 use crate::model::{FaceModel, ModelError};
 use crate::shape::{Landmarks, Point};
-use crate::warp;
+use crate::warp::{self, GreyImage};
 
 #[derive(Debug, Error)]
 pub enum FitError {
@@ -111,30 +111,6 @@ fn orthonormalise(vectors: Vec<Vec<f64>>) -> Vec<Vec<f64>> {
         }
     }
     out
-}
-
-/// Halves an image by 2×2 averaging (odd last rows/columns are dropped).
-pub fn half(image: &RgbImage) -> RgbImage {
-    let (w, h) = ((image.width() / 2).max(1), (image.height() / 2).max(1));
-    RgbImage::from_fn(w, h, |x, y| {
-        let (x0, y0) = (
-            (2 * x).min(image.width() - 1),
-            (2 * y).min(image.height() - 1),
-        );
-        let (x1, y1) = (
-            (x0 + 1).min(image.width() - 1),
-            (y0 + 1).min(image.height() - 1),
-        );
-        let p = [
-            image.get_pixel(x0, y0).0,
-            image.get_pixel(x1, y0).0,
-            image.get_pixel(x0, y1).0,
-            image.get_pixel(x1, y1).0,
-        ];
-        image::Rgb(std::array::from_fn(|c| {
-            ((p[0][c] as u16 + p[1][c] as u16 + p[2][c] as u16 + p[3][c] as u16 + 2) / 4) as u8
-        }))
-    })
 }
 
 /// Pixel-centre coordinates scaled by `1/factor` (and back with `1/factor` = factor).
@@ -347,9 +323,9 @@ impl<'m> Fitter<'m> {
 
     /// Fits the model to `image` starting from `init` landmarks, coarse to fine.
     pub fn fit(&self, image: &RgbImage, init: &Landmarks) -> Result<FitResult, FitError> {
-        let mut pyramid = vec![image.clone()];
+        let mut pyramid = vec![GreyImage::from_rgb(image)];
         while pyramid.len() < self.levels.len() {
-            let next = half(pyramid.last().expect("non-empty"));
+            let next = pyramid.last().expect("non-empty").half();
             pyramid.push(next);
         }
         let mut current = init.points.clone();
@@ -377,20 +353,20 @@ impl<'m> Fitter<'m> {
     fn fit_level(
         &self,
         level: &Level,
-        image: &RgbImage,
+        image: &GreyImage,
         init: &Landmarks,
     ) -> Result<(Landmarks, usize, bool, f64), FitError> {
         let frame = &level.frame;
         let mut current = self.constrain(init)?;
-        let mut texture = vec![0f32; frame.n_pixels() * 3];
+        let mut texture = vec![0f32; frame.n_pixels()];
         let error_at =
             |current: &Landmarks, texture: &mut Vec<f32>| -> Result<Vec<f64>, FitError> {
-                warp::to_reference_into(frame, image, &current.points, texture)
+                warp::to_reference_grey_into(frame, image, &current.points, texture)
                     .map_err(ModelError::from)?;
-                Ok(grey(texture)
+                Ok(texture
                     .iter()
                     .zip(&level.a0)
-                    .map(|(i, a)| i - a)
+                    .map(|(&i, a)| i as f64 - a)
                     .collect())
             };
         for it in 1..=self.options.max_iterations {
@@ -459,20 +435,14 @@ impl Fitter<'_> {
     /// the mean appearance is smallest wins. Costs a few hundred coarse warps.
     pub fn search_start(&self, image: &RgbImage) -> Result<Landmarks, FitError> {
         let level = &self.levels[0];
-        let mut coarse = image.clone();
-        for _ in 1..level.factor {
-            if coarse.width() < 2 || coarse.height() < 2 {
-                break;
-            }
-            coarse = half(&coarse);
+        let mut coarse = GreyImage::from_rgb(image);
+        let mut factor = 1;
+        while factor < level.factor {
+            coarse = coarse.half();
+            factor *= 2;
         }
-        let coarse = if level.factor > 1 {
-            coarse
-        } else {
-            image.clone()
-        };
         let mean = self.model.shape.mean();
-        let mut texture = vec![0f32; level.frame.n_pixels() * 3];
+        let mut texture = vec![0f32; level.frame.n_pixels()];
         let mut best = (f64::INFINITY, Vec::new());
         let base = self.model.placement.scale / level.factor as f64;
         for scale in [0.6, 0.75, 0.9, 1.05, 1.25, 1.5] {
@@ -483,18 +453,18 @@ impl Fitter<'_> {
             }
             .bounds();
             let step = (0.1 * (hi[0] - lo[0])).max(1.0);
-            let (w, h) = (coarse.width() as f64, coarse.height() as f64);
+            let (w, h) = (coarse.width as f64, coarse.height as f64);
             let mut cy = -lo[1];
             while cy + hi[1] <= h {
                 let mut cx = -lo[0];
                 while cx + hi[0] <= w {
                     let placed: Vec<Point> = pts.iter().map(|p| [p[0] + cx, p[1] + cy]).collect();
-                    warp::to_reference_into(&level.frame, &coarse, &placed, &mut texture)
+                    warp::to_reference_grey_into(&level.frame, &coarse, &placed, &mut texture)
                         .map_err(ModelError::from)?;
-                    let e: Vec<f64> = grey(&texture)
+                    let e: Vec<f64> = texture
                         .iter()
                         .zip(&level.a0)
-                        .map(|(i, a)| i - a)
+                        .map(|(&i, a)| i as f64 - a)
                         .collect();
                     let r = level.residual(&e);
                     if r < best.0 {

@@ -34,18 +34,18 @@ pub enum WarpError {
 pub fn sample_bilinear(image: &RgbImage, x: f64, y: f64) -> [f32; 3] {
     let (w, h) = (image.width() as usize, image.height() as usize);
     let data = image.as_raw();
-    sample(data, w, h, x, y, |v: u8| v as f32)
+    sample::<u8, 3>(data, w, h, x, y, |v: u8| v as f32)
 }
 
 #[inline(always)]
-fn sample<T: Copy>(
+fn sample<T: Copy, const C: usize>(
     data: &[T],
     w: usize,
     h: usize,
     x: f64,
     y: f64,
     to_f32: impl Fn(T) -> f32,
-) -> [f32; 3] {
+) -> [f32; C] {
     let xc = x.clamp(0.0, (w - 1) as f64);
     let yc = y.clamp(0.0, (h - 1) as f64);
     // Truncation is floor here (both are ≥ 0) and, unlike f64::floor on baseline x86-64,
@@ -54,18 +54,119 @@ fn sample<T: Copy>(
     let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
     let (fx, fy) = ((xc - x0 as f64) as f32, (yc - y0 as f64) as f32);
     let (i00, i01, i10, i11) = (
-        (y0 * w + x0) * 3,
-        (y0 * w + x1) * 3,
-        (y1 * w + x0) * 3,
-        (y1 * w + x1) * 3,
+        (y0 * w + x0) * C,
+        (y0 * w + x1) * C,
+        (y1 * w + x0) * C,
+        (y1 * w + x1) * C,
     );
-    let mut out = [0f32; 3];
+    let mut out = [0f32; C];
     for (c, o) in out.iter_mut().enumerate() {
         let top = to_f32(data[i00 + c]) * (1.0 - fx) + to_f32(data[i01 + c]) * fx;
         let bottom = to_f32(data[i10 + c]) * (1.0 - fx) + to_f32(data[i11 + c]) * fx;
         *o = top * (1.0 - fy) + bottom * fy;
     }
     out
+}
+
+/// A single-channel f32 image (grey levels), for fitting on luminance.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GreyImage {
+    pub width: usize,
+    pub height: usize,
+    pub data: Vec<f32>,
+}
+
+impl GreyImage {
+    /// The mean of R, G and B: the grey of a texture warped in RGB is the warp of this.
+    pub fn from_rgb(image: &RgbImage) -> Self {
+        let data = image
+            .as_raw()
+            .chunks_exact(3)
+            .map(|c| (c[0] as f32 + c[1] as f32 + c[2] as f32) / 3.0)
+            .collect();
+        GreyImage {
+            width: image.width() as usize,
+            height: image.height() as usize,
+            data,
+        }
+    }
+
+    /// Half size by 2×2 averaging (an odd last row or column is dropped).
+    pub fn half(&self) -> Self {
+        let (w, h) = ((self.width / 2).max(1), (self.height / 2).max(1));
+        let at = |x: usize, y: usize| {
+            self.data[y.min(self.height - 1) * self.width + x.min(self.width - 1)]
+        };
+        let data = (0..h)
+            .flat_map(|y| (0..w).map(move |x| (x, y)))
+            .map(|(x, y)| {
+                (at(2 * x, 2 * y)
+                    + at(2 * x + 1, 2 * y)
+                    + at(2 * x, 2 * y + 1)
+                    + at(2 * x + 1, 2 * y + 1))
+                    / 4.0
+            })
+            .collect();
+        GreyImage {
+            width: w,
+            height: h,
+            data,
+        }
+    }
+}
+
+/// Gathers `C`-channel samples of `data` (`w × h`) at each mask pixel's source point.
+fn gather<T: Copy + Send + Sync, const C: usize>(
+    frame: &ReferenceFrame,
+    data: &[T],
+    (w, h): (usize, usize),
+    landmarks: &[Point],
+    out: &mut [f32],
+    to_f32: impl Fn(T) -> f32 + Sync,
+) {
+    const CHUNK: usize = 2048;
+    out.par_chunks_mut(CHUNK * C)
+        .zip(frame.pixels.par_chunks(CHUNK))
+        .for_each(|(out, pixels)| {
+            for (o, p) in out.chunks_exact_mut(C).zip(pixels) {
+                let [a, b, c] = frame.triangles[p.triangle as usize].map(|v| landmarks[v as usize]);
+                let l = p.bary.map(|v| v as f64);
+                let x = l[0] * a[0] + l[1] * b[0] + l[2] * c[0];
+                let y = l[0] * a[1] + l[1] * b[1] + l[2] * c[1];
+                o.copy_from_slice(&sample::<T, C>(data, w, h, x, y, &to_f32));
+            }
+        });
+}
+
+/// [`to_reference_into`] for a grey image: one value per mask pixel.
+pub fn to_reference_grey_into(
+    frame: &ReferenceFrame,
+    image: &GreyImage,
+    landmarks: &[Point],
+    out: &mut [f32],
+) -> Result<(), WarpError> {
+    check_landmarks(frame, landmarks)?;
+    if image.width == 0 || image.height == 0 {
+        return Err(WarpError::EmptyImage {
+            width: image.width as u32,
+            height: image.height as u32,
+        });
+    }
+    if out.len() != frame.n_pixels() {
+        return Err(WarpError::TextureLength {
+            expected: frame.n_pixels(),
+            found: out.len(),
+        });
+    }
+    gather::<f32, 1>(
+        frame,
+        &image.data,
+        (image.width, image.height),
+        landmarks,
+        out,
+        |v| v,
+    );
+    Ok(())
 }
 
 fn check_landmarks(frame: &ReferenceFrame, landmarks: &[Point]) -> Result<(), WarpError> {
@@ -115,18 +216,14 @@ pub fn to_reference_into(
             found: out.len(),
         });
     }
-    const CHUNK: usize = 2048;
-    out.par_chunks_mut(CHUNK * 3)
-        .zip(frame.pixels.par_chunks(CHUNK))
-        .for_each(|(out, pixels)| {
-            for (o, p) in out.chunks_exact_mut(3).zip(pixels) {
-                let [a, b, c] = frame.triangles[p.triangle as usize].map(|v| landmarks[v as usize]);
-                let l = p.bary.map(|v| v as f64);
-                let x = l[0] * a[0] + l[1] * b[0] + l[2] * c[0];
-                let y = l[0] * a[1] + l[1] * b[1] + l[2] * c[1];
-                o.copy_from_slice(&sample_bilinear(image, x, y));
-            }
-        });
+    gather::<u8, 3>(
+        frame,
+        image.as_raw(),
+        (image.width() as usize, image.height() as usize),
+        landmarks,
+        out,
+        |v| v as f32,
+    );
     Ok(())
 }
 
@@ -300,7 +397,7 @@ pub fn from_reference_into(
                         std::array::from_fn(|i| t.l0[i] + t.lx[i] * x0 as f64 + t.ly[i] * y as f64);
                     for px in row[x0 * 3..(x1 + 1) * 3].chunks_exact_mut(3) {
                         let v = if l.iter().all(|&v| v >= 0.0) {
-                            sample(&source, fw, fh, sx, sy, |v: f32| v)
+                            sample::<f32, 3>(&source, fw, fh, sx, sy, |v: f32| v)
                         } else {
                             // Dilated pixel beyond a hull edge: sample the nearest point of the
                             // triangle rather than extrapolate its map, which a sliver would
@@ -310,7 +407,7 @@ pub fn from_reference_into(
                             let at = |k: usize| {
                                 (c[0] * t.src[0][k] + c[1] * t.src[1][k] + c[2] * t.src[2][k]) / sum
                             };
-                            sample(&source, fw, fh, at(0), at(1), |v: f32| v)
+                            sample::<f32, 3>(&source, fw, fh, at(0), at(1), |v: f32| v)
                         };
                         px.copy_from_slice(&v.map(to_u8));
                         sx += t.sx[0];
