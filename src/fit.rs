@@ -424,11 +424,6 @@ impl<'m> Fitter<'m> {
 }
 
 impl Fitter<'_> {
-    /// The model this fitter searches with.
-    pub fn model(&self) -> &FaceModel {
-        self.model
-    }
-
     /// A first-frame start with no landmarks: the mean shape tried on a grid of positions
     /// (steps of a tenth of the face width) and scales (0.6–1.5 of the model's reference
     /// size) on the coarsest pyramid level; the pose whose projected-out residual against

@@ -9,18 +9,25 @@ use rayon::prelude::*;
 
 use crate::atomic;
 
-/// Writes frames as `dir/0000.png`, `0001.png`, … (in parallel).
-pub fn write_png_frames(dir: &Path, frames: &[RgbImage]) -> std::io::Result<()> {
-    std::fs::create_dir_all(dir)?;
-    frames.par_iter().enumerate().try_for_each(|(i, f)| {
-        let mut bytes = Vec::new();
-        f.write_to(
+/// Writes one PNG atomically.
+pub fn write_png(path: &Path, image: &RgbImage) -> std::io::Result<()> {
+    let mut bytes = Vec::new();
+    image
+        .write_to(
             &mut std::io::Cursor::new(&mut bytes),
             image::ImageFormat::Png,
         )
         .map_err(std::io::Error::other)?;
-        atomic::write_file(&dir.join(format!("{i:04}.png")), &bytes)
-    })
+    atomic::write_file(path, &bytes)
+}
+
+/// Writes frames as `dir/0000.png`, `0001.png`, … (in parallel).
+pub fn write_png_frames(dir: &Path, frames: &[RgbImage]) -> std::io::Result<()> {
+    std::fs::create_dir_all(dir)?;
+    frames
+        .par_iter()
+        .enumerate()
+        .try_for_each(|(i, f)| write_png(&dir.join(format!("{i:04}.png")), f))
 }
 
 /// Encodes frames as YUV4MPEG2 4:4:4 (studio-range BT.601), the raw format every video tool

@@ -195,7 +195,10 @@ fn single_example_is_copied_and_time_warped() {
     {
         let want = a.eval(time);
         let got = &s.frames[k * s.dims..(k + 1) * s.dims];
-        assert!(got.iter().zip(&want).all(|(g, w)| (g - w).abs() < 1e-9), "{got:?} vs {want:?}");
+        assert!(
+            got.iter().zip(&want).all(|(g, w)| (g - w).abs() < 1e-9),
+            "{got:?} vs {want:?}"
+        );
     }
     let slow = target(&["sil", "aa", "m", "iy", "sil"], 0.4);
     let s = blend::blend(

@@ -6,8 +6,8 @@ use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
 use facespace::corpus::{self, CorpusOptions};
 use facespace::model::{FaceModel, load_training_set};
-use facespace::{atomic, npy, phonemes};
-use image::RgbImage;
+use facespace::render::{CpuRenderer, Renderer};
+use facespace::{atomic, npy, phonemes, video};
 
 #[derive(Subcommand)]
 pub enum CorpusCommand {
@@ -95,13 +95,9 @@ fn demo(a: DemoArgs) -> Result<()> {
     if a.frames {
         let (bar, mut progress) = super::progress_bar();
         for (i, s) in sentences.iter().enumerate() {
-            let dir = a.output.join("frames").join(&s.name);
-            for (k, row) in s.frames.chunks_exact(dims).enumerate() {
-                let params = model.params_from_vector(row)?;
-                let mut canvas: RgbImage = background.image.clone();
-                model.render_into(&params, &mut canvas)?;
-                super::model::save_png(&canvas, &dir.join(format!("{k:04}.png")))?;
-            }
+            let rows: Vec<f64> = s.frames.iter().map(|&v| v as f64).collect();
+            let images = CpuRenderer.render(&model, &rows, &background.image)?;
+            video::write_png_frames(&a.output.join("frames").join(&s.name), &images)?;
             progress(facespace::Progress {
                 stage: "rendering",
                 done: i + 1,

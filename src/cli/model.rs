@@ -227,13 +227,7 @@ pub fn reconstruct_pair(
 }
 
 pub fn save_png(image: &RgbImage, path: &Path) -> Result<()> {
-    let mut bytes = Vec::new();
-    image.write_to(
-        &mut std::io::Cursor::new(&mut bytes),
-        image::ImageFormat::Png,
-    )?;
-    facespace::atomic::write_file(path, &bytes)
-        .with_context(|| format!("writing {}", path.display()))
+    facespace::video::write_png(path, image).with_context(|| format!("writing {}", path.display()))
 }
 
 fn reconstruct(a: ReconstructArgs) -> Result<()> {
