@@ -18,6 +18,7 @@
 pub mod appearance;
 pub mod atomic;
 pub mod codebook;
+pub mod codec;
 pub mod corpus;
 pub mod eval;
 pub mod fit;

@@ -208,31 +208,7 @@ impl ReferenceFrame {
         height: usize,
     ) -> Result<Self, MeshError> {
         validate(&landmarks, &triangles)?;
-        let mut owner = vec![u32::MAX; width * height];
-        let mut bary = vec![[0f32; 3]; width * height];
-        for (ti, t) in triangles.iter().enumerate() {
-            let [a, b, c] = t.map(|v| landmarks[v as usize]);
-            let Some(to_bary) = BarycentricMap::new(a, b, c) else {
-                continue;
-            };
-            let x0 = a[0].min(b[0]).min(c[0]).floor().max(0.0) as usize;
-            let x1 = (a[0].max(b[0]).max(c[0]).ceil() as usize).min(width.saturating_sub(1));
-            let y0 = a[1].min(b[1]).min(c[1]).floor().max(0.0) as usize;
-            let y1 = (a[1].max(b[1]).max(c[1]).ceil() as usize).min(height.saturating_sub(1));
-            for y in y0..=y1 {
-                for x in x0..=x1 {
-                    let i = y * width + x;
-                    if owner[i] != u32::MAX {
-                        continue;
-                    }
-                    let l = to_bary.at([x as f64, y as f64]);
-                    if l.iter().all(|&v| v >= -1e-9) {
-                        owner[i] = ti as u32;
-                        bary[i] = l.map(|v| v as f32);
-                    }
-                }
-            }
-        }
+        let (owner, bary) = cover(&landmarks, &triangles, width, height);
         let pixels: Vec<MaskPixel> = (0..width * height)
             .filter(|&i| owner[i] != u32::MAX)
             .map(|i| MaskPixel {
@@ -268,6 +244,50 @@ impl ReferenceFrame {
         }
         m
     }
+}
+
+/// Rasterises a mesh onto a `width × height` grid: per pixel, the first triangle that covers
+/// it (`u32::MAX` for none) and the pixel's barycentric coordinates in it.
+pub fn cover(
+    landmarks: &[Point],
+    triangles: &[Triangle],
+    width: usize,
+    height: usize,
+) -> (Vec<u32>, Vec<[f32; 3]>) {
+    let mut owner = vec![u32::MAX; width * height];
+    let mut bary = vec![[0f32; 3]; width * height];
+    if width == 0 || height == 0 {
+        return (owner, bary);
+    }
+    for (ti, t) in triangles.iter().enumerate() {
+        let [a, b, c] = t.map(|v| landmarks[v as usize]);
+        let Some(to_bary) = BarycentricMap::new(a, b, c) else {
+            continue;
+        };
+        let (lo_x, hi_x) = (a[0].min(b[0]).min(c[0]), a[0].max(b[0]).max(c[0]));
+        let (lo_y, hi_y) = (a[1].min(b[1]).min(c[1]), a[1].max(b[1]).max(c[1]));
+        if !(hi_x >= 0.0 && hi_y >= 0.0 && lo_x < width as f64 && lo_y < height as f64) {
+            continue;
+        }
+        let x0 = lo_x.floor().max(0.0) as usize;
+        let x1 = (hi_x.ceil() as usize).min(width - 1);
+        let y0 = lo_y.floor().max(0.0) as usize;
+        let y1 = (hi_y.ceil() as usize).min(height - 1);
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                let i = y * width + x;
+                if owner[i] != u32::MAX {
+                    continue;
+                }
+                let l = to_bary.at([x as f64, y as f64]);
+                if l.iter().all(|&v| v >= -1e-9) {
+                    owner[i] = ti as u32;
+                    bary[i] = l.map(|v| v as f32);
+                }
+            }
+        }
+    }
+    (owner, bary)
 }
 
 /// Maps a point to barycentric coordinates of a fixed triangle.

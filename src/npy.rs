@@ -69,6 +69,7 @@ macro_rules! element {
 element!(f32, "<f4");
 element!(f64, "<f8");
 element!(u8, "|u1");
+element!(u16, "<u2");
 element!(u32, "<u4");
 
 /// An n-dimensional array: its shape and its elements in C (row-major) order.

@@ -230,20 +230,42 @@ pub fn to_reference_into(
 /// A full `width × height × 3` reference image from a texture: mask pixels plus the padding
 /// rings, so bilinear samples at the mesh edge read defined values.
 pub fn texture_to_image(frame: &ReferenceFrame, texture: &[f32]) -> Result<Vec<f32>, WarpError> {
+    texture_to_image_with(frame, texture, None)
+}
+
+/// [`texture_to_image`] with an optional fourth channel (alpha, one value per mask pixel).
+fn texture_to_image_with(
+    frame: &ReferenceFrame,
+    texture: &[f32],
+    alpha: Option<&[f32]>,
+) -> Result<Vec<f32>, WarpError> {
     if texture.len() != frame.n_pixels() * 3 {
         return Err(WarpError::TextureLength {
             expected: frame.n_pixels() * 3,
             found: texture.len(),
         });
     }
-    let mut img = vec![0f32; frame.width * frame.height * 3];
-    for (p, t) in frame.pixels.iter().zip(texture.chunks_exact(3)) {
-        let i = (p.y as usize * frame.width + p.x as usize) * 3;
-        img[i..i + 3].copy_from_slice(t);
+    if let Some(a) = alpha
+        && a.len() != frame.n_pixels()
+    {
+        return Err(WarpError::TextureLength {
+            expected: frame.n_pixels(),
+            found: a.len(),
+        });
+    }
+    let c = if alpha.is_some() { 4 } else { 3 };
+    let put = |img: &mut [f32], dst: usize, src: usize| {
+        img[dst * c..dst * c + 3].copy_from_slice(&texture[src * 3..src * 3 + 3]);
+        if let Some(a) = alpha {
+            img[dst * c + 3] = a[src];
+        }
+    };
+    let mut img = vec![0f32; frame.width * frame.height * c];
+    for (i, p) in frame.pixels.iter().enumerate() {
+        put(&mut img, p.y as usize * frame.width + p.x as usize, i);
     }
     for &(dst, src) in &frame.padding {
-        let i = dst as usize * 3;
-        img[i..i + 3].copy_from_slice(&texture[src as usize * 3..src as usize * 3 + 3]);
+        put(&mut img, dst as usize, src as usize);
     }
     Ok(img)
 }
@@ -288,9 +310,35 @@ pub fn from_reference_into(
 ) -> Result<(), WarpError> {
     check_landmarks(frame, landmarks)?;
     let source = texture_to_image(frame, texture)?;
+    draw::<3>(frame, &source, landmarks, canvas);
+    Ok(())
+}
+
+/// [`from_reference_into`] blended by `alpha` (one value in [0, 1] per mask pixel, warped
+/// with the texture): `out = α·face + (1 − α)·canvas`, for a feathered edge over a background.
+pub fn from_reference_blend_into(
+    frame: &ReferenceFrame,
+    texture: &[f32],
+    alpha: &[f32],
+    landmarks: &[Point],
+    canvas: &mut RgbImage,
+) -> Result<(), WarpError> {
+    check_landmarks(frame, landmarks)?;
+    let source = texture_to_image_with(frame, texture, Some(alpha))?;
+    draw::<4>(frame, &source, landmarks, canvas);
+    Ok(())
+}
+
+/// The span-walking rasteriser behind both: `C` = 3 copies RGB, `C` = 4 blends by alpha.
+fn draw<const C: usize>(
+    frame: &ReferenceFrame,
+    source: &[f32],
+    landmarks: &[Point],
+    canvas: &mut RgbImage,
+) {
     let (w, h) = (canvas.width() as usize, canvas.height() as usize);
     if w == 0 || h == 0 {
-        return Ok(());
+        return;
     }
     /// A destination triangle: barycentric coordinates and source position are affine in
     /// the pixel position, `v(x, y) = v0 + vx·x + vy·y`, so each row is a span walked by
@@ -397,7 +445,7 @@ pub fn from_reference_into(
                         std::array::from_fn(|i| t.l0[i] + t.lx[i] * x0 as f64 + t.ly[i] * y as f64);
                     for px in row[x0 * 3..(x1 + 1) * 3].chunks_exact_mut(3) {
                         let v = if l.iter().all(|&v| v >= 0.0) {
-                            sample::<f32, 3>(&source, fw, fh, sx, sy, |v: f32| v)
+                            sample::<f32, C>(source, fw, fh, sx, sy, |v: f32| v)
                         } else {
                             // Dilated pixel beyond a hull edge: sample the nearest point of the
                             // triangle rather than extrapolate its map, which a sliver would
@@ -407,9 +455,16 @@ pub fn from_reference_into(
                             let at = |k: usize| {
                                 (c[0] * t.src[0][k] + c[1] * t.src[1][k] + c[2] * t.src[2][k]) / sum
                             };
-                            sample::<f32, 3>(&source, fw, fh, at(0), at(1), |v: f32| v)
+                            sample::<f32, C>(source, fw, fh, at(0), at(1), |v: f32| v)
                         };
-                        px.copy_from_slice(&v.map(to_u8));
+                        if C == 4 {
+                            let a = v[3].clamp(0.0, 1.0);
+                            for (p, f) in px.iter_mut().zip(v) {
+                                *p = to_u8(a * f + (1.0 - a) * f32::from(*p));
+                            }
+                        } else {
+                            px.copy_from_slice(&[v[0], v[1], v[2]].map(to_u8));
+                        }
                         sx += t.sx[0];
                         sy += t.sx[1];
                         l.iter_mut().zip(&t.lx).for_each(|(v, d)| *v += d);
@@ -417,5 +472,4 @@ pub fn from_reference_into(
                 }
             }
         });
-    Ok(())
 }

@@ -1,6 +1,7 @@
 //! Subcommands, progress bars and human-readable reports.
 
 mod codebook;
+mod codec;
 mod corpus;
 mod demo;
 mod model;
@@ -35,6 +36,12 @@ enum Command {
     Corpus(corpus::CorpusCommand),
     /// Track faces through a video or frame folder by AAM search.
     Track(track::TrackArgs),
+    /// Encode a video through face-space: track + project every frame → a clip folder.
+    Encode(codec::EncodeArgs),
+    /// Decode a clip folder: reconstruct and render every frame → a video.
+    Decode(codec::DecodeArgs),
+    /// PSNR / SSIM inside the face mask and bytes per frame of a clip against its input.
+    CodecReport(codec::ReportArgs),
     /// Synthesise a face-space trajectory and video from phonemes or text (top-N blending).
     Synth(synth::SynthArgs),
     /// Score synthesis against held-out sentences (r_pca, r_h, RMSE, DTW) with baselines.
@@ -49,6 +56,9 @@ pub fn run() -> anyhow::Result<()> {
         Command::Codebook(c) => codebook::run(c),
         Command::Corpus(c) => corpus::run(c),
         Command::Track(a) => track::run(a),
+        Command::Encode(a) => codec::encode(a),
+        Command::Decode(a) => codec::decode(a),
+        Command::CodecReport(a) => codec::report(a),
         Command::Synth(a) => synth::synth(a),
         Command::Eval(a) => synth::evaluate(a),
         Command::Demo(a) => demo::run(a),

@@ -1,0 +1,444 @@
+//! MP4 (H.264) without a system ffmpeg: OpenH264 (built from source by the `openh264` crate)
+//! for the codec, the pure-Rust `mp4` crate for the container. Reads any H.264 track OpenH264
+//! decodes (Baseline to High, B-frames included); writes Constrained Baseline 4:2:0 with an
+//! IDR frame every two seconds, and copies an AAC audio track through untouched.
+
+use std::collections::VecDeque;
+use std::fs::File;
+use std::io::{BufReader, BufWriter};
+use std::path::Path;
+
+use image::RgbImage;
+use openh264::decoder::{Decoder, DecoderConfig, Flush};
+use openh264::encoder::{
+    BitRate, Encoder, EncoderConfig, FrameRate, FrameType, IntraFramePeriod, QpRange,
+    RateControlMode,
+};
+use openh264::formats::{YUVSlices, YUVSource};
+
+use super::y4m::rgb_to_ycbcr;
+
+type Mp4File = mp4::Mp4Reader<BufReader<File>>;
+
+fn open(path: &Path) -> Result<Mp4File, String> {
+    let file = File::open(path).map_err(|e| e.to_string())?;
+    let size = file.metadata().map_err(|e| e.to_string())?.len();
+    mp4::Mp4Reader::read_header(BufReader::new(file), size)
+        .map_err(|e| format!("not a readable MP4 ({e})"))
+}
+
+fn track_of(file: &Mp4File, kind: mp4::MediaType) -> Option<u32> {
+    let mut ids: Vec<u32> = file
+        .tracks()
+        .iter()
+        .filter(|(_, t)| t.media_type().ok() == Some(kind))
+        .map(|(&id, _)| id)
+        .collect();
+    ids.sort();
+    ids.first().copied()
+}
+
+/// The H.264 track of an MP4 file, decoded frame by frame in presentation order.
+pub struct Reader {
+    file: Mp4File,
+    track: u32,
+    next_sample: u32,
+    samples: u32,
+    length_size: usize,
+    decoder: Decoder,
+    pending: VecDeque<RgbImage>,
+    flushed: bool,
+    pub fps: f64,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl Reader {
+    pub fn open(path: &Path) -> Result<Self, String> {
+        let file = open(path)?;
+        let track = track_of(&file, mp4::MediaType::H264).ok_or("no H.264 video track")?;
+        let t = &file.tracks()[&track];
+        let sps = t.sequence_parameter_set().map_err(|e| e.to_string())?;
+        let pps = t.picture_parameter_set().map_err(|e| e.to_string())?;
+        let length_size = t
+            .trak
+            .mdia
+            .minf
+            .stbl
+            .stsd
+            .avc1
+            .as_ref()
+            .map_or(4, |a| a.avcc.length_size_minus_one as usize + 1);
+        let samples = t.sample_count();
+        let duration = t.duration().as_secs_f64();
+        let fps = if duration > 0.0 {
+            samples as f64 / duration
+        } else {
+            t.frame_rate()
+        };
+        let (width, height) = (u32::from(t.width()), u32::from(t.height()));
+        let mut decoder = Decoder::with_api_config(
+            openh264::OpenH264API::from_source(),
+            DecoderConfig::new().flush_after_decode(Flush::NoFlush),
+        )
+        .map_err(|e| e.to_string())?;
+        let mut head = Vec::new();
+        for nal in [sps, pps] {
+            head.extend_from_slice(&[0, 0, 0, 1]);
+            head.extend_from_slice(nal);
+        }
+        decoder
+            .decode(&head)
+            .map_err(|e| format!("bad SPS/PPS: {e}"))?;
+        Ok(Reader {
+            file,
+            track,
+            next_sample: 1,
+            samples,
+            length_size,
+            decoder,
+            pending: VecDeque::new(),
+            flushed: false,
+            fps,
+            width,
+            height,
+        })
+    }
+
+    /// Frames in the track (one per sample).
+    pub fn frame_count(&self) -> usize {
+        self.samples as usize
+    }
+
+    /// The next frame, `None` after the last.
+    pub fn next_frame(&mut self) -> Result<Option<RgbImage>, String> {
+        while self.pending.is_empty() && self.next_sample <= self.samples {
+            let id = self.next_sample;
+            self.next_sample += 1;
+            let sample = self
+                .file
+                .read_sample(self.track, id)
+                .map_err(|e| format!("sample {id}: {e} (truncated file?)"))?
+                .ok_or_else(|| format!("sample {id} is missing"))?;
+            let annex_b = to_annex_b(&sample.bytes, self.length_size)
+                .ok_or_else(|| format!("sample {id}: malformed NAL lengths"))?;
+            let decoded = self
+                .decoder
+                .decode(&annex_b)
+                .map_err(|e| format!("sample {id}: {e}"))?;
+            if let Some(yuv) = decoded {
+                self.pending.push_back(to_rgb(&yuv));
+            }
+        }
+        if self.pending.is_empty() && !self.flushed {
+            self.flushed = true;
+            let rest = self.decoder.flush_remaining().map_err(|e| e.to_string())?;
+            self.pending.extend(rest.iter().map(to_rgb));
+        }
+        Ok(self.pending.pop_front())
+    }
+}
+
+fn to_rgb(yuv: &openh264::decoder::DecodedYUV<'_>) -> RgbImage {
+    let (w, h) = yuv.dimensions();
+    let mut rgb = vec![0u8; w * h * 3];
+    yuv.write_rgb8(&mut rgb);
+    RgbImage::from_raw(w as u32, h as u32, rgb).expect("buffer sized for the frame")
+}
+
+/// Length-prefixed NAL units (MP4) → start-code-prefixed (Annex B).
+fn to_annex_b(mut bytes: &[u8], length_size: usize) -> Option<Vec<u8>> {
+    let mut out = Vec::with_capacity(bytes.len() + 16);
+    while !bytes.is_empty() {
+        if bytes.len() < length_size {
+            return None;
+        }
+        let n = bytes[..length_size]
+            .iter()
+            .fold(0usize, |acc, &b| acc << 8 | b as usize);
+        let nal = bytes.get(length_size..length_size + n)?;
+        out.extend_from_slice(&[0, 0, 0, 1]);
+        out.extend_from_slice(nal);
+        bytes = &bytes[length_size + n..];
+    }
+    Some(out)
+}
+
+/// An AAC track lifted out of an MP4, to be muxed into another unchanged.
+pub struct AudioTrack {
+    config: mp4::AacConfig,
+    timescale: u32,
+    samples: Vec<mp4::Mp4Sample>,
+}
+
+impl AudioTrack {
+    /// The first AAC track of `path`, if it has one.
+    pub fn read(path: &Path) -> Result<Option<Self>, String> {
+        let mut file = open(path)?;
+        let Some(track) = track_of(&file, mp4::MediaType::AAC) else {
+            return Ok(None);
+        };
+        let t = &file.tracks()[&track];
+        let err = |e: mp4::Error| e.to_string();
+        let config = mp4::AacConfig {
+            bitrate: t.bitrate(),
+            profile: t.audio_profile().map_err(err)?,
+            freq_index: t.sample_freq_index().map_err(err)?,
+            chan_conf: t.channel_config().map_err(err)?,
+        };
+        let timescale = t.timescale();
+        let samples = (1..=t.sample_count())
+            .map(|id| {
+                file.read_sample(track, id)
+                    .map_err(err)?
+                    .ok_or_else(|| format!("audio sample {id} is missing"))
+            })
+            .collect::<Result<_, _>>()?;
+        Ok(Some(AudioTrack {
+            config,
+            timescale,
+            samples,
+        }))
+    }
+
+    /// The AAC packets, in order.
+    pub fn packets(&self) -> Vec<Vec<u8>> {
+        self.samples.iter().map(|s| s.bytes.to_vec()).collect()
+    }
+
+    fn add_to(&self, writer: &mut mp4::Mp4Writer<BufWriter<File>>, id: u32) -> mp4::Result<()> {
+        writer.add_track(&mp4::TrackConfig {
+            track_type: mp4::TrackType::Audio,
+            timescale: self.timescale,
+            language: "und".into(),
+            media_conf: mp4::MediaConfig::AacConfig(self.config.clone()),
+        })?;
+        for s in &self.samples {
+            writer.write_sample(id, s)?;
+        }
+        Ok(())
+    }
+
+    /// Writes the track alone as an `.m4a`-style MP4, atomically.
+    pub fn save(&self, path: &Path) -> Result<(), String> {
+        let (tmp, mut writer) = start(path, 1000)?;
+        self.add_to(&mut writer, 1).map_err(|e| e.to_string())?;
+        finish(tmp, writer, path)
+    }
+}
+
+fn start(
+    path: &Path,
+    timescale: u32,
+) -> Result<(tempfile::NamedTempFile, mp4::Mp4Writer<BufWriter<File>>), String> {
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    std::fs::create_dir_all(dir).map_err(|e| e.to_string())?;
+    let tmp = tempfile::Builder::new()
+        .prefix(".tmp-")
+        .tempfile_in(dir)
+        .map_err(|e| e.to_string())?;
+    let file = tmp.reopen().map_err(|e| e.to_string())?;
+    let config = mp4::Mp4Config {
+        major_brand: str::parse("isom").expect("four letters"),
+        minor_version: 512,
+        compatible_brands: ["isom", "iso2", "avc1", "mp41"]
+            .map(|b| str::parse(b).expect("four letters"))
+            .to_vec(),
+        timescale,
+    };
+    let writer =
+        mp4::Mp4Writer::write_start(BufWriter::new(file), &config).map_err(|e| e.to_string())?;
+    Ok((tmp, writer))
+}
+
+fn finish(
+    tmp: tempfile::NamedTempFile,
+    mut writer: mp4::Mp4Writer<BufWriter<File>>,
+    path: &Path,
+) -> Result<(), String> {
+    writer.write_end().map_err(|e| e.to_string())?;
+    let file = writer
+        .into_writer()
+        .into_inner()
+        .map_err(|e| e.error().to_string())?;
+    file.sync_all().map_err(|e| e.to_string())?;
+    #[cfg(unix)]
+    tmp.as_file()
+        .set_permissions(std::os::unix::fs::PermissionsExt::from_mode(0o644))
+        .map_err(|e| e.to_string())?;
+    tmp.persist(path).map_err(|e| e.error.to_string())?;
+    Ok(())
+}
+
+/// Encodes frames to an H.264 MP4, written beside its destination and renamed into place on
+/// [`Writer::finish`] (dropped unfinished, it leaves nothing behind).
+pub struct Writer {
+    tmp: tempfile::NamedTempFile,
+    writer: mp4::Mp4Writer<BufWriter<File>>,
+    encoder: Encoder,
+    yuv: Vec<u8>,
+    width: u32,
+    height: u32,
+    /// Ticks per second of the video track: fps × 1000, so that a frame lasts 1000 ticks.
+    timescale: u32,
+    tick: u32,
+    frames: u64,
+    has_track: bool,
+}
+
+impl Writer {
+    /// `width` and `height` must be even (4:2:0).
+    pub fn create(path: &Path, width: u32, height: u32, fps: f64) -> Result<Self, String> {
+        if width == 0 || height == 0 || width % 2 == 1 || height % 2 == 1 {
+            return Err(format!(
+                "H.264 4:2:0 needs even, non-zero width and height; got {width}×{height}"
+            ));
+        }
+        if !(fps.is_finite() && fps > 0.0 && fps <= 1000.0) {
+            return Err(format!("frame rate {fps} is out of range"));
+        }
+        let timescale = (fps * 1000.0).round() as u32;
+        // About 0.25 bit per pixel: visually clean for faces; the codec report measures it.
+        let bits = (f64::from(width * height) * fps * 0.25) as u32;
+        let config = EncoderConfig::new()
+            .bitrate(BitRate::from_bps(bits.max(100_000)))
+            .max_frame_rate(FrameRate::from_hz(fps as f32))
+            .rate_control_mode(RateControlMode::Off)
+            .qp(QpRange::new(12, 36))
+            .skip_frames(false)
+            .intra_frame_period(IntraFramePeriod::from_num_frames((2.0 * fps).round() as u32));
+        let encoder = Encoder::with_api_config(openh264::OpenH264API::from_source(), config)
+            .map_err(|e| e.to_string())?;
+        let (tmp, writer) = start(path, timescale)?;
+        Ok(Writer {
+            tmp,
+            writer,
+            encoder,
+            yuv: Vec::new(),
+            width,
+            height,
+            timescale,
+            tick: 1000,
+            frames: 0,
+            has_track: false,
+        })
+    }
+
+    pub fn write(&mut self, frame: &RgbImage) -> Result<(), String> {
+        if frame.dimensions() != (self.width, self.height) {
+            return Err(format!(
+                "frame {} is {}×{}, the video {}×{}",
+                self.frames,
+                frame.width(),
+                frame.height(),
+                self.width,
+                self.height
+            ));
+        }
+        let (w, h) = (self.width as usize, self.height as usize);
+        rgb_to_yuv420(frame, &mut self.yuv);
+        let (luma, chroma) = self.yuv.split_at(w * h);
+        let (cb, cr) = chroma.split_at(w * h / 4);
+        let source = YUVSlices::new((luma, cb, cr), (w, h), (w, w / 2, w / 2));
+        let encoded = self.encoder.encode(&source).map_err(|e| e.to_string())?;
+        let is_sync = matches!(encoded.frame_type(), FrameType::IDR);
+        let mut sample = Vec::new();
+        let (mut sps, mut pps) = (None, None);
+        for l in 0..encoded.num_layers() {
+            let layer = encoded.layer(l).expect("layer index in range");
+            for n in 0..layer.nal_count() {
+                let nal = strip_start_code(layer.nal_unit(n).expect("nal index in range"));
+                match nal.first().map(|b| b & 0x1f) {
+                    Some(7) => sps = Some(nal.to_vec()),
+                    Some(8) => pps = Some(nal.to_vec()),
+                    Some(_) => {
+                        sample.extend_from_slice(&(nal.len() as u32).to_be_bytes());
+                        sample.extend_from_slice(nal);
+                    }
+                    None => {}
+                }
+            }
+        }
+        if !self.has_track {
+            let (Some(sps), Some(pps)) = (sps, pps) else {
+                return Err("the encoder gave no SPS/PPS with its first frame".into());
+            };
+            self.writer
+                .add_track(&mp4::TrackConfig {
+                    track_type: mp4::TrackType::Video,
+                    timescale: self.timescale,
+                    language: "und".into(),
+                    media_conf: mp4::MediaConfig::AvcConfig(mp4::AvcConfig {
+                        width: self.width as u16,
+                        height: self.height as u16,
+                        seq_param_set: sps,
+                        pic_param_set: pps,
+                    }),
+                })
+                .map_err(|e| e.to_string())?;
+            self.has_track = true;
+        }
+        let sample = mp4::Mp4Sample {
+            start_time: self.frames * u64::from(self.tick),
+            duration: self.tick,
+            rendering_offset: 0,
+            is_sync,
+            bytes: sample.into(),
+        };
+        self.writer
+            .write_sample(1, &sample)
+            .map_err(|e| e.to_string())?;
+        self.frames += 1;
+        Ok(())
+    }
+
+    /// Closes the file (muxing `audio` beside the video) and renames it into place.
+    pub fn finish(mut self, path: &Path, audio: Option<&AudioTrack>) -> Result<u64, String> {
+        if self.frames == 0 {
+            return Err("no frames to write".into());
+        }
+        if let Some(a) = audio {
+            a.add_to(&mut self.writer, 2).map_err(|e| e.to_string())?;
+        }
+        finish(self.tmp, self.writer, path)?;
+        Ok(self.frames)
+    }
+}
+
+fn strip_start_code(nal: &[u8]) -> &[u8] {
+    nal.strip_prefix(&[0, 0, 0, 1])
+        .or_else(|| nal.strip_prefix(&[0, 0, 1]))
+        .unwrap_or(nal)
+}
+
+/// RGB → planar Y'CbCr 4:2:0 (BT.601 studio range, chroma averaged over 2×2 blocks, rounded).
+fn rgb_to_yuv420(frame: &RgbImage, out: &mut Vec<u8>) {
+    let (w, h) = (frame.width() as usize, frame.height() as usize);
+    let (cw, ch) = (w / 2, h / 2);
+    out.clear();
+    out.resize(w * h + 2 * cw * ch, 0);
+    let (luma, chroma) = out.split_at_mut(w * h);
+    let (cb, cr) = chroma.split_at_mut(cw * ch);
+    let mut sums = vec![[0u16; 2]; cw];
+    for y in 0..h {
+        if y % 2 == 0 {
+            sums.iter_mut().for_each(|s| *s = [0, 0]);
+        }
+        for x in 0..w {
+            let [l, u, v] = rgb_to_ycbcr(frame.get_pixel(x as u32, y as u32).0);
+            luma[y * w + x] = l;
+            let s = &mut sums[x / 2];
+            s[0] += u16::from(u);
+            s[1] += u16::from(v);
+        }
+        if y % 2 == 1 {
+            for (c, s) in sums.iter().enumerate() {
+                cb[(y / 2) * cw + c] = ((s[0] + 2) / 4) as u8;
+                cr[(y / 2) * cw + c] = ((s[1] + 2) / 4) as u8;
+            }
+        }
+    }
+}

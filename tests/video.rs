@@ -1,0 +1,196 @@
+//! Frame sources and sinks: MP4 (H.264) read and written without a system ffmpeg, Y4M, frame
+//! folders; audio carried through; bad input.
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use facespace::video::{self, Sink, Source, VideoError};
+use image::{Rgb, RgbImage};
+
+fn sample() -> PathBuf {
+    common::root().join("tests/data/video/high_bframes_aac.mp4")
+}
+
+/// A moving, textured test pattern.
+fn pattern(i: u32, w: u32, h: u32) -> RgbImage {
+    RgbImage::from_fn(w, h, |x, y| {
+        let (fx, fy) = (x as f32 + 2.0 * i as f32, y as f32);
+        Rgb([
+            (128.0 + 100.0 * (fx / 9.0).sin()) as u8,
+            (128.0 + 100.0 * (fy / 7.0).cos()) as u8,
+            ((x + y + 3 * i) % 256) as u8,
+        ])
+    })
+}
+
+fn psnr(a: &RgbImage, b: &RgbImage) -> f64 {
+    let mask = vec![true; (a.width() * a.height()) as usize];
+    facespace::eval::psnr_masked(a, b, &mask)
+}
+
+fn write(path: &Path, frames: &[RgbImage], fps: f64, audio: Option<&Path>) -> usize {
+    let mut sink = Sink::create(path, frames[0].width(), frames[0].height(), fps, audio).unwrap();
+    for f in frames {
+        sink.write(f).unwrap();
+    }
+    sink.finish().unwrap()
+}
+
+fn leftovers(dir: &Path) -> Vec<String> {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect()
+}
+
+#[test]
+fn reads_high_profile_with_b_frames_like_ffmpeg() {
+    let mut source = Source::open(&sample()).unwrap();
+    let info = source.info();
+    assert_eq!((info.width, info.height, info.frames), (360, 288, Some(24)));
+    assert!((info.fps - 24.0).abs() < 1e-6, "{}", info.fps);
+    let frames: Vec<RgbImage> = source.by_ref().map(|f| f.unwrap()).collect();
+    assert_eq!(frames.len(), 24);
+    // Presentation order and pixels agree with ffmpeg's decode (colour conversion and chroma
+    // upsampling differ slightly).
+    let reference = image::open(common::root().join("tests/data/video/frame10_ffmpeg.png"))
+        .unwrap()
+        .to_rgb8();
+    let scores: Vec<f64> = frames.iter().map(|f| psnr(f, &reference)).collect();
+    let best = (0..24)
+        .max_by(|&a, &b| scores[a].total_cmp(&scores[b]))
+        .unwrap();
+    assert_eq!(best, 10, "{scores:?}");
+    assert!(scores[10] > 35.0, "{}", scores[10]);
+}
+
+#[test]
+fn mp4_round_trip_keeps_count_rate_and_pixels() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("out.mp4");
+    let frames: Vec<RgbImage> = (0..30).map(|i| pattern(i, 96, 64)).collect();
+    assert_eq!(write(&path, &frames, 24.0, None), 30);
+    let back: Vec<RgbImage> = Source::open(&path).unwrap().map(|f| f.unwrap()).collect();
+    assert_eq!(back.len(), 30);
+    assert!((Source::open(&path).unwrap().info().fps - 24.0).abs() < 1e-6);
+    for (a, b) in back.iter().zip(&frames) {
+        let p = psnr(a, b);
+        assert!(p > 33.0, "PSNR {p}");
+    }
+    assert_eq!(leftovers(dir.path()), ["out.mp4"]);
+    // A standard decoder agrees, where one is installed.
+    if let Some(ffprobe) = video::system_ffmpeg().map(|f| f.with_file_name("ffprobe"))
+        && ffprobe.is_file()
+    {
+        let out = std::process::Command::new(ffprobe)
+            .args(["-v", "error", "-count_frames", "-select_streams", "v:0"])
+            .args([
+                "-show_entries",
+                "stream=nb_read_frames,r_frame_rate,width,height",
+            ])
+            .args(["-of", "csv=p=0"])
+            .arg(&path)
+            .output()
+            .unwrap();
+        assert_eq!(String::from_utf8_lossy(&out.stdout).trim(), "96,64,24/1,30");
+    }
+}
+
+#[test]
+fn audio_is_carried_from_mp4_to_mp4() {
+    let dir = tempfile::tempdir().unwrap();
+    let m4a = dir.path().join("audio.m4a");
+    assert!(video::extract_audio(&sample(), &m4a).unwrap());
+    let out = dir.path().join("with_sound.mp4");
+    let frames: Vec<RgbImage> = (0..24).map(|i| pattern(i, 64, 48)).collect();
+    write(&out, &frames, 24.0, Some(&m4a));
+    let back = dir.path().join("back.m4a");
+    assert!(video::extract_audio(&out, &back).unwrap());
+    // The same AAC packets, byte for byte, in all three files' audio tracks.
+    let packets = |p: &Path| video::mp4::AudioTrack::read(p).unwrap().unwrap().packets();
+    assert_eq!(packets(&sample()), packets(&back));
+    assert!(!packets(&sample()).is_empty());
+    // A video without sound has none to extract.
+    let silent = dir.path().join("silent.mp4");
+    write(&silent, &frames, 24.0, None);
+    assert!(!video::extract_audio(&silent, &dir.path().join("none.m4a")).unwrap());
+}
+
+#[test]
+fn y4m_and_frame_folders_round_trip() {
+    let dir = tempfile::tempdir().unwrap();
+    let frames: Vec<RgbImage> = (0..5).map(|i| pattern(i, 33, 17)).collect();
+    for name in ["clip.y4m", "frames"] {
+        let path = dir.path().join(name);
+        write(&path, &frames, 30.0, None);
+        let back: Vec<RgbImage> = Source::open(&path).unwrap().map(|f| f.unwrap()).collect();
+        assert_eq!(back.len(), 5);
+        for (a, b) in back.iter().zip(&frames) {
+            assert!(psnr(a, b) > 45.0, "{name}");
+        }
+    }
+    // A frame folder is replaced only by another frame folder.
+    std::fs::write(
+        dir.path()
+            .join("notes/keep.txt")
+            .parent()
+            .map(|p| {
+                std::fs::create_dir_all(p).unwrap();
+                p.join("keep.txt")
+            })
+            .unwrap(),
+        "mine",
+    )
+    .unwrap();
+    let mut sink = Sink::create(&dir.path().join("notes"), 33, 17, 30.0, None).unwrap();
+    sink.write(&frames[0]).unwrap();
+    assert!(sink.finish().is_err());
+    assert!(dir.path().join("notes/keep.txt").is_file());
+}
+
+#[test]
+fn bad_input_is_a_clear_error_and_leaves_nothing_behind() {
+    let dir = tempfile::tempdir().unwrap();
+    // Truncated MP4.
+    let bytes = std::fs::read(sample()).unwrap();
+    let cut = dir.path().join("cut.mp4");
+    std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
+    let err = match Source::open(&cut) {
+        Err(e) => e.to_string(),
+        Ok(s) => s
+            .map(|f| f.map(|_| ()))
+            .collect::<Result<Vec<_>, _>>()
+            .unwrap_err()
+            .to_string(),
+    };
+    assert!(err.contains("cut.mp4"), "{err}");
+    // Not a video at all.
+    let junk = dir.path().join("junk.mp4");
+    std::fs::write(&junk, b"hello").unwrap();
+    assert!(matches!(
+        Source::open(&junk),
+        Err(VideoError::Decode { .. })
+    ));
+    // Odd dimensions cannot be H.264 4:2:0.
+    let odd = Sink::create(&dir.path().join("odd.mp4"), 361, 288, 25.0, None);
+    assert!(odd.err().unwrap().to_string().contains("even"));
+    // Zero frames: an error, and no file.
+    let sink = Sink::create(&dir.path().join("empty.mp4"), 64, 48, 25.0, None).unwrap();
+    assert!(matches!(sink.finish(), Err(VideoError::NoFrames(_))));
+    // A frame of the wrong size, then the sink dropped: no file.
+    let mut sink = Sink::create(&dir.path().join("mixed.y4m"), 64, 48, 25.0, None).unwrap();
+    sink.write(&pattern(0, 64, 48)).unwrap();
+    assert!(matches!(
+        sink.write(&pattern(0, 32, 48)),
+        Err(VideoError::FrameSize { .. })
+    ));
+    drop(sink);
+    let mut left = leftovers(dir.path());
+    left.sort();
+    assert_eq!(left, ["cut.mp4", "junk.mp4"]);
+    // Missing input and an empty folder.
+    assert!(Source::open(&dir.path().join("nope.mp4")).is_err());
+    let empty = dir.path().join("no_frames");
+    std::fs::create_dir(&empty).unwrap();
+    assert!(matches!(Source::open(&empty), Err(VideoError::NoFrames(_))));
+}
