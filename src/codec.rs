@@ -445,7 +445,7 @@ pub enum Background {
     /// A flat grey canvas of the clip's size.
     Plain,
     /// The frames of a video (normally the original), face blended with a feathered edge.
-    Frames(Source, Compositor),
+    Frames(Box<Source>, Compositor),
 }
 
 /// Renders every frame of `clip` into `sink`: frames are rendered in parallel batches and

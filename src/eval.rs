@@ -158,31 +158,6 @@ pub fn score(model: &FaceModel, layout: &Layout, synth: &[f64], real: &[f64]) ->
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn pearson_known_values() {
-        assert!((pearson(&[1.0, 2.0, 3.0], &[2.0, 4.0, 6.0]) - 1.0).abs() < 1e-12);
-        assert!((pearson(&[1.0, 2.0, 3.0], &[3.0, 2.0, 1.0]) + 1.0).abs() < 1e-12);
-        // Hand-computed: x = (1,2,3,4), y = (1,3,2,4): r = 0.8.
-        assert!((pearson(&[1.0, 2.0, 3.0, 4.0], &[1.0, 3.0, 2.0, 4.0]) - 0.8).abs() < 1e-12);
-        assert_eq!(pearson(&[1.0, 1.0], &[1.0, 2.0]), 0.0);
-    }
-
-    #[test]
-    fn dtw_aligns_a_stretched_copy_at_zero_cost() {
-        let a = [0.0, 1.0, 2.0, 3.0];
-        let b = [0.0, 0.0, 1.0, 1.0, 2.0, 3.0, 3.0];
-        assert_eq!(dtw(&a, &b, 1), 0.0);
-        // Shifted by one: the best path pairs a[i+1] with c[i], paying 1 only at both ends:
-        // (0,0) 1, (1,0) 0, (2,1) 0, (3,2) 0, (3,3) 1 → 2 over 5 steps.
-        let c: Vec<f64> = a.iter().map(|v| v + 1.0).collect();
-        assert!((dtw(&a, &c, 1) - 0.4).abs() < 1e-12, "{}", dtw(&a, &c, 1));
-    }
-}
-
 /// PSNR (dB, peak 255) over the RGB values of the pixels where `mask` is set (DESIGN §9:
 /// video through face-space). Identical pixels give +∞.
 pub fn psnr_masked(a: &RgbImage, b: &RgbImage, mask: &[bool]) -> f64 {
@@ -286,4 +261,29 @@ pub fn face_mask(model: &FaceModel, landmarks: &[Point], width: u32, height: u32
         height as usize,
     );
     owner.into_iter().map(|o| o != u32::MAX).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pearson_known_values() {
+        assert!((pearson(&[1.0, 2.0, 3.0], &[2.0, 4.0, 6.0]) - 1.0).abs() < 1e-12);
+        assert!((pearson(&[1.0, 2.0, 3.0], &[3.0, 2.0, 1.0]) + 1.0).abs() < 1e-12);
+        // Hand-computed: x = (1,2,3,4), y = (1,3,2,4): r = 0.8.
+        assert!((pearson(&[1.0, 2.0, 3.0, 4.0], &[1.0, 3.0, 2.0, 4.0]) - 0.8).abs() < 1e-12);
+        assert_eq!(pearson(&[1.0, 1.0], &[1.0, 2.0]), 0.0);
+    }
+
+    #[test]
+    fn dtw_aligns_a_stretched_copy_at_zero_cost() {
+        let a = [0.0, 1.0, 2.0, 3.0];
+        let b = [0.0, 0.0, 1.0, 1.0, 2.0, 3.0, 3.0];
+        assert_eq!(dtw(&a, &b, 1), 0.0);
+        // Shifted by one: the best path pairs a[i+1] with c[i], paying 1 only at both ends:
+        // (0,0) 1, (1,0) 0, (2,1) 0, (3,2) 0, (3,3) 1 → 2 over 5 steps.
+        let c: Vec<f64> = a.iter().map(|v| v + 1.0).collect();
+        assert!((dtw(&a, &c, 1) - 0.4).abs() < 1e-12, "{}", dtw(&a, &c, 1));
+    }
 }

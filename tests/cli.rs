@@ -92,7 +92,7 @@ fn errors_are_reported_not_panicked() {
     assert!(text(&o).contains("variance fraction 1.5"), "{}", text(&o));
 }
 
-/// `facespace demo` writes everything it promises; the Y4M has one frame per synthesised frame.
+/// `facespace demo` writes everything it promises; the MP4 has one frame per synthesised frame.
 #[test]
 fn demo_writes_its_outputs() {
     let tmp = tempfile::tempdir().unwrap();
@@ -101,9 +101,9 @@ fn demo_writes_its_outputs() {
     let t = text(&o);
     assert!(t.contains("not recorded") && t.contains("done in"), "{t}");
     for f in [
-        "smoothed/video.y4m",
-        "unsmoothed/video.y4m",
-        "side_by_side.y4m",
+        "smoothed/video.mp4",
+        "unsmoothed/video.mp4",
+        "side_by_side.mp4",
         "key.json",
         "plot.png",
         "codebook/codebook.json",
@@ -111,14 +111,15 @@ fn demo_writes_its_outputs() {
     ] {
         assert!(Path::new(&tmp.path().join(f)).is_file(), "missing {f}");
     }
-    let y4m = std::fs::read(tmp.path().join("smoothed/video.y4m")).unwrap();
-    let frames = y4m.windows(6).filter(|w| w == b"FRAME\n").count();
+    let frames = facespace::video::Source::open(&tmp.path().join("smoothed/video.mp4"))
+        .unwrap()
+        .count();
     let pngs = std::fs::read_dir(tmp.path().join("smoothed/frames"))
         .unwrap()
         .count();
     assert!(
         frames > 25 && frames == pngs,
-        "{frames} Y4M frames, {pngs} PNGs"
+        "{frames} MP4 frames, {pngs} PNGs"
     );
     // A corpus sentence is refused: the demo shows unseen text.
     let o = facespace(&[
@@ -176,6 +177,7 @@ fn corpus_then_codebook() {
         corpus.join("heldout/demo60.lab"),
         corpus.join("heldout/demo60.npy"),
     );
+    let sound = common::root().join("tests/data/video/high_bframes_aac.mp4");
     let o = facespace(&[
         "synth",
         "--model",
@@ -188,13 +190,23 @@ fn corpus_then_codebook() {
         "ab",
         "--real",
         real.to_str().unwrap(),
+        "--audio",
+        sound.to_str().unwrap(),
         "-o",
         syn.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", text(&o));
+    // The sound (AAC in an MP4, muxed without ffmpeg) rides along in every video.
+    for v in ["side_by_side.mp4", "smoothed/video.mp4"] {
+        let track = facespace::video::mp4::AudioTrack::read(&syn.join(v)).unwrap();
+        assert!(
+            track.is_some_and(|t| !t.packets().is_empty()),
+            "{v} has no sound"
+        );
+    }
     for f in [
         "key.json",
-        "side_by_side.y4m",
+        "side_by_side.mp4",
         "plot.png",
         "report.json",
         "smoothed/trajectory.npy",

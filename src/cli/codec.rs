@@ -157,7 +157,10 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
     let clip = Clip::load(&a.clip, &model)
         .with_context(|| format!("loading clip {}", a.clip.display()))?;
     let background = match &a.background {
-        Some(p) => Background::Frames(Source::open(p)?, Compositor::new(&model, a.feather)),
+        Some(p) => Background::Frames(
+            Box::new(Source::open(p)?),
+            Compositor::new(&model, a.feather),
+        ),
         None => Background::Plain,
     };
     let audio = clip.audio_path(&a.clip).filter(|_| !a.no_audio);

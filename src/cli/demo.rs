@@ -3,7 +3,7 @@
 //! is not in the corpus, and write smoothed and unsmoothed videos, a blind side-by-side and a
 //! trajectory plot to out/demo.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
@@ -95,6 +95,7 @@ pub fn run(a: DemoArgs) -> Result<()> {
         target: &target,
         fps: 25.0,
         seed: 1,
+        audio: None,
     };
     let key = write_ab(&a.output, &model, &layout, &ab, background)?;
     phonemes::write_labels(&a.output.join("utterance.lab"), &target)?;
@@ -107,12 +108,12 @@ pub fn run(a: DemoArgs) -> Result<()> {
     let o = &a.output;
     println!("wrote to {}:", o.display());
     for (what, path) in [
-        ("smoothed video", o.join("smoothed/video.y4m")),
+        ("smoothed video", o.join("smoothed/video.mp4")),
         ("smoothed frames", o.join("smoothed/frames")),
-        ("unsmoothed video", o.join("unsmoothed/video.y4m")),
+        ("unsmoothed video", o.join("unsmoothed/video.mp4")),
         (
             "blind side by side (order in key.json)",
-            o.join("side_by_side.y4m"),
+            o.join("side_by_side.mp4"),
         ),
         ("trajectory plot", o.join("plot.png")),
         ("phone timings", o.join("utterance.lab")),
@@ -120,37 +121,6 @@ pub fn run(a: DemoArgs) -> Result<()> {
     ] {
         println!("  {what:<38} {}", path.display());
     }
-    for video in ["smoothed/video", "unsmoothed/video", "side_by_side"] {
-        if let Some(mp4) = to_mp4(&o.join(format!("{video}.y4m")))? {
-            println!("  {:<38} {}", "MP4 (system ffmpeg)", mp4.display());
-        }
-    }
-    if facespace::video::system_ffmpeg().is_none() {
-        println!(
-            "  (no ffmpeg on PATH: videos are Y4M, e.g. `ffplay {}`; MP4 arrives with the video issue)",
-            o.join("side_by_side.y4m").display()
-        );
-    }
     println!("done in {:.1} s", start.elapsed().as_secs_f64());
     Ok(())
-}
-
-/// Converts a Y4M file to H.264 MP4 with a system ffmpeg, when one is installed.
-fn to_mp4(y4m: &Path) -> Result<Option<PathBuf>> {
-    let Some(ffmpeg) = facespace::video::system_ffmpeg() else {
-        return Ok(None);
-    };
-    let mp4 = y4m.with_extension("mp4");
-    let status = std::process::Command::new(ffmpeg)
-        .args(["-y", "-loglevel", "error", "-i"])
-        .arg(y4m)
-        .args([
-            "-pix_fmt",
-            "yuv420p",
-            "-vf",
-            "pad=ceil(iw/2)*2:ceil(ih/2)*2",
-        ])
-        .arg(&mp4)
-        .status()?;
-    Ok(status.success().then_some(mp4))
 }

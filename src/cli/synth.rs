@@ -65,7 +65,8 @@ pub struct SynthArgs {
     /// Seed of the blind A/B order.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// An audio track to mux (needs the video issue's MP4 writer; refused for now).
+    /// Sound to mux into the MP4s: an MP4/M4A with AAC as is, or (with a system ffmpeg) any
+    /// audio file, e.g. WAV.
     #[arg(long)]
     pub audio: Option<PathBuf>,
     #[arg(short, long)]
@@ -105,7 +106,29 @@ pub fn smoothed(s: &Synthesis, lambda: f64) -> Result<Vec<f64>> {
     Ok(frames)
 }
 
-/// Writes one variant: trajectory.npy, landmarks.npy, frames/, video.y4m. Returns the frames.
+/// Writes `dir/stem.mp4` (H.264, with `audio` muxed), or `stem.y4m` when a frame side is odd.
+pub fn write_video(
+    dir: &Path,
+    stem: &str,
+    frames: &[RgbImage],
+    fps: f64,
+    audio: Option<&Path>,
+) -> Result<PathBuf> {
+    let (w, h) = frames.first().map_or((0, 0), |f| f.dimensions());
+    let path = dir.join(if w % 2 == 0 && h % 2 == 0 {
+        format!("{stem}.mp4")
+    } else {
+        format!("{stem}.y4m")
+    });
+    let mut sink = video::Sink::create(&path, w, h, fps, audio)?;
+    for f in frames {
+        sink.write(f)?;
+    }
+    sink.finish()?;
+    Ok(path)
+}
+
+/// Writes one variant: trajectory.npy, landmarks.npy, frames/, video.mp4. Returns the frames.
 pub fn write_variant(
     dir: &Path,
     model: &FaceModel,
@@ -113,6 +136,7 @@ pub fn write_variant(
     frames: &[f64],
     fps: f64,
     background: &RgbImage,
+    audio: Option<&Path>,
 ) -> Result<Vec<RgbImage>> {
     let dims = layout.dims();
     let n = frames.len() / dims;
@@ -131,7 +155,7 @@ pub fn write_variant(
     )?;
     let images = CpuRenderer.render(model, frames, background)?;
     video::write_png_frames(&dir.join("frames"), &images)?;
-    video::write_y4m(&dir.join("video.y4m"), &images, fps)?;
+    write_video(dir, "video", &images, fps, audio)?;
     Ok(images)
 }
 
@@ -191,9 +215,11 @@ pub struct Ab<'a> {
     pub fps: f64,
     /// Seed of the blind order.
     pub seed: u64,
+    /// Sound muxed into every MP4.
+    pub audio: Option<&'a Path>,
 }
 
-/// Writes both variants (`smoothed/`, `unsmoothed/`), a blind `side_by_side.y4m` whose order
+/// Writes both variants (`smoothed/`, `unsmoothed/`), a blind `side_by_side.mp4` whose order
 /// a seeded coin decides, its `key.json`, and `plot.png` of both (and of the real
 /// trajectory). Returns the key.
 pub fn write_ab(
@@ -210,6 +236,7 @@ pub fn write_ab(
         ab.smoothed,
         ab.fps,
         background,
+        ab.audio,
     )?;
     let un = write_variant(
         &dir.join("unsmoothed"),
@@ -218,6 +245,7 @@ pub fn write_ab(
         ab.unsmoothed,
         ab.fps,
         background,
+        ab.audio,
     )?;
     let smoothed_left = Rng::new(ab.seed).uniform() < 0.5;
     let (l, r) = if smoothed_left {
@@ -225,10 +253,12 @@ pub fn write_ab(
     } else {
         (&un, &sm)
     };
-    video::write_y4m(
-        &dir.join("side_by_side.y4m"),
+    write_video(
+        dir,
+        "side_by_side",
         &video::side_by_side(l, r),
         ab.fps,
+        ab.audio,
     )?;
     let (left, right) = if smoothed_left {
         ("smoothed", "unsmoothed")
@@ -272,9 +302,6 @@ pub fn target_segments(
 }
 
 pub fn synth(a: SynthArgs) -> Result<()> {
-    if a.audio.is_some() {
-        bail!("--audio: muxing audio needs the MP4 writer of the video issue, not yet available");
-    }
     let (model, cb) = load_pair(&a.model, &a.codebook)?;
     let target = target_segments(
         &cb,
@@ -320,7 +347,15 @@ pub fn synth(a: SynthArgs) -> Result<()> {
             } else {
                 &s.frames
             };
-            write_variant(&a.output, &model, &layout, frames, a.fps, &background)?;
+            write_variant(
+                &a.output,
+                &model,
+                &layout,
+                frames,
+                a.fps,
+                &background,
+                a.audio.as_deref(),
+            )?;
             let mut series = vec![(
                 if a.smooth == Smooth::On {
                     "smoothed"
@@ -345,6 +380,7 @@ pub fn synth(a: SynthArgs) -> Result<()> {
                 target: &target,
                 fps: a.fps,
                 seed: a.seed,
+                audio: a.audio.as_deref(),
             };
             report["ab_key"] = write_ab(&a.output, &model, &layout, &ab, &background)?;
         }

@@ -70,9 +70,10 @@ impl Reader {
             .as_ref()
             .map_or(4, |a| a.avcc.length_size_minus_one as usize + 1);
         let samples = t.sample_count();
-        let duration = t.duration().as_secs_f64();
-        let fps = if duration > 0.0 {
-            samples as f64 / duration
+        // From the media header's own ticks (`Mp4Track::duration` rounds to milliseconds).
+        let mdhd = &t.trak.mdia.mdhd;
+        let fps = if mdhd.duration > 0 {
+            samples as f64 * f64::from(mdhd.timescale) / mdhd.duration as f64
         } else {
             t.frame_rate()
         };
