@@ -448,69 +448,93 @@ pub enum Background {
     Frames(Box<Source>, Compositor),
 }
 
-/// Renders every frame of `clip` into `sink`: frames are rendered in parallel batches and
-/// written in order.
+/// Renders every frame of `clip` into `sink`: a second thread renders batches of frames in
+/// parallel while this one hands the previous batch to the sink (whose video encoder is
+/// sequential).
 pub fn decode(
     model: &FaceModel,
     clip: &Clip,
-    mut background: Background,
+    background: Background,
     sink: &mut Sink,
     mut progress: impl FnMut(Progress),
 ) -> Result<(), CodecError> {
-    let (w, h) = (clip.meta.width, clip.meta.height);
-    let plain = RgbImage::from_pixel(w, h, Rgb([96, 96, 96]));
     let n = clip.meta.frames;
-    let mut done = 0;
-    while done < n {
-        let count = BATCH.min(n - done);
-        let canvases: Vec<RgbImage> = match &mut background {
-            Background::Plain => vec![plain.clone(); count],
-            Background::Frames(source, _) => (0..count)
-                .map(|_| {
-                    source
-                        .next_frame()?
-                        .ok_or_else(|| CodecError::NoFrames(source.path().into()))
-                })
-                .collect::<Result<_, _>>()?,
-        };
-        if let Some(c) = canvases.first()
-            && c.dimensions() != (w, h)
-        {
-            return Err(CodecError::Invalid {
-                path: match &background {
-                    Background::Frames(s, _) => s.path().into(),
-                    Background::Plain => PathBuf::new(),
-                },
-                message: format!("background is {:?}, the clip {w}×{h}", c.dimensions()),
+    std::thread::scope(|scope| {
+        let (tx, rx) = mpsc::sync_channel::<Result<Vec<RgbImage>, CodecError>>(1);
+        scope.spawn(move || {
+            let mut background = background;
+            let mut done = 0;
+            while done < n {
+                let batch = render_batch(model, clip, &mut background, done);
+                let failed = batch.is_err();
+                done += batch.as_ref().map_or(0, Vec::len);
+                if tx.send(batch).is_err() || failed {
+                    break;
+                }
+            }
+        });
+        let mut done = 0;
+        for batch in rx {
+            for f in &batch? {
+                sink.write(f)?;
+            }
+            done += BATCH.min(n - done);
+            progress(Progress {
+                stage: "decoding",
+                done,
+                total: n,
             });
         }
-        let compositor = match &background {
-            Background::Frames(_, c) => Some(c),
-            Background::Plain => None,
-        };
-        let rendered: Vec<RgbImage> = canvases
-            .into_par_iter()
-            .enumerate()
-            .map(|(k, mut canvas)| {
-                let row = clip.frame(done + k);
-                match compositor {
-                    Some(c) => c.draw(model, row, &mut canvas)?,
-                    None => {
-                        model.render_into(&model.params_from_vector(row)?, &mut canvas)?;
-                    }
-                }
-                Ok(canvas)
+        Ok(())
+    })
+}
+
+/// Frames `start..start + BATCH` of the clip, rendered in parallel over their backgrounds.
+fn render_batch(
+    model: &FaceModel,
+    clip: &Clip,
+    background: &mut Background,
+    start: usize,
+) -> Result<Vec<RgbImage>, CodecError> {
+    let (w, h) = (clip.meta.width, clip.meta.height);
+    let count = BATCH.min(clip.meta.frames - start);
+    let canvases: Vec<RgbImage> = match background {
+        Background::Plain => vec![RgbImage::from_pixel(w, h, Rgb([96, 96, 96])); count],
+        Background::Frames(source, _) => (0..count)
+            .map(|_| {
+                source
+                    .next_frame()?
+                    .ok_or_else(|| CodecError::NoFrames(source.path().into()))
             })
-            .collect::<Result<_, ModelError>>()?;
-        for f in &rendered {
-            sink.write(f)?;
-        }
-        done += count;
-        progress(Progress {
-            stage: "decoding",
-            done,
-            total: n,
+            .collect::<Result<_, _>>()?,
+    };
+    if let Some(c) = canvases.first()
+        && c.dimensions() != (w, h)
+    {
+        return Err(CodecError::Invalid {
+            path: match background {
+                Background::Frames(s, _) => s.path().into(),
+                Background::Plain => PathBuf::new(),
+            },
+            message: format!("background is {:?}, the clip {w}×{h}", c.dimensions()),
         });
     }
-    Ok(())
+    let compositor = match background {
+        Background::Frames(_, c) => Some(&*c),
+        Background::Plain => None,
+    };
+    Ok(canvases
+        .into_par_iter()
+        .enumerate()
+        .map(|(k, mut canvas)| {
+            let row = clip.frame(start + k);
+            match compositor {
+                Some(c) => c.draw(model, row, &mut canvas)?,
+                None => {
+                    model.render_into(&model.params_from_vector(row)?, &mut canvas)?;
+                }
+            }
+            Ok(canvas)
+        })
+        .collect::<Result<_, ModelError>>()?)
 }

@@ -423,22 +423,21 @@ fn rgb_to_yuv420(frame: &RgbImage, out: &mut Vec<u8>) {
     out.resize(w * h + 2 * cw * ch, 0);
     let (luma, chroma) = out.split_at_mut(w * h);
     let (cb, cr) = chroma.split_at_mut(cw * ch);
-    let mut sums = vec![[0u16; 2]; cw];
-    for y in 0..h {
-        if y % 2 == 0 {
-            sums.iter_mut().for_each(|s| *s = [0, 0]);
-        }
+    let raw = frame.as_raw();
+    for cy in 0..ch {
+        let rows = [2 * cy, 2 * cy + 1].map(|y| &raw[y * w * 3..(y + 1) * w * 3]);
+        let mut sums = [0u16; 2];
         for x in 0..w {
-            let [l, u, v] = rgb_to_ycbcr(frame.get_pixel(x as u32, y as u32).0);
-            luma[y * w + x] = l;
-            let s = &mut sums[x / 2];
-            s[0] += u16::from(u);
-            s[1] += u16::from(v);
-        }
-        if y % 2 == 1 {
-            for (c, s) in sums.iter().enumerate() {
-                cb[(y / 2) * cw + c] = ((s[0] + 2) / 4) as u8;
-                cr[(y / 2) * cw + c] = ((s[1] + 2) / 4) as u8;
+            for (k, row) in rows.iter().enumerate() {
+                let [l, u, v] = rgb_to_ycbcr([row[3 * x], row[3 * x + 1], row[3 * x + 2]]);
+                luma[(2 * cy + k) * w + x] = l;
+                sums[0] += u16::from(u);
+                sums[1] += u16::from(v);
+            }
+            if x % 2 == 1 {
+                cb[cy * cw + x / 2] = ((sums[0] + 2) / 4) as u8;
+                cr[cy * cw + x / 2] = ((sums[1] + 2) / 4) as u8;
+                sums = [0, 0];
             }
         }
     }

@@ -6,25 +6,23 @@ use std::io::{BufRead, Write};
 
 use image::RgbImage;
 
-/// BT.601 studio range, RGB → Y'CbCr.
+/// BT.601 studio range, RGB → Y'CbCr, in the usual 8-bit fixed point (ITU-R BT.601
+/// coefficients × 256, rounded): no float rounding call per pixel.
+#[inline]
 pub fn rgb_to_ycbcr([r, g, b]: [u8; 3]) -> [u8; 3] {
-    let [r, g, b] = [r, g, b].map(f32::from);
-    let y = 16.0 + 0.2568 * r + 0.5041 * g + 0.0979 * b;
-    let cb = 128.0 - 0.1482 * r - 0.2910 * g + 0.4392 * b;
-    let cr = 128.0 + 0.4392 * r - 0.3678 * g - 0.0714 * b;
-    [y, cb, cr].map(|v| v.round().clamp(0.0, 255.0) as u8)
+    let [r, g, b] = [r, g, b].map(i32::from);
+    let y = ((66 * r + 129 * g + 25 * b + 128) >> 8) + 16;
+    let cb = ((-38 * r - 74 * g + 112 * b + 128) >> 8) + 128;
+    let cr = ((112 * r - 94 * g - 18 * b + 128) >> 8) + 128;
+    [y, cb, cr].map(|v| v.clamp(0, 255) as u8)
 }
 
-/// The inverse of [`rgb_to_ycbcr`].
+/// The inverse of [`rgb_to_ycbcr`], same fixed point.
+#[inline]
 pub fn ycbcr_to_rgb([y, cb, cr]: [u8; 3]) -> [u8; 3] {
-    let y = 1.1644 * (f32::from(y) - 16.0);
-    let (cb, cr) = (f32::from(cb) - 128.0, f32::from(cr) - 128.0);
-    [
-        y + 1.5960 * cr,
-        y - 0.3918 * cb - 0.8130 * cr,
-        y + 2.0172 * cb,
-    ]
-    .map(|v| v.round().clamp(0.0, 255.0) as u8)
+    let c = 298 * (i32::from(y) - 16) + 128;
+    let (d, e) = (i32::from(cb) - 128, i32::from(cr) - 128);
+    [c + 409 * e, c - 100 * d - 208 * e, c + 516 * d].map(|v| (v >> 8).clamp(0, 255) as u8)
 }
 
 /// The stream header line.
