@@ -12,6 +12,8 @@
 //! 5. [`model`]: [`model::FaceModel`] = the two independent models + the frame; build,
 //!    project a frame to face-space, reconstruct a frame from face-space, save and load as
 //!    `model.json` + `.npy` arrays.
+//! 6. [`fit`]: AAM search and the frame-to-frame tracker; [`video`]: frame sources and sinks
+//!    (MP4 built in); [`codec`]: video → face-space clip → video.
 //!
 //! The library never prints: long work reports through a [`Progress`] callback.
 
