@@ -1,5 +1,5 @@
 //! facespace — talking-face animation from independent statistical shape and appearance
-//! models (Theobald et al. [blend]; Liu & Ostermann [unitsel]; see `DESIGN.md`).
+//! models (Theobald et al. \[blend\]; Liu & Ostermann \[unitsel\]; see `DESIGN.md`).
 //!
 //! The pipeline, and the module that owns each step:
 //!
