@@ -27,11 +27,16 @@ fn main() {
         .ok()
         .and_then(|s| s.parse().ok())
         .unwrap_or(3.0);
+    let refine_iterations: usize = std::env::var("REFINE")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(0);
     let fitter = Fitter::new(
         &model,
         FitOptions {
             max_iterations,
             clamp_sd,
+            refine_iterations,
             ..FitOptions::default()
         },
         levels,

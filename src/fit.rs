@@ -36,6 +36,10 @@ pub struct FitOptions {
     pub tolerance: f64,
     /// Shape parameters are clamped to ±this many standard deviations.
     pub clamp_sd: f64,
+    /// Iterations of alternating refinement at full resolution after the project-out
+    /// search (0: none). Project-out is biased when the appearance is far from the mean;
+    /// each refinement step re-estimates the appearance and linearises about that template.
+    pub refine_iterations: usize,
 }
 
 impl Default for FitOptions {
@@ -44,6 +48,7 @@ impl Default for FitOptions {
             max_iterations: 40,
             tolerance: 0.01,
             clamp_sd: 3.0,
+            refine_iterations: 0,
         }
     }
 }
@@ -119,6 +124,57 @@ fn scale_points(points: &[Point], s: f64) -> Vec<Point> {
         .iter()
         .map(|p| [(p[0] + 0.5) * s - 0.5, (p[1] + 0.5) * s - 0.5])
         .collect()
+}
+
+/// Steepest-descent images `∇T · ∂W/∂p_k` over the mask of `frame`, one row per motion in
+/// `basis`; `∇T` by central differences (one-sided at the mask's edge).
+fn steepest_descent(frame: &ReferenceFrame, template: &[f64], basis: &[Vec<f64>]) -> Vec<Vec<f64>> {
+    let (w, h) = (frame.width, frame.height);
+    let mut img = vec![f64::NAN; w * h];
+    for (p, v) in frame.pixels.iter().zip(template) {
+        img[p.y as usize * w + p.x as usize] = *v;
+    }
+    let value = |x: i64, y: i64| -> Option<f64> {
+        (x >= 0 && y >= 0 && (x as usize) < w && (y as usize) < h)
+            .then(|| img[y as usize * w + x as usize])
+            .filter(|v| v.is_finite())
+    };
+    let diff = |x: i64, y: i64, dx: i64, dy: i64, centre: f64| match (
+        value(x + dx, y + dy),
+        value(x - dx, y - dy),
+    ) {
+        (Some(a), Some(b)) => (a - b) / 2.0,
+        (Some(a), None) => a - centre,
+        (None, Some(b)) => centre - b,
+        (None, None) => 0.0,
+    };
+    let n = frame.n_pixels();
+    let mut sd = vec![vec![0.0; n]; basis.len()];
+    for (i, px) in frame.pixels.iter().enumerate() {
+        let (x, y) = (px.x as i64, px.y as i64);
+        let (gx, gy) = (diff(x, y, 1, 0, template[i]), diff(x, y, 0, 1, template[i]));
+        let tri = frame.triangles[px.triangle as usize];
+        for (k, b) in basis.iter().enumerate() {
+            // ∂W/∂p_k at this pixel: the barycentric mix of the vertices' motions.
+            let (mut dx, mut dy) = (0.0, 0.0);
+            for (j, &v) in tri.iter().enumerate() {
+                dx += px.bary[j] as f64 * b[2 * v as usize];
+                dy += px.bary[j] as f64 * b[2 * v as usize + 1];
+            }
+            sd[k][i] = gx * dx + gy * dy;
+        }
+    }
+    sd
+}
+
+/// Removes the span of the orthonormal rows `appearance` from each row of `rows`.
+fn project_out(rows: &mut [Vec<f64>], appearance: &[Vec<f64>]) {
+    for row in rows {
+        for a in appearance {
+            let p = dot(row, a);
+            row.iter_mut().zip(a).for_each(|(r, v)| *r -= p * v);
+        }
+    }
 }
 
 impl Level {
@@ -200,48 +256,8 @@ impl Level {
             );
         }
         let basis = orthonormalise(basis);
-        // Gradient of A₀ by central differences over the mask (one-sided at its edge).
-        let (w, h) = (frame.width, frame.height);
-        let mut img = vec![f64::NAN; w * h];
-        for (p, v) in frame.pixels.iter().zip(&a0) {
-            img[p.y as usize * w + p.x as usize] = *v;
-        }
-        let value = |x: i64, y: i64| -> Option<f64> {
-            (x >= 0 && y >= 0 && (x as usize) < w && (y as usize) < h)
-                .then(|| img[y as usize * w + x as usize])
-                .filter(|v| v.is_finite())
-        };
-        let diff = |x: i64, y: i64, dx: i64, dy: i64, centre: f64| match (
-            value(x + dx, y + dy),
-            value(x - dx, y - dy),
-        ) {
-            (Some(a), Some(b)) => (a - b) / 2.0,
-            (Some(a), None) => a - centre,
-            (None, Some(b)) => centre - b,
-            (None, None) => 0.0,
-        };
-        let n = frame.n_pixels();
-        let mut sd = vec![vec![0.0; n]; basis.len()];
-        for (i, px) in frame.pixels.iter().enumerate() {
-            let (x, y) = (px.x as i64, px.y as i64);
-            let (gx, gy) = (diff(x, y, 1, 0, a0[i]), diff(x, y, 0, 1, a0[i]));
-            let tri = frame.triangles[px.triangle as usize];
-            for (k, b) in basis.iter().enumerate() {
-                // ∂W/∂p_k at this pixel: the barycentric mix of the vertices' motions.
-                let (mut dx, mut dy) = (0.0, 0.0);
-                for (j, &v) in tri.iter().enumerate() {
-                    dx += px.bary[j] as f64 * b[2 * v as usize];
-                    dy += px.bary[j] as f64 * b[2 * v as usize + 1];
-                }
-                sd[k][i] = gx * dx + gy * dy;
-            }
-        }
-        for row in &mut sd {
-            for a in &appearance {
-                let p = dot(row, a);
-                row.iter_mut().zip(a).for_each(|(r, v)| *r -= p * v);
-            }
-        }
+        let mut sd = steepest_descent(&frame, &a0, &basis);
+        project_out(&mut sd, &appearance);
         let m = sd.len();
         let h_inv = DMatrix::from_fn(m, m, |i, j| dot(&sd[i], &sd[j]))
             .try_inverse()
@@ -369,46 +385,100 @@ impl<'m> Fitter<'m> {
                     .map(|(&i, a)| i as f64 - a)
                     .collect())
             };
-        for it in 1..=self.options.max_iterations {
+        let mut iterations = 0;
+        let mut converged = false;
+        let tolerance = self.options.tolerance / level.factor as f64;
+        while iterations < self.options.max_iterations {
+            iterations += 1;
             let e = error_at(&current, &mut texture)?;
             let b = DVector::from_iterator(level.sd.len(), level.sd.iter().map(|row| dot(row, &e)));
-            let dp = &level.h_inv * b;
-            // The inverse increment in the reference frame, mapped through the current warp.
-            let moved: Vec<Point> = frame
-                .landmarks
-                .iter()
-                .enumerate()
-                .map(|(v, p)| {
-                    let (mut x, mut y) = (p[0], p[1]);
-                    for (k, basis) in level.basis.iter().enumerate() {
-                        x -= dp[k] * basis[2 * v];
-                        y -= dp[k] * basis[2 * v + 1];
-                    }
-                    [x, y]
-                })
-                .collect();
-            let next = self.constrain(&Landmarks {
-                points: level.compose(&moved, &current.points),
-            })?;
-            let shift = next
-                .points
-                .iter()
-                .zip(&current.points)
-                .map(|(a, b)| (a[0] - b[0]).hypot(a[1] - b[1]))
-                .fold(0.0, f64::max);
+            let (next, shift) = self.step(level, &current, &(&level.h_inv * b))?;
             current = next;
-            if shift < self.options.tolerance / level.factor as f64 {
+            if shift < tolerance {
+                converged = true;
+                break;
+            }
+        }
+        if level.factor == 1 {
+            for _ in 0..self.options.refine_iterations {
+                iterations += 1;
                 let e = error_at(&current, &mut texture)?;
-                return Ok((current, it, true, level.residual(&e)));
+                let (next, shift) = self.refine_step(level, &current, &e)?;
+                current = next;
+                if shift < tolerance {
+                    break;
+                }
             }
         }
         let e = error_at(&current, &mut texture)?;
-        Ok((
-            current,
-            self.options.max_iterations,
-            false,
-            level.residual(&e),
-        ))
+        Ok((current, iterations, converged, level.residual(&e)))
+    }
+
+    /// Composes the inverse of the increment `dp` (in the level's motion basis) with the
+    /// current warp and constrains the result to the shape model; returns it and the largest
+    /// landmark move.
+    fn step(
+        &self,
+        level: &Level,
+        current: &Landmarks,
+        dp: &DVector<f64>,
+    ) -> Result<(Landmarks, f64), FitError> {
+        let moved: Vec<Point> = level
+            .frame
+            .landmarks
+            .iter()
+            .enumerate()
+            .map(|(v, p)| {
+                let (mut x, mut y) = (p[0], p[1]);
+                for (k, basis) in level.basis.iter().enumerate() {
+                    x -= dp[k] * basis[2 * v];
+                    y -= dp[k] * basis[2 * v + 1];
+                }
+                [x, y]
+            })
+            .collect();
+        let next = self.constrain(&Landmarks {
+            points: level.compose(&moved, &current.points),
+        })?;
+        let shift = next
+            .points
+            .iter()
+            .zip(&current.points)
+            .map(|(a, b)| (a[0] - b[0]).hypot(a[1] - b[1]))
+            .fold(0.0, f64::max);
+        Ok((next, shift))
+    }
+
+    /// One alternating step (Tzimiropoulos & Pantic 2013, "alternating inverse
+    /// compositional"): the appearance `λ = Aᵀe` of the current warp gives the template
+    /// `T = A₀ + Aλ`; steepest-descent images of `T`, with the appearance projected out, give
+    /// the Gauss–Newton increment for the residual `e − Aλ`. Costs a fresh Hessian per step.
+    fn refine_step(
+        &self,
+        level: &Level,
+        current: &Landmarks,
+        e: &[f64],
+    ) -> Result<(Landmarks, f64), FitError> {
+        let mut template = level.a0.clone();
+        let mut residual = e.to_vec();
+        for a in &level.appearance {
+            let lambda = dot(a, e);
+            template
+                .iter_mut()
+                .zip(a)
+                .for_each(|(t, v)| *t += lambda * v);
+            residual
+                .iter_mut()
+                .zip(a)
+                .for_each(|(r, v)| *r -= lambda * v);
+        }
+        let mut sd = steepest_descent(&level.frame, &template, &level.basis);
+        project_out(&mut sd, &level.appearance);
+        let m = sd.len();
+        let h = DMatrix::from_fn(m, m, |i, j| dot(&sd[i], &sd[j]));
+        let b = DVector::from_iterator(m, sd.iter().map(|row| dot(row, &residual)));
+        let dp = h.lu().solve(&b).ok_or(FitError::Singular)?;
+        self.step(level, current, &dp)
     }
 
     /// Projects landmarks onto the shape model (pose + parameters clamped to ±clamp_sd σ).

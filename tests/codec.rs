@@ -77,12 +77,19 @@ fn synthetic_round_trip_recovers_the_parameters() {
     let (frames, truth, first) = synthetic_sequence(&model, 24);
     let dir = tempfile::tempdir().unwrap();
     write_frames(&dir.path().join("frames"), &frames);
+    let refine: usize = std::env::var("REFINE").map_or(0, |v| v.parse().unwrap());
     let options = EncodeOptions {
         init: Some(first),
+        fit: facespace::fit::FitOptions {
+            refine_iterations: refine,
+            ..Default::default()
+        },
         ..EncodeOptions::default()
     };
     let source = Source::open(&dir.path().join("frames")).unwrap();
+    let clock = std::time::Instant::now();
     let clip = codec::encode(&model, source, &options, facespace::no_progress).unwrap();
+    println!("encode {:?}", clock.elapsed());
     assert_eq!(clip.meta.frames, 24);
     let sd: Vec<f64> = model
         .shape

@@ -96,16 +96,28 @@ fn converges_from_nearby_starts() {
     );
 }
 
-/// The synthetic protocol: mean shape started 10% of the face width, ±10° and ±10%
-/// away. The target is ≥ 95% under 1 px; this fitter reaches about 80% (median 0.06 px) —
-/// the test keeps that as a regression floor and prints the distribution.
+/// The protocol: the model rendered at random parameters (shape ±2σ, appearance ±1σ)
+/// plus noise, started from the mean shape at the true pose moved by up to 10% of the face
+/// width, ±10° and ±10% scale. Target: ≥ 95% of fits under 1 px mean point error. With the
+/// alternating refinement (40 steps at most) 299 of 300 draws of `examples/fit_synthetic`
+/// land under 1 px; project-out alone about 80% (its bias under appearance change pulls it
+/// off), kept here as a regression floor. The distribution is printed.
 #[test]
 fn synthetic_protocol_distribution() {
     let model = demo_model();
-    let fitter = Fitter::new(&model, FitOptions::default(), 2).unwrap();
+    let project_out = Fitter::new(&model, FitOptions::default(), 2).unwrap();
+    let refined = Fitter::new(
+        &model,
+        FitOptions {
+            refine_iterations: 40,
+            ..FitOptions::default()
+        },
+        2,
+    )
+    .unwrap();
     let poses = poses();
     let mut rng = Rng::new(3);
-    let mut errors = Vec::new();
+    let (mut plain, mut errors) = (Vec::new(), Vec::new());
     for t in 0..40 {
         let (img, truth) = synthetic(&model, &mut rng, poses[t % poses.len()], (360, 288));
         let width = truth.bounds().1[0] - truth.bounds().0[0];
@@ -119,17 +131,35 @@ fn synthetic_protocol_distribution() {
             rng.range(-10.0, 10.0),
             [rng.range(-0.1, 0.1) * width, rng.range(-0.1, 0.1) * width],
         );
-        let fit = fitter.fit(&img, &init).unwrap();
+        let fit = project_out.fit(&img, &init).unwrap();
+        plain.push(common::mean_error(&fit.landmarks, &truth));
+        let fit = refined.fit(&img, &init).unwrap();
         errors.push(common::mean_error(&fit.landmarks, &truth));
     }
-    errors.sort_by(f64::total_cmp);
-    let under = errors.iter().filter(|&&e| e < 1.0).count();
-    eprintln!(
-        "synthetic protocol: {under}/40 under 1 px; quartiles {:.3} {:.3} {:.3}, p90 {:.3}, max {:.3} px",
-        errors[10], errors[20], errors[30], errors[36], errors[39]
+    for (name, e) in [("project-out", &mut plain), ("refined", &mut errors)] {
+        e.sort_by(f64::total_cmp);
+        eprintln!(
+            "synthetic protocol, {name}: {}/40 under 1 px; quartiles {:.3} {:.3} {:.3}, p90 {:.3}, max {:.3} px",
+            e.iter().filter(|&&v| v < 1.0).count(),
+            e[10],
+            e[20],
+            e[30],
+            e[36],
+            e[39]
+        );
+    }
+    let under = |e: &[f64]| e.iter().filter(|&&v| v < 1.0).count();
+    assert!(
+        under(&errors) >= 38,
+        "refined: only {}/40 under 1 px",
+        under(&errors)
     );
-    assert!(under >= 30, "only {under}/40 under 1 px");
-    assert!(errors[20] < 0.2, "median {:.3} px", errors[20]);
+    assert!(errors[20] < 0.1, "refined median {:.3} px", errors[20]);
+    assert!(
+        under(&plain) >= 30,
+        "project-out: only {}/40 under 1 px",
+        under(&plain)
+    );
 }
 
 /// Real frames not used to build the model (dlib landmarks as reference), started from the

@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use clap::Args;
 use facespace::codec::{self, EncodeOptions};
+use facespace::fit::FitOptions;
 use facespace::model::FaceModel;
 use facespace::shape::{self, Landmarks};
 use facespace::{npy, video};
@@ -34,6 +35,10 @@ pub struct TrackingArgs {
     /// Residual RMS (grey levels) above which a frame is re-initialised.
     #[arg(long, default_value_t = DEFAULT_REINIT)]
     reinit_error: f64,
+    /// Alternating-refinement steps per frame after the project-out search (slower, more
+    /// accurate when the appearance is far from the mean; 0 = off).
+    #[arg(long, default_value_t = 0)]
+    refine: usize,
 }
 
 /// Default re-initialisation threshold (grey levels): well above the residuals of good fits
@@ -54,6 +59,10 @@ impl TrackingArgs {
             levels: self.levels,
             reinit_error: self.reinit_error,
             init,
+            fit: FitOptions {
+                refine_iterations: self.refine,
+                ..FitOptions::default()
+            },
             ..EncodeOptions::default()
         })
     }
