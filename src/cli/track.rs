@@ -63,7 +63,6 @@ impl TrackingArgs {
                 refine_iterations: self.refine,
                 ..FitOptions::default()
             },
-            ..EncodeOptions::default()
         })
     }
 }
