@@ -96,8 +96,23 @@ fn grey(rgb: &[f32]) -> Vec<f64> {
         .collect()
 }
 
+/// Dot product with eight independent partial sums, so the compiler can keep them in SIMD
+/// lanes (an in-order sum is a dependency chain it may not reorder): the fit's hot loop.
 fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
+    let (ca, cb) = (a.chunks_exact(8), b.chunks_exact(8));
+    let tail: f64 = ca
+        .remainder()
+        .iter()
+        .zip(cb.remainder())
+        .map(|(x, y)| x * y)
+        .sum();
+    let mut acc = [0.0f64; 8];
+    for (x, y) in ca.zip(cb) {
+        for i in 0..8 {
+            acc[i] += x[i] * y[i];
+        }
+    }
+    acc.iter().sum::<f64>() + tail
 }
 
 /// Gram–Schmidt: orthonormal versions of the vectors, dropping (near) dependent ones.
