@@ -24,6 +24,8 @@ pub enum FitError {
     NoAppearance,
     #[error("the fitting Hessian is singular")]
     Singular,
+    #[error("a {width}×{height} frame is too small to hold the model's face at any searched scale")]
+    TooSmall { width: u32, height: u32 },
     #[error(transparent)]
     Model(#[from] ModelError),
 }
@@ -68,6 +70,8 @@ pub struct Fitter<'m> {
     model: &'m FaceModel,
     /// Coarsest first; level `k` works on images downsampled by `2^k`.
     levels: Vec<Level>,
+    /// One octave below the coarsest level, for the first-frame grid search only.
+    search: Level,
     options: FitOptions,
 }
 
@@ -341,13 +345,15 @@ impl<'m> Fitter<'m> {
         if model.appearance.n_params() == 0 {
             return Err(FitError::NoAppearance);
         }
-        let levels = (0..levels.max(1))
+        let levels: Vec<Level> = (0..levels.max(1))
             .rev()
             .map(|k| Level::new(model, 1 << k))
             .collect::<Result<_, _>>()?;
+        let search = Level::new(model, 2 * levels[0].factor)?;
         Ok(Fitter {
             model,
             levels,
+            search,
             options,
         })
     }
@@ -511,10 +517,11 @@ impl<'m> Fitter<'m> {
 impl Fitter<'_> {
     /// A first-frame start with no landmarks: the mean shape tried on a grid of positions
     /// (steps of a tenth of the face width) and scales (0.6–1.5 of the model's reference
-    /// size) on the coarsest pyramid level; the pose whose projected-out residual against
-    /// the mean appearance is smallest wins. Costs a few hundred coarse warps.
+    /// size) one octave below the coarsest pyramid level; the pose whose projected-out
+    /// residual against the mean appearance is smallest wins. Costs a few hundred warps of a
+    /// few thousand pixels.
     pub fn search_start(&self, image: &RgbImage) -> Result<Landmarks, FitError> {
-        let level = &self.levels[0];
+        let level = &self.search;
         let mut coarse = GreyImage::from_rgb(image);
         let mut factor = 1;
         while factor < level.factor {
@@ -554,6 +561,12 @@ impl Fitter<'_> {
                 }
                 cy += step;
             }
+        }
+        if best.1.is_empty() {
+            return Err(FitError::TooSmall {
+                width: image.width(),
+                height: image.height(),
+            });
         }
         Ok(Landmarks {
             points: scale_points(&best.1, level.factor as f64),

@@ -200,12 +200,23 @@ impl PcaModel {
         (0..self.n_components())
             .into_par_iter()
             .map(|k| {
+                // Eight independent partial sums: SIMD lanes instead of one dependency chain.
                 let c = self.component(k);
-                let mut acc = 0f64;
-                for ((&xi, &mi), &ci) in x.iter().zip(&self.mean).zip(c) {
-                    acc += (xi - mi) as f64 * ci as f64;
+                let mut acc = [0f64; 8];
+                let chunks = x
+                    .chunks_exact(8)
+                    .zip(self.mean.chunks_exact(8))
+                    .zip(c.chunks_exact(8));
+                for ((xs, ms), cs) in chunks {
+                    for i in 0..8 {
+                        acc[i] += (xs[i] - ms[i]) as f64 * cs[i] as f64;
+                    }
                 }
-                acc as f32
+                let done = x.len() / 8 * 8;
+                let tail: f64 = (done..x.len())
+                    .map(|i| (x[i] - self.mean[i]) as f64 * c[i] as f64)
+                    .sum();
+                (acc.iter().sum::<f64>() + tail) as f32
             })
             .collect()
     }
