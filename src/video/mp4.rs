@@ -11,12 +11,10 @@ use std::path::Path;
 use image::RgbImage;
 use openh264::decoder::{Decoder, DecoderConfig, Flush};
 use openh264::encoder::{
-    BitRate, Encoder, EncoderConfig, FrameRate, FrameType, IntraFramePeriod, QpRange,
+    BitRate, Complexity, Encoder, EncoderConfig, FrameRate, FrameType, IntraFramePeriod, QpRange,
     RateControlMode,
 };
 use openh264::formats::{YUVSlices, YUVSource};
-
-use super::y4m::rgb_to_ycbcr;
 
 type Mp4File = mp4::Mp4Reader<BufReader<File>>;
 
@@ -310,6 +308,9 @@ impl Writer {
             .rate_control_mode(RateControlMode::Off)
             .qp(QpRange::new(12, 36))
             .skip_frames(false)
+            // Speed over a few per cent of size: the faces are smooth and mostly static.
+            .complexity(Complexity::Low)
+            .background_detection(false)
             .intra_frame_period(IntraFramePeriod::from_num_frames((2.0 * fps).round() as u32));
         let encoder = Encoder::with_api_config(openh264::OpenH264API::from_source(), config)
             .map_err(|e| e.to_string())?;
@@ -415,7 +416,8 @@ fn strip_start_code(nal: &[u8]) -> &[u8] {
         .unwrap_or(nal)
 }
 
-/// RGB → planar Y'CbCr 4:2:0 (BT.601 studio range, chroma averaged over 2×2 blocks, rounded).
+/// RGB → planar Y'CbCr 4:2:0, BT.601 studio range in the fixed point of
+/// [`super::y4m::rgb_to_ycbcr`]: luma per pixel, chroma from each 2×2 block's mean RGB.
 fn rgb_to_yuv420(frame: &RgbImage, out: &mut Vec<u8>) {
     let (w, h) = (frame.width() as usize, frame.height() as usize);
     let (cw, ch) = (w / 2, h / 2);
@@ -424,21 +426,31 @@ fn rgb_to_yuv420(frame: &RgbImage, out: &mut Vec<u8>) {
     let (luma, chroma) = out.split_at_mut(w * h);
     let (cb, cr) = chroma.split_at_mut(cw * ch);
     let raw = frame.as_raw();
+    for (src, dst) in raw.chunks_exact(3 * w).zip(luma.chunks_exact_mut(w)) {
+        for (p, l) in src.chunks_exact(3).zip(dst.iter_mut()) {
+            let (r, g, b) = (i32::from(p[0]), i32::from(p[1]), i32::from(p[2]));
+            *l = (((66 * r + 129 * g + 25 * b + 128) >> 8) + 16) as u8;
+        }
+    }
     for cy in 0..ch {
-        let rows = [2 * cy, 2 * cy + 1].map(|y| &raw[y * w * 3..(y + 1) * w * 3]);
-        let mut sums = [0u16; 2];
-        for x in 0..w {
-            for (k, row) in rows.iter().enumerate() {
-                let [l, u, v] = rgb_to_ycbcr([row[3 * x], row[3 * x + 1], row[3 * x + 2]]);
-                luma[(2 * cy + k) * w + x] = l;
-                sums[0] += u16::from(u);
-                sums[1] += u16::from(v);
-            }
-            if x % 2 == 1 {
-                cb[cy * cw + x / 2] = ((sums[0] + 2) / 4) as u8;
-                cr[cy * cw + x / 2] = ((sums[1] + 2) / 4) as u8;
-                sums = [0, 0];
-            }
+        let top = &raw[2 * cy * w * 3..(2 * cy + 1) * w * 3];
+        let bottom = &raw[(2 * cy + 1) * w * 3..(2 * cy + 2) * w * 3];
+        let (cb_row, cr_row) = (
+            &mut cb[cy * cw..(cy + 1) * cw],
+            &mut cr[cy * cw..(cy + 1) * cw],
+        );
+        for (cx, (u, v)) in cb_row.iter_mut().zip(cr_row.iter_mut()).enumerate() {
+            let i = 6 * cx;
+            let sum = |c: usize| {
+                i32::from(top[i + c])
+                    + i32::from(top[i + 3 + c])
+                    + i32::from(bottom[i + c])
+                    + i32::from(bottom[i + 3 + c])
+            };
+            let (r, g, b) = (sum(0), sum(1), sum(2));
+            // Sums of four: the coefficients' fixed point grows by 2 bits.
+            *u = (((-38 * r - 74 * g + 112 * b + 512) >> 10) + 128).clamp(0, 255) as u8;
+            *v = (((112 * r - 94 * g - 18 * b + 512) >> 10) + 128).clamp(0, 255) as u8;
         }
     }
 }
