@@ -77,19 +77,18 @@ fn synthetic_round_trip_recovers_the_parameters() {
     let (frames, truth, first) = synthetic_sequence(&model, 24);
     let dir = tempfile::tempdir().unwrap();
     write_frames(&dir.path().join("frames"), &frames);
-    let refine: usize = std::env::var("REFINE").map_or(0, |v| v.parse().unwrap());
+    // With the alternating refinement: project-out alone settles up to 0.5σ off in the
+    // frames whose appearance is far from the mean (BENCHMARKS.md).
     let options = EncodeOptions {
         init: Some(first),
         fit: facespace::fit::FitOptions {
-            refine_iterations: refine,
+            refine_iterations: 10,
             ..Default::default()
         },
         ..EncodeOptions::default()
     };
     let source = Source::open(&dir.path().join("frames")).unwrap();
-    let clock = std::time::Instant::now();
     let clip = codec::encode(&model, source, &options, facespace::no_progress).unwrap();
-    println!("encode {:?}", clock.elapsed());
     assert_eq!(clip.meta.frames, 24);
     let sd: Vec<f64> = model
         .shape
@@ -146,11 +145,11 @@ fn synthetic_round_trip_recovers_the_parameters() {
     let median = shape_errors[shape_errors.len() / 2];
     println!("shape error median {median:.2e} σ");
     assert!(min_psnr >= 40.0, "PSNR {psnr:?}");
-    // Measured: median 0.013σ, worst 0.53σ (shape) / 0.74σ (appearance), where the
-    // project-out fit settles slightly off under large appearance change (frames 15–21).
-    // The 1e-3σ is not reached: see BENCHMARKS.md.
+    // Measured: median 0.012σ, worst 0.086σ (shape) / 0.66σ (appearance: the smallest-variance
+    // components, where resampling twice is a large fraction of σ). The 1e-3σ is not
+    // reached: see BENCHMARKS.md.
     assert!(median < 0.03, "median shape error {median} σ");
-    assert!(worst_shape < 1.0 && worst_app < 1.5);
+    assert!(worst_shape < 0.2 && worst_app < 1.0);
 }
 
 #[test]
