@@ -91,3 +91,50 @@ fn track_command_and_bad_input() {
         text(&o)
     );
 }
+
+/// How robust the first-frame grid search is: every held-out frame and every tenth frame of
+/// the clip (frames the model never saw), searched with no landmarks and then fitted, against
+/// dlib's landmarks; plus the same frames shifted inside a larger grey canvas, so the face
+/// is not where the training frames had it.
+#[test]
+fn grid_search_finds_unseen_faces() {
+    let model = FaceModel::load(&common::root().join("models/demo/model")).unwrap();
+    let fitter = Fitter::new(&model, FitOptions::default(), 2).unwrap();
+    let mut frames: Vec<std::path::PathBuf> =
+        video::frame_files(&common::root().join("tests/data/demo-heldout")).unwrap();
+    frames.extend(
+        video::frame_files(&common::root().join("tests/data/clip"))
+            .unwrap()
+            .into_iter()
+            .step_by(10),
+    );
+    let mut errors = Vec::new();
+    for f in &frames {
+        let image = video::read_frame(f).unwrap();
+        let reference = read_pts(&f.with_extension("pts")).unwrap();
+        for (dx, dy) in [(0i64, 0i64), (150, 40)] {
+            let mut canvas = image::RgbImage::from_pixel(
+                image.width() + 200,
+                image.height() + 100,
+                image::Rgb([128, 128, 128]),
+            );
+            image::imageops::replace(&mut canvas, &image, dx, dy);
+            let start = fitter.search_start(&canvas).unwrap();
+            let fit = fitter.fit(&canvas, &start).unwrap();
+            let shifted = facespace::shape::Landmarks {
+                points: reference
+                    .points
+                    .iter()
+                    .map(|p| [p[0] + dx as f64, p[1] + dy as f64])
+                    .collect(),
+            };
+            errors.push(common::iod_error(&fit.landmarks, &shifted));
+        }
+    }
+    let found = errors.iter().filter(|&&e| e < 0.08).count();
+    eprintln!(
+        "grid search: {found}/{} searched starts fitted within 8% of the inter-ocular distance; errors {errors:.3?}",
+        errors.len()
+    );
+    assert_eq!(found, errors.len(), "{errors:.3?}");
+}
