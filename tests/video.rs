@@ -194,3 +194,26 @@ fn bad_input_is_a_clear_error_and_leaves_nothing_behind() {
     std::fs::create_dir(&empty).unwrap();
     assert!(matches!(Source::open(&empty), Err(VideoError::NoFrames(_))));
 }
+
+/// Other containers go through a system ffmpeg when there is one (skipped otherwise): a
+/// Matroska file written and read back, and an unfinished one leaves nothing.
+#[test]
+fn other_containers_through_ffmpeg() {
+    if video::system_ffmpeg().is_none() {
+        eprintln!("no ffmpeg on PATH: skipped");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("clip.mkv");
+    let frames: Vec<RgbImage> = (0..12).map(|i| pattern(i, 64, 48)).collect();
+    assert_eq!(write(&path, &frames, 25.0, Some(&sample())), 12);
+    let source = Source::open(&path).unwrap();
+    assert!((source.info().fps - 25.0).abs() < 1e-6);
+    let back: Vec<RgbImage> = source.map(|f| f.unwrap()).collect();
+    assert_eq!(back.len(), 12);
+    assert!(psnr(&back[5], &frames[5]) > 30.0);
+    let mut sink = Sink::create(&dir.path().join("dropped.mkv"), 64, 48, 25.0, None).unwrap();
+    sink.write(&frames[0]).unwrap();
+    drop(sink);
+    assert_eq!(leftovers(dir.path()), ["clip.mkv"]);
+}

@@ -353,7 +353,8 @@ pub struct Sink {
     path: PathBuf,
     width: u32,
     height: u32,
-    kind: SinkKind,
+    /// `None` once finished.
+    kind: Option<SinkKind>,
     frames: usize,
 }
 
@@ -448,14 +449,14 @@ impl Sink {
             path: path.into(),
             width,
             height,
-            kind,
+            kind: Some(kind),
             frames: 0,
         })
     }
 
     /// Whether the container chosen carries sound.
     pub fn carries_audio(&self) -> bool {
-        matches!(self.kind, SinkKind::Mp4(..) | SinkKind::Ffmpeg(..))
+        matches!(self.kind, Some(SinkKind::Mp4(..) | SinkKind::Ffmpeg(..)))
     }
 
     pub fn write(&mut self, frame: &RgbImage) -> Result<(), VideoError> {
@@ -469,7 +470,10 @@ impl Sink {
             });
         }
         let io = io_error(&self.path);
-        match &mut self.kind {
+        let Some(kind) = &mut self.kind else {
+            return Ok(());
+        };
+        match kind {
             SinkKind::Frames(dir) => {
                 write_png(&dir.path().join(format!("{:06}.png", self.frames)), frame).map_err(io)?
             }
@@ -485,11 +489,16 @@ impl Sink {
     }
 
     /// Completes the file and renames it into place; returns the frames written.
-    pub fn finish(self) -> Result<usize, VideoError> {
-        let Sink {
-            path, kind, frames, ..
-        } = self;
+    pub fn finish(mut self) -> Result<usize, VideoError> {
+        let (path, frames) = (self.path.clone(), self.frames);
+        let Some(kind) = self.kind.take() else {
+            return Ok(frames);
+        };
         if frames == 0 {
+            if let SinkKind::Ffmpeg(mut child, ..) = kind {
+                let _ = child.kill();
+                let _ = child.wait();
+            }
             return Err(VideoError::NoFrames(path));
         }
         let io = io_error(&path);
@@ -538,6 +547,16 @@ impl Sink {
             }
         }
         Ok(frames)
+    }
+}
+
+impl Drop for Sink {
+    /// An unfinished ffmpeg sink stops its ffmpeg (its temporary file goes with the guard).
+    fn drop(&mut self) {
+        if let Some(SinkKind::Ffmpeg(child, ..)) = &mut self.kind {
+            let _ = child.kill();
+            let _ = child.wait();
+        }
     }
 }
 
