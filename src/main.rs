@@ -3,6 +3,13 @@
 mod cli;
 
 fn main() {
+    // Like other Unix tools, end quietly when the reader of our output goes away
+    // (`facespace … | head`) instead of panicking on a failed print.
+    #[cfg(unix)]
+    // SAFETY: restoring the default disposition of SIGPIPE before any thread starts.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     if let Err(err) = cli::run() {
         eprintln!("error: {}", error_chain(&err));
         std::process::exit(1);
