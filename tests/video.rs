@@ -217,3 +217,56 @@ fn other_containers_through_ffmpeg() {
     drop(sink);
     assert_eq!(leftovers(dir.path()), ["clip.mkv"]);
 }
+
+/// Damaged MP4s (truncated, bits flipped, box sizes overwritten) give errors, never a panic.
+#[test]
+fn corrupted_mp4s_never_panic() {
+    let bytes = std::fs::read(sample()).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let mut rng = common::Rng::new(1);
+    for t in 0..90 {
+        let mut b = bytes.clone();
+        match t % 3 {
+            0 => b.truncate((rng.uniform() * b.len() as f64) as usize),
+            1 => {
+                for _ in 0..8 {
+                    let i = (rng.uniform() * b.len() as f64) as usize;
+                    b[i] ^= 1 << (t % 8);
+                }
+            }
+            _ => {
+                let i = (rng.uniform() * 2000.0) as usize;
+                b[i..i + 2].copy_from_slice(&[0xff, 0xff]);
+            }
+        }
+        let path = dir.path().join(format!("{t}.mp4"));
+        std::fs::write(&path, &b).unwrap();
+        // Reading to the end or to the first error must not panic.
+        if let Ok(source) = Source::open(&path) {
+            for frame in source {
+                if frame.is_err() {
+                    break;
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn y4m_headers_are_checked() {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, header) in [
+        ("huge.y4m", "YUV4MPEG2 W999999 H999999 F25:1 C444\n"),
+        ("zero.y4m", "YUV4MPEG2 W0 H10 F25:1\n"),
+        ("rate.y4m", "YUV4MPEG2 W4 H4 F0:1\n"),
+        ("chroma.y4m", "YUV4MPEG2 W4 H4 F25:1 C411\n"),
+    ] {
+        let path = dir.path().join(name);
+        std::fs::write(&path, header).unwrap();
+        let err = Source::open(&path).err().map(|e| e.to_string());
+        assert!(
+            err.as_deref().is_some_and(|e| e.contains(name)),
+            "{name}: {err:?}"
+        );
+    }
+}

@@ -45,6 +45,9 @@ pub fn write_frame(out: &mut impl Write, frame: &RgbImage) -> std::io::Result<()
     out.write_all(&planes)
 }
 
+/// Largest frame accepted (8K UHD), so a corrupt header cannot ask for gigabytes.
+const MAX_PIXELS: u64 = 7680 * 4320;
+
 /// Chroma layout of a stream.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Chroma {
@@ -102,6 +105,11 @@ impl<R: BufRead> Reader<R> {
         }
         if width == 0 || height == 0 || !fps.is_finite() || fps <= 0.0 {
             return Err(format!("bad header: {}", text.trim()));
+        }
+        if u64::from(width) * u64::from(height) > MAX_PIXELS {
+            return Err(format!(
+                "{width}×{height} frames are larger than {MAX_PIXELS} pixels"
+            ));
         }
         Ok(Reader {
             input,
