@@ -128,6 +128,26 @@ impl Compositor {
     }
 }
 
+impl Renderer for Compositor {
+    /// Each row blended over a copy of `background` (rayon across frames).
+    fn render(
+        &self,
+        model: &FaceModel,
+        frames: &[f64],
+        background: &RgbImage,
+    ) -> Result<Vec<RgbImage>, ModelError> {
+        frames
+            .par_chunks_exact(model.n_params())
+            .map(|row| {
+                let v: Vec<f32> = row.iter().map(|&x| x as f32).collect();
+                let mut canvas = background.clone();
+                self.draw(model, &v, &mut canvas)?;
+                Ok(canvas)
+            })
+            .collect()
+    }
+}
+
 fn point_segment_distance(c: [f64; 2], p: [f64; 2], q: [f64; 2]) -> f64 {
     let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
     let len2 = dx * dx + dy * dy;

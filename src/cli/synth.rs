@@ -8,7 +8,7 @@ use facespace::codebook::{Codebook, Layout};
 use facespace::eval::{self, Scores};
 use facespace::model::FaceModel;
 use facespace::phonemes::{self, PhoneMap, Segment};
-use facespace::render::{CpuRenderer, Renderer, plain_background};
+use facespace::render::{Compositor, DEFAULT_FEATHER, Renderer, plain_background};
 use facespace::rng::Rng;
 use facespace::synth::blend::{self, BlendOptions, Synthesis};
 use facespace::synth::smooth::SmoothingSpline;
@@ -153,7 +153,8 @@ pub fn write_variant(
         &[n, model.shape.n_landmarks(), 2],
         &flat,
     )?;
-    let images = CpuRenderer.render(model, frames, background)?;
+    // Feathered onto the background, so no seam shows where the face meets it.
+    let images = Compositor::new(model, DEFAULT_FEATHER).render(model, frames, background)?;
     video::write_png_frames(&dir.join("frames"), &images)?;
     write_video(dir, "video", &images, fps, audio)?;
     Ok(images)
