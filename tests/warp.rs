@@ -244,3 +244,60 @@ fn render_dilation_stays_next_to_the_mesh() {
         );
     }
 }
+
+/// Feathered compositing: with no feather it draws exactly what the plain renderer draws;
+/// with one, pixels deep inside the face are unchanged, pixels off the face keep the
+/// background, and the edge lies between the two.
+#[test]
+fn feathered_compositing_blends_only_the_edge() {
+    use facespace::render::{Compositor, CpuRenderer, Renderer};
+    let model = common::small_model();
+    let face = &common::faces()[0];
+    let landmarks = &face.landmarks;
+    let params = model
+        .params_from_vector(&{
+            let (pose, shape) = model.shape.project(landmarks).unwrap();
+            let mut v = pose.to_array().map(|x| x as f32).to_vec();
+            v.extend(shape);
+            v.extend(vec![0.0; model.appearance.n_params()]);
+            v
+        })
+        .unwrap();
+    let row: Vec<f64> = params.to_vector().iter().map(|&x| x as f64).collect();
+    let (w, h) = face.image.dimensions();
+    let background = RgbImage::from_fn(w, h, |x, y| {
+        image::Rgb([(x % 256) as u8, (y % 256) as u8, 200])
+    });
+    let hard = CpuRenderer
+        .render(&model, &row, &background)
+        .unwrap()
+        .remove(0);
+    let none = Compositor::new(&model, 0.0)
+        .render(&model, &row, &background)
+        .unwrap()
+        .remove(0);
+    assert!(hard == none, "feather 0 must equal the plain renderer");
+    let soft = Compositor::new(&model, 6.0);
+    let alpha = soft.alpha();
+    assert!(alpha.iter().all(|a| (0.0..=1.0).contains(a)));
+    assert!(alpha.iter().filter(|&&a| a == 1.0).count() > alpha.len() / 2);
+    assert!(alpha.iter().any(|&a| a < 0.2));
+    let blended = soft.render(&model, &row, &background).unwrap().remove(0);
+    let (mut same_inside, mut kept_outside, mut between) = (0, 0, 0);
+    for ((h, b), bg) in hard.pixels().zip(blended.pixels()).zip(background.pixels()) {
+        if h == bg {
+            // Not drawn by the face: the blend leaves it too.
+            assert_eq!(b, bg);
+            kept_outside += 1;
+        } else if h == b {
+            same_inside += 1;
+        } else {
+            between += 1;
+        }
+    }
+    assert!(same_inside > 0 && kept_outside > 0 && between > 0);
+    assert!(
+        between < same_inside,
+        "only the edge is blended: {between} vs {same_inside}"
+    );
+}
