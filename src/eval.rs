@@ -190,10 +190,39 @@ pub fn ssim_masked(a: &RgbImage, b: &RgbImage, mask: &[bool]) -> f64 {
     if count == 0 {
         return f64::NAN;
     }
+    // Only the mask's bounding box, grown by the window's reach, is filtered: inside it
+    // every mask pixel's window is the same as in the whole frame (and where the box meets
+    // the frame's edge, so do the reflections).
+    let r = WIN / 2;
+    let (mut x0, mut y0, mut x1, mut y1) = (w, h, 0, 0);
+    for i in (0..w * h).filter(|&i| mask[i]) {
+        let (x, y) = (i % w, i / w);
+        (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x), y1.max(y));
+    }
+    let (x0, y0) = (x0.saturating_sub(r), y0.saturating_sub(r));
+    let (x1, y1) = ((x1 + r).min(w - 1), (y1 + r).min(h - 1));
+    let (cw, ch) = (x1 - x0 + 1, y1 - y0 + 1);
+    let (w, mask) = (cw, {
+        let mut m = Vec::with_capacity(cw * ch);
+        for y in y0..=y1 {
+            m.extend_from_slice(&mask[y * w + x0..=y * w + x1]);
+        }
+        m
+    });
+    let h = ch;
+    let crop = |img: &RgbImage, c: usize| -> Vec<f64> {
+        let mut v = Vec::with_capacity(cw * ch);
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                v.push(f64::from(img.get_pixel(x as u32, y as u32).0[c]));
+            }
+        }
+        v
+    };
     let mut total = 0.0;
     for c in 0..3 {
-        let x: Vec<f64> = a.pixels().map(|p| f64::from(p.0[c])).collect();
-        let y: Vec<f64> = b.pixels().map(|p| f64::from(p.0[c])).collect();
+        let x: Vec<f64> = crop(a, c);
+        let y: Vec<f64> = crop(b, c);
         let prod =
             |p: &[f64], q: &[f64]| -> Vec<f64> { p.iter().zip(q).map(|(u, v)| u * v).collect() };
         let (ux, uy) = (uniform_filter(&x, w, h, WIN), uniform_filter(&y, w, h, WIN));
