@@ -187,6 +187,29 @@ pub struct Series<'a> {
     pub color: Rgb<u8>,
 }
 
+/// Tick positions at a "nice" step (1, 2 or 5 × 10^k) giving about five ticks in
+/// `[lo, hi]`, and the decimals that step needs.
+pub fn nice_ticks(lo: f64, hi: f64) -> (Vec<f64>, usize) {
+    if !(lo.is_finite() && hi.is_finite()) || hi <= lo {
+        return (vec![lo], 0);
+    }
+    let magnitude = 10f64.powf(((hi - lo) / 5.0).log10().floor());
+    let ticks_at = |step: f64| -> Vec<f64> {
+        ((lo / step).ceil() as i64..=(hi / step).floor() as i64)
+            .map(|k| k as f64 * step)
+            .collect()
+    };
+    // The 1-2-5 step whose tick count is nearest five.
+    let step = [0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0]
+        .iter()
+        .map(|m| m * magnitude)
+        .min_by_key(|&s| (ticks_at(s).len() as i64 - 5).abs())
+        .expect("candidates");
+    let ticks = ticks_at(step);
+    let decimals = (-step.log10().floor()).max(0.0) as usize;
+    (ticks, decimals)
+}
+
 /// A line plot with axes, ticks, a legend and optional shaded spans (`(x0, x1, label)`,
 /// e.g. phone segments) along the bottom.
 pub fn line_plot(
@@ -254,9 +277,9 @@ pub fn line_plot(
     // Axes and ticks.
     line(&mut img, (left, top + ph), (left + pw, top + ph), BLACK);
     line(&mut img, (left, top), (left, top + ph), BLACK);
-    for k in 0..=4 {
-        let y = y_min + (y_max - y_min) * k as f64 / 4.0;
-        let label = format!("{y:.3}");
+    let (y_ticks, y_decimals) = nice_ticks(y_min, y_max);
+    for y in y_ticks {
+        let label = format!("{y:.y_decimals$}");
         text(
             &mut img,
             left - text_width(10.0, &label) - 4.0,
@@ -266,8 +289,10 @@ pub fn line_plot(
             BLACK,
         );
         line(&mut img, (left - 3.0, py(y)), (left, py(y)), BLACK);
-        let x = x_min + x_span * k as f64 / 4.0;
-        let label = format!("{x:.2}");
+    }
+    let (x_ticks, x_decimals) = nice_ticks(x_min, x_min + x_span);
+    for x in x_ticks {
+        let label = format!("{x:.x_decimals$}");
         text(
             &mut img,
             px(x) - 0.5 * text_width(10.0, &label),
@@ -276,6 +301,7 @@ pub fn line_plot(
             &label,
             BLACK,
         );
+        line(&mut img, (px(x), top + ph), (px(x), top + ph + 3.0), BLACK);
     }
     text(
         &mut img,
@@ -303,4 +329,26 @@ pub fn line_plot(
         ly += 14.0;
     }
     img
+}
+
+#[cfg(test)]
+mod tests {
+    use super::nice_ticks;
+
+    #[test]
+    fn ticks_fall_on_round_steps() {
+        assert_eq!(nice_ticks(0.0, 199.96), (vec![0.0, 50.0, 100.0, 150.0], 0));
+        assert_eq!(
+            nice_ticks(12.387, 37.919),
+            (vec![15.0, 20.0, 25.0, 30.0, 35.0], 0)
+        );
+        let (t, d) = nice_ticks(0.389, 0.933);
+        assert_eq!(d, 1);
+        assert_eq!(t.len(), 6);
+        assert!((t[0] - 0.4).abs() < 1e-12 && (t[5] - 0.9).abs() < 1e-12);
+        let (t, d) = nice_ticks(-0.013, 0.021);
+        assert_eq!((t.len(), d), (4, 2));
+        assert!(t.iter().all(|v| (-0.013..=0.021).contains(v)));
+        assert_eq!(nice_ticks(1.0, 1.0), (vec![1.0], 0));
+    }
 }
