@@ -311,6 +311,8 @@ impl Writer {
             // Speed over a few per cent of size: the faces are smooth and mostly static.
             .complexity(Complexity::Low)
             .background_detection(false)
+            .scene_change_detect(false)
+            .adaptive_quantization(false)
             .intra_frame_period(IntraFramePeriod::from_num_frames((2.0 * fps).round() as u32));
         let encoder = Encoder::with_api_config(openh264::OpenH264API::from_source(), config)
             .map_err(|e| e.to_string())?;
