@@ -391,6 +391,18 @@ impl FaceModel {
         })
     }
 
+    /// Standard deviation of each shape then appearance parameter (the face-space columns
+    /// after the pose), for errors measured in σ.
+    pub fn standard_deviations(&self) -> Vec<f64> {
+        self.shape
+            .pca
+            .variances
+            .iter()
+            .chain(&self.appearance.pca.variances)
+            .map(|&v| f64::from(v).sqrt())
+            .collect()
+    }
+
     /// Splits a face-space vector, checking its length.
     pub fn params_from_vector(&self, v: &[f32]) -> Result<FaceParams, ModelError> {
         if v.len() != self.n_params() {

@@ -28,17 +28,29 @@ impl Renderer for CpuRenderer {
         frames: &[f64],
         background: &RgbImage,
     ) -> Result<Vec<RgbImage>, ModelError> {
-        frames
-            .par_chunks_exact(model.n_params())
-            .map(|row| {
-                let v: Vec<f32> = row.iter().map(|&x| x as f32).collect();
-                let params = model.params_from_vector(&v)?;
-                let mut canvas = background.clone();
-                model.render_into(&params, &mut canvas)?;
-                Ok(canvas)
-            })
-            .collect()
+        render_rows(model, frames, background, |row, canvas| {
+            model.render_into(&model.params_from_vector(row)?, canvas)?;
+            Ok(())
+        })
     }
+}
+
+/// Each `dims`-long row drawn by `draw` over its own copy of `background`, rayon across rows.
+fn render_rows(
+    model: &FaceModel,
+    frames: &[f64],
+    background: &RgbImage,
+    draw: impl Fn(&[f32], &mut RgbImage) -> Result<(), ModelError> + Sync,
+) -> Result<Vec<RgbImage>, ModelError> {
+    frames
+        .par_chunks_exact(model.n_params())
+        .map(|row| {
+            let v: Vec<f32> = row.iter().map(|&x| x as f32).collect();
+            let mut canvas = background.clone();
+            draw(&v, &mut canvas)?;
+            Ok(canvas)
+        })
+        .collect()
 }
 
 /// A plain grey canvas large enough for every frame's face (pose included), for when no
@@ -136,15 +148,9 @@ impl Renderer for Compositor {
         frames: &[f64],
         background: &RgbImage,
     ) -> Result<Vec<RgbImage>, ModelError> {
-        frames
-            .par_chunks_exact(model.n_params())
-            .map(|row| {
-                let v: Vec<f32> = row.iter().map(|&x| x as f32).collect();
-                let mut canvas = background.clone();
-                self.draw(model, &v, &mut canvas)?;
-                Ok(canvas)
-            })
-            .collect()
+        render_rows(model, frames, background, |row, canvas| {
+            self.draw(model, row, canvas)
+        })
     }
 }
 

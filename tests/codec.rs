@@ -90,14 +90,7 @@ fn synthetic_round_trip_recovers_the_parameters() {
     let source = Source::open(&dir.path().join("frames")).unwrap();
     let clip = codec::encode(&model, source, &options, facespace::no_progress).unwrap();
     assert_eq!(clip.meta.frames, 24);
-    let sd: Vec<f64> = model
-        .shape
-        .pca
-        .variances
-        .iter()
-        .chain(&model.appearance.pca.variances)
-        .map(|&v| (v as f64).sqrt())
-        .collect();
+    let sd = model.standard_deviations();
     let ns = model.shape.n_params();
     let (mut worst_shape, mut worst_app) = (0.0f64, 0.0f64);
     let mut shape_errors = Vec::new();

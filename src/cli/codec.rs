@@ -134,14 +134,7 @@ pub fn encode(a: EncodeArgs) -> Result<()> {
 
 /// Largest difference between two clips' shape/appearance parameters, in standard deviations.
 pub fn max_error_sd(model: &FaceModel, a: &Clip, b: &Clip) -> f64 {
-    let sd: Vec<f64> = model
-        .shape
-        .pca
-        .variances
-        .iter()
-        .chain(&model.appearance.pca.variances)
-        .map(|&v| (v as f64).sqrt())
-        .collect();
+    let sd = model.standard_deviations();
     let dims = a.dims();
     a.params
         .iter()
