@@ -6,10 +6,21 @@ use std::path::Path;
 
 /// Writes `bytes` to `path` through a temporary file in the same folder and a rename.
 pub fn write_file(path: &Path, bytes: &[u8]) -> io::Result<()> {
+    let mut tmp = staging_file(path)?;
+    tmp.write_all(bytes)?;
+    persist(tmp, path)
+}
+
+/// A temporary file beside `path` (its folder created if need be), for [`persist`]; dropped
+/// instead, it is removed.
+pub fn staging_file(path: &Path) -> io::Result<tempfile::NamedTempFile> {
     let dir = parent_of(path);
     std::fs::create_dir_all(dir)?;
-    let mut tmp = tempfile::Builder::new().prefix(".tmp-").tempfile_in(dir)?;
-    tmp.write_all(bytes)?;
+    tempfile::Builder::new().prefix(".tmp-").tempfile_in(dir)
+}
+
+/// Flushes a [`staging_file`] to disk and renames it to `path`.
+pub fn persist(tmp: tempfile::NamedTempFile, path: &Path) -> io::Result<()> {
     // tempfile creates 0600 files; a written artefact is an ordinary readable file.
     #[cfg(unix)]
     tmp.as_file()
@@ -71,7 +82,8 @@ pub fn replace_dir<E>(
     swap().map_err(io)
 }
 
-fn parent_of(path: &Path) -> &Path {
+/// The folder `path` is in (`.` for a bare file name).
+pub fn parent_of(path: &Path) -> &Path {
     match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),

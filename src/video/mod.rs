@@ -115,12 +115,7 @@ pub fn frame_files(dir: &Path) -> Result<Vec<PathBuf>, VideoError> {
             source,
         })?
         .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| {
-            p.extension()
-                .and_then(|e| e.to_str())
-                .map(str::to_ascii_lowercase)
-                .is_some_and(|e| crate::model::IMAGE_EXTENSIONS.contains(&e.as_str()))
-        })
+        .filter(|p| crate::model::IMAGE_EXTENSIONS.contains(&extension(p).as_str()))
         .collect();
     files.sort();
     if files.is_empty() {
@@ -386,24 +381,18 @@ impl Sink {
         if width == 0 || height == 0 {
             return Err(encode(format!("cannot write {width}×{height} frames")));
         }
-        let parent = match path.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-            _ => PathBuf::from("."),
-        };
-        std::fs::create_dir_all(&parent).map_err(io_error(&parent))?;
+        let parent = crate::atomic::parent_of(path);
+        std::fs::create_dir_all(parent).map_err(io_error(parent))?;
         let ext = extension(path);
         let kind = match ext.as_str() {
             "" => SinkKind::Frames(
                 tempfile::Builder::new()
                     .prefix(".tmp-")
-                    .tempdir_in(&parent)
-                    .map_err(io_error(&parent))?,
+                    .tempdir_in(parent)
+                    .map_err(io_error(parent))?,
             ),
             "y4m" => {
-                let mut f = tempfile::Builder::new()
-                    .prefix(".tmp-")
-                    .tempfile_in(&parent)
-                    .map_err(io_error(&parent))?;
+                let mut f = crate::atomic::staging_file(path).map_err(io_error(parent))?;
                 f.write_all(y4m::header(width, height, fps).as_bytes())
                     .map_err(io_error(path))?;
                 SinkKind::Y4m(BufWriter::new(f))
@@ -421,8 +410,8 @@ impl Sink {
                 let tmp = tempfile::Builder::new()
                     .prefix(".tmp-")
                     .suffix(&format!(".{ext}"))
-                    .tempfile_in(&parent)
-                    .map_err(io_error(&parent))?
+                    .tempfile_in(parent)
+                    .map_err(io_error(parent))?
                     .into_temp_path();
                 let mut cmd = Command::new(ffmpeg);
                 cmd.args(["-v", "error", "-y", "-f", "yuv4mpegpipe", "-i", "-"]);
@@ -520,12 +509,7 @@ impl Sink {
             }
             SinkKind::Y4m(w) => {
                 let f = w.into_inner().map_err(|e| io(e.into_error()))?;
-                f.as_file().sync_all().map_err(&io)?;
-                #[cfg(unix)]
-                f.as_file()
-                    .set_permissions(std::os::unix::fs::PermissionsExt::from_mode(0o644))
-                    .map_err(&io)?;
-                f.persist(&path).map_err(|e| io(e.error))?;
+                crate::atomic::persist(f, &path).map_err(&io)?;
             }
             SinkKind::Mp4(w, audio) => {
                 w.finish(&path, audio.as_ref())
@@ -597,29 +581,19 @@ fn audio_track(audio: &Path) -> Result<mp4::AudioTrack, VideoError> {
 /// tell, and there is none).
 pub fn extract_audio(input: &Path, out: &Path) -> Result<bool, VideoError> {
     let mp4_input = matches!(extension(input).as_str(), "mp4" | "m4v" | "mov" | "m4a");
-    if mp4_input && let Ok(found) = mp4::AudioTrack::read(input) {
-        return match found {
-            Some(track) => track
-                .save(out)
-                .map(|()| true)
-                .map_err(|message| VideoError::Encode {
-                    path: out.into(),
-                    message,
-                }),
-            None => Ok(false),
-        };
-    }
-    if input.is_dir() || system_ffmpeg().is_none() {
-        return Ok(false);
-    }
-    match audio_track(input) {
-        Ok(track) => track
+    let track = match mp4_input.then(|| mp4::AudioTrack::read(input)) {
+        Some(Ok(found)) => found,
+        _ if input.is_dir() || system_ffmpeg().is_none() => None,
+        _ => audio_track(input).ok(),
+    };
+    match track {
+        Some(track) => track
             .save(out)
             .map(|()| true)
             .map_err(|message| VideoError::Encode {
                 path: out.into(),
                 message,
             }),
-        Err(_) => Ok(false),
+        None => Ok(false),
     }
 }

@@ -230,15 +230,7 @@ fn start(
     path: &Path,
     timescale: u32,
 ) -> Result<(tempfile::NamedTempFile, mp4::Mp4Writer<BufWriter<File>>), String> {
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    std::fs::create_dir_all(dir).map_err(|e| e.to_string())?;
-    let tmp = tempfile::Builder::new()
-        .prefix(".tmp-")
-        .tempfile_in(dir)
-        .map_err(|e| e.to_string())?;
+    let tmp = crate::atomic::staging_file(path).map_err(|e| e.to_string())?;
     let file = tmp.reopen().map_err(|e| e.to_string())?;
     let config = mp4::Mp4Config {
         major_brand: str::parse("isom").expect("four letters"),
@@ -259,18 +251,15 @@ fn finish(
     path: &Path,
 ) -> Result<(), String> {
     writer.write_end().map_err(|e| e.to_string())?;
-    let file = writer
+    writer
         .into_writer()
         .into_inner()
         .map_err(|e| e.error().to_string())?;
-    file.sync_all().map_err(|e| e.to_string())?;
-    #[cfg(unix)]
-    tmp.as_file()
-        .set_permissions(std::os::unix::fs::PermissionsExt::from_mode(0o644))
-        .map_err(|e| e.to_string())?;
-    tmp.persist(path).map_err(|e| e.error.to_string())?;
-    Ok(())
+    crate::atomic::persist(tmp, path).map_err(|e| e.to_string())
 }
+
+/// Track ticks per frame: the timescale is fps × this, so 29.97 fps is exact to 1/1000.
+const FRAME_TICKS: u32 = 1000;
 
 /// Encodes frames to an H.264 MP4, written beside its destination and renamed into place on
 /// [`Writer::finish`] (dropped unfinished, it leaves nothing behind).
@@ -281,9 +270,8 @@ pub struct Writer {
     yuv: Vec<u8>,
     width: u32,
     height: u32,
-    /// Ticks per second of the video track: fps × 1000, so that a frame lasts 1000 ticks.
+    /// Ticks per second of the video track: fps × [`FRAME_TICKS`].
     timescale: u32,
-    tick: u32,
     frames: u64,
     has_track: bool,
 }
@@ -299,7 +287,7 @@ impl Writer {
         if !(fps.is_finite() && fps > 0.0 && fps <= 1000.0) {
             return Err(format!("frame rate {fps} is out of range"));
         }
-        let timescale = (fps * 1000.0).round() as u32;
+        let timescale = (fps * f64::from(FRAME_TICKS)).round() as u32;
         // About 0.25 bit per pixel: visually clean for faces; the codec report measures it.
         let bits = (f64::from(width * height) * fps * 0.25) as u32;
         let config = EncoderConfig::new()
@@ -325,7 +313,6 @@ impl Writer {
             width,
             height,
             timescale,
-            tick: 1000,
             frames: 0,
             has_track: false,
         })
@@ -386,8 +373,8 @@ impl Writer {
             self.has_track = true;
         }
         let sample = mp4::Mp4Sample {
-            start_time: self.frames * u64::from(self.tick),
-            duration: self.tick,
+            start_time: self.frames * u64::from(FRAME_TICKS),
+            duration: FRAME_TICKS,
             rendering_offset: 0,
             is_sync,
             bytes: sample.into(),
