@@ -70,8 +70,6 @@ pub struct Fitter<'m> {
     model: &'m FaceModel,
     /// Coarsest first; level `k` works on images downsampled by `2^k`.
     levels: Vec<Level>,
-    /// One octave below the coarsest level, for the first-frame grid search only.
-    search: Level,
     options: FitOptions,
 }
 
@@ -349,11 +347,9 @@ impl<'m> Fitter<'m> {
             .rev()
             .map(|k| Level::new(model, 1 << k))
             .collect::<Result<_, _>>()?;
-        let search = Level::new(model, 2 * levels[0].factor)?;
         Ok(Fitter {
             model,
             levels,
-            search,
             options,
         })
     }
@@ -523,8 +519,10 @@ impl Fitter<'_> {
     /// few thousand pixels and twelve coarse fits.
     pub fn search_start(&self, image: &RgbImage) -> Result<Landmarks, FitError> {
         const SHORTLIST: usize = 12;
+        // One octave below the coarsest level; built here, as only a first frame needs it.
+        let search = Level::new(self.model, 2 * self.levels[0].factor)?;
         let grey = GreyImage::from_rgb(image);
-        let mut candidates = self.grid_scores(&self.search, &grey)?;
+        let mut candidates = self.grid_scores(&search, &grey)?;
         if candidates.is_empty() {
             return Err(FitError::TooSmall {
                 width: image.width(),
@@ -553,7 +551,7 @@ impl Fitter<'_> {
             }
         }
         let candidates = shortlist;
-        let (level, ratio) = (&self.levels[0], self.search.factor as f64);
+        let (level, ratio) = (&self.levels[0], search.factor as f64);
         let coarse = downsample(grey, level.factor);
         let mut best = (f64::INFINITY, Vec::new());
         for (_, placed) in candidates {
