@@ -2,8 +2,10 @@
 //! parameters (±2σ shape, ±1σ appearance) plus noise, starts perturbed by up to 10% of the
 //! face width in translation, ±10° rotation and ±10% scale from the mean shape.
 //! Run: cargo run --release --example fit_synthetic [trials]
+use facespace::facespace::FaceParams;
 use facespace::fit::{FitOptions, Fitter};
-use facespace::model::{FaceModel, FaceParams, load_training_set};
+use facespace::model::{FaceModel, load_training_set};
+use facespace::render::{CpuRenderer, Renderer};
 use facespace::rng::Rng;
 use facespace::shape::Similarity;
 
@@ -52,23 +54,25 @@ fn main() {
     let start = std::time::Instant::now();
     for t in 0..trials {
         let bg = &frames[t % frames.len()];
-        let real = model.project(&bg.image, &bg.landmarks).unwrap();
+        let (pose, _) = model.shape.project(&bg.landmarks).unwrap();
         let sd = |v: &[f32], k: f64, rng: &mut Rng| {
             v.iter()
                 .map(|x| (rng.range(-k, k) * (*x as f64).sqrt()) as f32)
                 .collect::<Vec<_>>()
         };
+        let shape = sd(&model.shape.pca.variances, 2.0, &mut rng);
+        let appearance = sd(
+            &model.appearance.pca.variances,
+            std::env::var("APP_SD")
+                .ok()
+                .and_then(|s| s.parse().ok())
+                .unwrap_or(1.0),
+            &mut rng,
+        );
         let truth = FaceParams {
-            pose: real.pose,
-            shape: sd(&model.shape.pca.variances, 2.0, &mut rng),
-            appearance: sd(
-                &model.appearance.pca.variances,
-                std::env::var("APP_SD")
-                    .ok()
-                    .and_then(|s| s.parse().ok())
-                    .unwrap_or(1.0),
-                &mut rng,
-            ),
+            pose,
+            shape: &shape,
+            appearance: &appearance,
         };
         // A plain background of the video's blue: no second face for the fit to lock onto.
         let mut img = if std::env::var("REAL_BG").is_ok() {
@@ -80,7 +84,10 @@ fn main() {
                 image::Rgb([40, 90, 210]),
             )
         };
-        let r = model.render_into(&truth, &mut img).unwrap();
+        CpuRenderer::new(&model)
+            .render_into(truth, &mut img)
+            .unwrap();
+        let r = model.reconstruct(truth).unwrap();
         for p in img.pixels_mut() {
             for c in p.0.iter_mut() {
                 *c = (*c as f64 + 2.0 * rng.normal()).round().clamp(0.0, 255.0) as u8;

@@ -1,19 +1,22 @@
 //! facespace — talking-face animation from independent statistical shape and appearance
 //! models (Theobald et al. \[blend\]; Liu & Ostermann \[unitsel\]; see `DESIGN.md`).
 //!
-//! The pipeline, and the module that owns each step:
+//! The face-space vector ([`facespace`]: `[pose | b_s | b_a]`, a [`facespace::Frames`]
+//! sequence) is the currency every stage passes:
 //!
-//! 1. [`shape`]: iBUG `.pts` landmarks → generalised Procrustes → [`shape::ShapeModel`]
-//!    (pose kept apart as a [`shape::Similarity`]).
-//! 2. [`mesh`]: Delaunay triangulation of the mean shape → [`mesh::ReferenceFrame`] with a
-//!    precomputed per-pixel triangle and barycentric map.
-//! 3. [`warp`]: piecewise affine warps, image ↔ reference frame (bilinear, rayon).
-//! 4. [`appearance`]: PCA of the shape-normalised RGB textures ([`pca`] does the maths).
-//! 5. [`model`]: [`model::FaceModel`] = the two independent models + the frame; build,
-//!    project a frame to face-space, reconstruct a frame from face-space, save and load as
-//!    `model.json` + `.npy` arrays.
-//! 6. [`fit`]: AAM search and the frame-to-frame tracker; [`video`]: frame sources and sinks
-//!    (MP4 built in); [`codec`]: video → face-space clip → video.
+//! 1. [`shape`] (landmarks, `.pts`, Procrustes, the point distribution model), [`mesh`]
+//!    (triangulation, reference frame, per-pixel barycentric map), [`warp`] (piecewise affine
+//!    warps), [`appearance`] and [`pca`] → [`model::FaceModel`]: build, project, reconstruct,
+//!    save and load.
+//! 2. [`fit`]: AAM search and the frame-to-frame tracker; [`video`]: frame sources and sinks
+//!    (MP4 built in); [`codec`]: video → face-space clip → video, with its quality report.
+//! 3. [`corpus`]: labelled sentences (and the generated demo corpus); [`phonemes`]: phone set,
+//!    label files, text → phones; [`trajectory`]: PCHIP trajectories; [`codebook`]: the
+//!    trajectories indexed by phone, with S and M.
+//! 4. [`synth`]: synthesisers behind one trait, smoothing, and the writer of an utterance;
+//!    [`render`]: renderers behind one trait and the streaming render of a sequence;
+//!    [`eval`]: objective measures and the systems they compare; [`demo`]: the whole
+//!    pipeline on the committed demo model.
 //!
 //! The library never prints: long work reports through a [`Progress`] callback.
 
@@ -22,12 +25,15 @@ pub mod atomic;
 pub mod codebook;
 pub mod codec;
 pub mod corpus;
+pub mod demo;
 pub mod eval;
+pub mod facespace;
 pub mod fit;
 pub mod manifest;
 pub mod mesh;
 pub mod model;
 pub mod npy;
+pub mod options;
 pub mod pca;
 pub mod phonemes;
 pub mod plot;
@@ -42,8 +48,11 @@ pub mod warp;
 /// A progress report from long-running work: `done` of `total` units of `stage`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Progress {
+    /// What is being done.
     pub stage: &'static str,
+    /// Units done.
     pub done: usize,
+    /// Units in all.
     pub total: usize,
 }
 

@@ -1,35 +1,123 @@
-//! JSON manifests of model and codebook folders: format and version are checked before the
-//! rest is parsed, so an unknown version is reported as such, not as a missing field.
+//! Folders described by a JSON manifest (model, codebook, clip): the format and version are
+//! checked before the rest is parsed, so an unknown version is reported as such, not as a
+//! missing field; the files a manifest names are plain file names inside its folder and
+//! regular files; arrays are read with their shapes and finiteness checked.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
+use ndarray::{Array, Dimension};
 use serde::de::DeserializeOwned;
+use thiserror::Error;
 
-/// What can be wrong with a manifest; the caller names the file.
-#[derive(Debug)]
+use crate::npy::{self, Element, NpyError};
+
+/// What can be wrong with a manifest folder; every variant names the file.
+#[derive(Debug, Error)]
+#[non_exhaustive]
 pub enum ManifestError {
-    Io(std::io::Error),
-    Invalid(String),
-    Version(u32),
+    /// The manifest could not be read.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// The manifest is not valid JSON of the expected kind.
+    #[error("{path}: {reason}")]
+    Invalid {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        reason: String,
+    },
+    /// Another version of the format.
+    #[error("{path}: {format} version {found}, this build reads version {supported}")]
+    Version {
+        /// The file.
+        path: PathBuf,
+        /// The format's name.
+        format: &'static str,
+        /// The version field as written.
+        found: String,
+        /// The version this build reads.
+        supported: u32,
+    },
+    /// A file name in the manifest that would leave the folder or is not a regular file.
+    #[error("{dir}: the manifest names {name:?}, which is not a plain file name inside the folder")]
+    Escapes {
+        /// The folder.
+        dir: PathBuf,
+        /// The name given.
+        name: String,
+    },
+    /// An array file is damaged or does not match the manifest.
+    #[error(transparent)]
+    Npy(#[from] NpyError),
 }
 
 /// Reads `path`, checks `"format": format` and `"version": version`, then parses `T`.
 pub fn read<T: DeserializeOwned>(
     path: &Path,
-    format: &str,
+    format: &'static str,
     version: u32,
 ) -> Result<T, ManifestError> {
-    let text = std::fs::read_to_string(path).map_err(ManifestError::Io)?;
+    let invalid = |reason: String| ManifestError::Invalid {
+        path: path.into(),
+        reason,
+    };
+    let meta = std::fs::metadata(path).map_err(|source| ManifestError::Io {
+        path: path.into(),
+        source,
+    })?;
+    if !meta.is_file() {
+        return Err(invalid("not a regular file".into()));
+    }
+    let text = std::fs::read_to_string(path).map_err(|source| ManifestError::Io {
+        path: path.into(),
+        source,
+    })?;
     let value: serde_json::Value =
-        serde_json::from_str(&text).map_err(|e| ManifestError::Invalid(e.to_string()))?;
+        serde_json::from_str(&text).map_err(|e| invalid(e.to_string()))?;
     if value.get("format").and_then(|f| f.as_str()) != Some(format) {
-        return Err(ManifestError::Invalid(format!(
+        return Err(invalid(format!(
             "not a {format} manifest (\"format\" field)"
         )));
     }
-    let found = value.get("version").and_then(|v| v.as_u64()).unwrap_or(0) as u32;
-    if found != version {
-        return Err(ManifestError::Version(found));
+    let found = value.get("version");
+    if found.and_then(|v| v.as_u64()) != Some(u64::from(version)) {
+        return Err(ManifestError::Version {
+            path: path.into(),
+            format,
+            found: found.map_or("(none)".into(), |v| v.to_string()),
+            supported: version,
+        });
     }
-    serde_json::from_value(value).map_err(|e| ManifestError::Invalid(e.to_string()))
+    serde_json::from_value(value).map_err(|e| invalid(e.to_string()))
+}
+
+/// `dir/name` when `name` is a plain file name (no separators, not `.` or `..`).
+pub fn member(dir: &Path, name: &str) -> Result<PathBuf, ManifestError> {
+    let plain = !name.is_empty()
+        && name != "."
+        && name != ".."
+        && !name.contains(['/', '\\', '\0'])
+        && Path::new(name).file_name() == Some(std::ffi::OsStr::new(name));
+    if plain {
+        Ok(dir.join(name))
+    } else {
+        Err(ManifestError::Escapes {
+            dir: dir.into(),
+            name: name.into(),
+        })
+    }
+}
+
+/// Reads the array `name` of folder `dir` (see [`npy::read_checked`]).
+pub fn read_array<T: Element, D: Dimension>(
+    dir: &Path,
+    name: &str,
+    expected: &[Option<usize>],
+) -> Result<Array<T, D>, ManifestError> {
+    Ok(npy::read_checked(&member(dir, name)?, expected)?)
 }

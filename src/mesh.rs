@@ -28,7 +28,13 @@ pub enum MeshError {
     },
     #[error("reference frame of {0} pixels is too small (need at least 100)")]
     TooFewPixels(usize),
+    #[error("a {width}×{height} reference frame exceeds {MAX_FRAME_PIXELS} pixels")]
+    TooLarge { width: f64, height: f64 },
 }
+
+/// Largest reference frame (bounding box, pixels) placed: a damaged placement cannot ask for
+/// gigabytes.
+pub const MAX_FRAME_PIXELS: usize = 16_000_000;
 
 /// Delaunay triangulation of the points (counter-clockwise in x-right/y-down pixel axes
 /// is not guaranteed; use [`signed_area`] where orientation matters).
@@ -195,9 +201,17 @@ impl ReferenceFrame {
         let max = landmarks
             .iter()
             .fold([0f64; 2], |m, p| [m[0].max(p[0]), m[1].max(p[1])]);
-        let width = (max[0] + MARGIN).ceil() as usize + 1;
-        let height = (max[1] + MARGIN).ceil() as usize + 1;
-        Self::from_landmarks(landmarks, triangles, width, height)
+        let (w, h) = (
+            (max[0] + MARGIN).ceil() + 1.0,
+            (max[1] + MARGIN).ceil() + 1.0,
+        );
+        if !(w * h <= MAX_FRAME_PIXELS as f64) {
+            return Err(MeshError::TooLarge {
+                width: w,
+                height: h,
+            });
+        }
+        Self::from_landmarks(landmarks, triangles, w as usize, h as usize)
     }
 
     /// A frame from explicit vertex positions and size (for warps onto any target shape).

@@ -1,10 +1,19 @@
 //! Small raster plots for reports: line plots of trajectories and matrix heat maps, drawn
-//! into an `RgbImage` with an embedded font (DejaVu Sans Mono, `data/fonts`).
+//! with imageproc's primitives into an `RgbImage` with an embedded font (DejaVu Sans Mono,
+//! `data/fonts`).
 
 use std::sync::OnceLock;
 
-use ab_glyph::{Font, FontRef, PxScale, ScaleFont};
+use ab_glyph::FontRef;
 use image::{Rgb, RgbImage};
+use imageproc::drawing::{
+    draw_antialiased_line_segment_mut, draw_filled_rect_mut, draw_text_mut, text_size,
+};
+use imageproc::pixelops::interpolate;
+use imageproc::rect::Rect;
+
+use crate::facespace::Layout;
+use crate::phonemes::Segment;
 
 static FONT_BYTES: &[u8] = include_bytes!("../data/fonts/DejaVuSansMono.ttf");
 
@@ -13,8 +22,8 @@ fn font() -> &'static FontRef<'static> {
     FONT.get_or_init(|| FontRef::try_from_slice(FONT_BYTES).expect("embedded font parses"))
 }
 
+/// Axis and text colour.
 pub const BLACK: Rgb<u8> = Rgb([0, 0, 0]);
-pub const GREY: Rgb<u8> = Rgb([200, 200, 200]);
 /// Distinct series colours (Tableau 10).
 pub const PALETTE: [Rgb<u8>; 6] = [
     Rgb([31, 119, 180]),
@@ -25,84 +34,33 @@ pub const PALETTE: [Rgb<u8>; 6] = [
     Rgb([140, 86, 75]),
 ];
 
-/// Blends `color` into pixel (x, y) with coverage `alpha`, ignoring points off the image.
-fn blend(img: &mut RgbImage, x: i64, y: i64, color: Rgb<u8>, alpha: f32) {
-    if x < 0 || y < 0 || x >= img.width() as i64 || y >= img.height() as i64 {
-        return;
-    }
-    let p = img.get_pixel_mut(x as u32, y as u32);
-    for c in 0..3 {
-        p.0[c] = (p.0[c] as f32 * (1.0 - alpha) + color.0[c] as f32 * alpha).round() as u8;
-    }
+/// Draws `s` with its top-left corner at (x, y).
+fn text(img: &mut RgbImage, x: f32, y: f32, size: f32, s: &str, color: Rgb<u8>) {
+    draw_text_mut(
+        img,
+        color,
+        x.round() as i32,
+        y.round() as i32,
+        size,
+        font(),
+        s,
+    );
 }
 
-/// Draws `text` with its top-left corner at (x, y).
-pub fn text(img: &mut RgbImage, x: f32, y: f32, size: f32, s: &str, color: Rgb<u8>) {
-    let font = font().as_scaled(PxScale::from(size));
-    let mut caret = x;
-    for ch in s.chars() {
-        let glyph = font.scaled_glyph(ch);
-        let advance = font.h_advance(glyph.id);
-        let glyph = ab_glyph::Glyph {
-            position: ab_glyph::point(caret, y + font.ascent()),
-            ..glyph
-        };
-        if let Some(outline) = font.outline_glyph(glyph) {
-            let b = outline.px_bounds();
-            outline.draw(|gx, gy, cov| {
-                blend(
-                    img,
-                    b.min.x as i64 + gx as i64,
-                    b.min.y as i64 + gy as i64,
-                    color,
-                    cov,
-                )
-            });
-        }
-        caret += advance;
-    }
+/// Width of `s` in pixels.
+fn text_width(size: f32, s: &str) -> f32 {
+    text_size(size, font(), s).0 as f32
 }
 
-/// Width of `text` in pixels.
-pub fn text_width(size: f32, s: &str) -> f32 {
-    let font = font().as_scaled(PxScale::from(size));
-    s.chars().map(|c| font.h_advance(font.glyph_id(c))).sum()
+/// An anti-aliased line.
+fn line(img: &mut RgbImage, a: (f32, f32), b: (f32, f32), color: Rgb<u8>) {
+    let p = |v: (f32, f32)| (v.0.round() as i32, v.1.round() as i32);
+    draw_antialiased_line_segment_mut(img, p(a), p(b), color, interpolate);
 }
 
-/// An anti-aliased line (Xiaolin Wu).
-pub fn line(
-    img: &mut RgbImage,
-    (mut x0, mut y0): (f32, f32),
-    (mut x1, mut y1): (f32, f32),
-    color: Rgb<u8>,
-) {
-    let steep = (y1 - y0).abs() > (x1 - x0).abs();
-    if steep {
-        std::mem::swap(&mut x0, &mut y0);
-        std::mem::swap(&mut x1, &mut y1);
-    }
-    if x0 > x1 {
-        std::mem::swap(&mut x0, &mut x1);
-        std::mem::swap(&mut y0, &mut y1);
-    }
-    let gradient = if x1 == x0 { 0.0 } else { (y1 - y0) / (x1 - x0) };
-    let mut y = y0;
-    for x in x0.round() as i64..=x1.round() as i64 {
-        let (yi, f) = (y.floor() as i64, y - y.floor());
-        let px = |a: i64, b: i64| if steep { (b, a) } else { (a, b) };
-        let (ax, ay) = px(x, yi);
-        blend(img, ax, ay, color, 1.0 - f);
-        let (bx, by) = px(x, yi + 1);
-        blend(img, bx, by, color, f);
-        y += gradient;
-    }
-}
-
-pub fn fill_rect(img: &mut RgbImage, x: u32, y: u32, w: u32, h: u32, color: Rgb<u8>) {
-    for yy in y..(y + h).min(img.height()) {
-        for xx in x..(x + w).min(img.width()) {
-            img.put_pixel(xx, yy, color);
-        }
+fn fill_rect(img: &mut RgbImage, x: u32, y: u32, w: u32, h: u32, color: Rgb<u8>) {
+    if w > 0 && h > 0 {
+        draw_filled_rect_mut(img, Rect::at(x as i32, y as i32).of_size(w, h), color);
     }
 }
 
@@ -181,9 +139,13 @@ pub fn heat_map(values: &[f64], labels: &[&str], title: &str) -> RgbImage {
 
 /// One line series of a plot.
 pub struct Series<'a> {
+    /// Legend text.
     pub label: &'a str,
+    /// Abscissae.
     pub x: &'a [f64],
+    /// Ordinates.
     pub y: &'a [f64],
+    /// Line colour.
     pub color: Rgb<u8>,
 }
 
@@ -329,6 +291,68 @@ pub fn line_plot(
         ly += 14.0;
     }
     img
+}
+
+/// Two panels over time — the first shape and the first appearance parameter — of each
+/// `(label, frames)` series (`frames × layout.dims()` values at `fps`), with the phones as
+/// bands along the bottom.
+pub fn parameter_plot(
+    layout: Layout,
+    fps: f64,
+    series: &[(&str, ndarray::ArrayView2<'_, f32>)],
+    target: &[Segment],
+) -> RgbImage {
+    let spans: Vec<(f64, f64, &str)> = target
+        .iter()
+        .map(|s| (s.start, s.end, s.phone.name()))
+        .collect();
+    let mut panels = Vec::new();
+    for (title, k) in [
+        ("first shape parameter", layout.shape_range().start),
+        (
+            "first appearance parameter",
+            layout.appearance_range().start,
+        ),
+    ] {
+        let cols: Vec<(Vec<f64>, Vec<f64>)> = series
+            .iter()
+            .map(|(_, m)| {
+                (
+                    (0..m.nrows()).map(|i| i as f64 / fps).collect(),
+                    m.column(k.min(m.ncols() - 1))
+                        .iter()
+                        .map(|&v| f64::from(v))
+                        .collect(),
+                )
+            })
+            .collect();
+        let s: Vec<Series> = series
+            .iter()
+            .zip(&cols)
+            .enumerate()
+            .map(|(i, ((label, _), (x, y)))| Series {
+                label,
+                x,
+                y,
+                color: PALETTE[i % PALETTE.len()],
+            })
+            .collect();
+        panels.push(line_plot(title, "time (s)", &s, &spans, 900, 260));
+    }
+    stack(&panels)
+}
+
+/// Images one above the other (as wide as the widest).
+pub fn stack(panels: &[RgbImage]) -> RgbImage {
+    let w = panels.iter().map(|p| p.width()).max().unwrap_or(0);
+    let h = panels.iter().map(|p| p.height()).sum();
+    let mut out = RgbImage::new(w, h);
+    let mut y = 0;
+    for p in panels {
+        image::imageops::replace(&mut out, p, 0, y);
+        y += i64::from(p.height());
+    }
+    out
 }
 
 #[cfg(test)]

@@ -49,6 +49,8 @@ pub enum ShapeError {
     TooFewShapes(usize),
     #[error("shape PCA: {0}")]
     Pca(#[from] PcaError),
+    #[error(transparent)]
+    Npy(#[from] crate::npy::NpyError),
 }
 
 impl Landmarks {
@@ -237,6 +239,34 @@ pub fn write_pts(path: &Path, landmarks: &Landmarks) -> Result<(), ShapeError> {
         path: path.into(),
         source,
     })
+}
+
+/// Writes a sequence of landmark sets: a `.npy` (frames × landmarks × 2, pixel centres
+/// 0-based) when `path` ends in `.npy`, else a folder of `.pts` files named `names[i].pts`
+/// (default `000000.pts`, …).
+pub fn write_sequence(
+    path: &Path,
+    landmarks: &[Landmarks],
+    names: Option<&[String]>,
+) -> Result<(), ShapeError> {
+    if path.extension().is_some_and(|e| e == "npy") {
+        let n = landmarks.first().map_or(0, Landmarks::len);
+        for (i, l) in landmarks.iter().enumerate() {
+            l.validate(Some(n), &format!("{}: frame {i}", path.display()))?;
+        }
+        let flat: Vec<f32> = landmarks.iter().flat_map(Landmarks::to_flat).collect();
+        let array = ndarray::Array3::from_shape_vec((landmarks.len(), n, 2), flat)
+            .expect("every set has n points");
+        crate::npy::write(path, array.view())?;
+        return Ok(());
+    }
+    for (i, lm) in landmarks.iter().enumerate() {
+        let name = names
+            .and_then(|n| n.get(i).cloned())
+            .unwrap_or_else(|| format!("{i:06}"));
+        write_pts(&path.join(format!("{name}.pts")), lm)?;
+    }
+    Ok(())
 }
 
 /// A similarity transform `p ↦ [a −b; b a] p + t`, with `a = s cos θ`, `b = s sin θ`.

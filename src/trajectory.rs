@@ -5,6 +5,8 @@
 
 use thiserror::Error;
 
+use crate::facespace::Frames;
+
 #[derive(Debug, Error, PartialEq)]
 pub enum TrajectoryError {
     #[error("a trajectory needs at least one sample")]
@@ -86,11 +88,10 @@ impl Trajectory {
         })
     }
 
-    /// Frames sampled at `fps` from time 0 (`frames.len() / dims` samples).
-    pub fn from_frames(frames: &[f32], dims: usize, fps: f64) -> Result<Self, TrajectoryError> {
-        let n = frames.len() / dims.max(1);
-        let times = (0..n).map(|i| i as f64 / fps).collect();
-        Self::new(times, frames.iter().map(|&v| v as f64).collect(), dims)
+    /// A face-space sequence, sample `i` at `i / fps` (every column, pose included).
+    pub fn from_frames(frames: &Frames) -> Result<Self, TrajectoryError> {
+        let values = frames.as_slice().iter().map(|&v| f64::from(v)).collect();
+        Self::new(frames.times(), values, frames.layout().dims())
     }
 
     pub fn len(&self) -> usize {

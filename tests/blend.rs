@@ -1,13 +1,20 @@
 //! Blend synthesis on a hand-built codebook: selection follows the formula for C and N.
-use facespace::codebook::{Codebook, Layout, Sentence, SimilarityOptions};
+use facespace::codebook::{Codebook, SimilarityOptions};
+use facespace::corpus::Sentence;
+use facespace::facespace::{Frames, Layout};
 use facespace::phonemes::{Phone, Segment};
-use facespace::synth::blend::{self, BlendOptions, SynthError};
+use facespace::synth::blend::{self, Blend};
+use facespace::synth::{SynthError, Synthesis, Synthesiser};
 
 const LAYOUT: Layout = Layout {
-    pose: 4,
     shape: 1,
     appearance: 1,
 };
+
+/// Blend synthesis at the test's frame rate.
+fn blend(cb: &Codebook, t: &[Segment], b: Blend) -> Result<Synthesis, SynthError> {
+    b.synthesise(cb, t, FPS)
+}
 const FPS: f64 = 25.0;
 
 fn ph(s: &str) -> Phone {
@@ -46,7 +53,7 @@ fn sentence(name: &str, phones: &[&str], bump: f32) -> Sentence {
     Sentence {
         name: name.into(),
         source: "hand".into(),
-        frames,
+        frames: Frames::from_rows(LAYOUT, FPS, frames).unwrap(),
         segments,
     }
 }
@@ -92,10 +99,9 @@ fn target(phones: &[&str], dur: f64) -> Vec<Segment> {
 fn selection_follows_the_context_score() {
     let cb = codebook();
     let t = target(&["sil", "aa", "m", "iy", "sil"], 0.2);
-    let opts = BlendOptions {
+    let opts = Blend {
         context: 1,
         top_n: 4,
-        fps: FPS,
     };
     let chosen = blend::select(&cb, &t, 2, ph("m"), &opts);
     // Independent evaluation of s_j = S(l, l_j)/2 + S(r, r_j)/2 for the four occurrences.
@@ -123,19 +129,17 @@ fn selection_follows_the_context_score() {
     assert_eq!(&names[..2], ["A", "D"]);
     // C = 2: a target whose second contexts are f … s (as in D) prefers D, at weight 1/3.
     let t2 = target(&["f", "aa", "m", "iy", "s"], 0.2);
-    let c2 = BlendOptions {
+    let c2 = Blend {
         context: 2,
         top_n: 1,
-        fps: FPS,
     };
     assert_eq!(
         cb.sentences[blend::select(&cb, &t2, 2, ph("m"), &c2)[0].0.sentence].name,
         "D"
     );
-    let c1 = BlendOptions {
+    let c1 = Blend {
         context: 1,
         top_n: 1,
-        fps: FPS,
     };
     assert_eq!(
         cb.sentences[blend::select(&cb, &t2, 2, ph("m"), &c1)[0].0.sentence].name,
@@ -149,13 +153,12 @@ fn top_n_and_weights() {
     let cb = codebook();
     let t = target(&["sil", "aa", "m", "iy", "sil"], 0.2);
     for n in 1..=4 {
-        let s = blend::blend(
+        let s = blend(
             &cb,
             &t,
-            &BlendOptions {
+            Blend {
                 context: 1,
                 top_n: n,
-                fps: FPS,
             },
         )
         .unwrap();
@@ -175,52 +178,55 @@ fn top_n_and_weights() {
 fn single_example_is_copied_and_time_warped() {
     let cb = codebook();
     let t = target(&["sil", "aa", "m", "iy", "sil"], 0.2);
-    let s = blend::blend(
+    let s = blend(
         &cb,
         &t,
-        &BlendOptions {
+        Blend {
             context: 1,
             top_n: 1,
-            fps: FPS,
         },
     )
     .unwrap();
     let a = &cb.trajectories[0];
     // Frames inside /m/ (0.4–0.6 s) come from sentence A's /m/.
     for (k, &time) in s
+        .frames
         .times()
         .iter()
         .enumerate()
         .filter(|(_, t)| **t >= 0.4 && **t < 0.6)
     {
         let want = a.eval(time);
-        let got = &s.frames[k * s.dims..(k + 1) * s.dims];
+        let got = s.frames.row(k);
+        // The frames are stored in f32: equal to the f64 trajectory within its rounding.
         assert!(
-            got.iter().zip(&want).all(|(g, w)| (g - w).abs() < 1e-9),
+            got.iter()
+                .zip(&want)
+                .all(|(g, w)| (f64::from(*g) - w).abs() < 1e-6 * w.abs().max(1.0)),
             "{got:?} vs {want:?}"
         );
     }
     let slow = target(&["sil", "aa", "m", "iy", "sil"], 0.4);
-    let s = blend::blend(
+    let s = blend(
         &cb,
         &slow,
-        &BlendOptions {
+        Blend {
             context: 1,
             top_n: 1,
-            fps: FPS,
         },
     )
     .unwrap();
     for (k, &time) in s
+        .frames
         .times()
         .iter()
         .enumerate()
         .filter(|(_, t)| **t >= 0.8 && **t < 1.2)
     {
         let want = a.eval(0.4 + (time - 0.8) / 2.0);
-        assert!((s.frames[k * s.dims + 5] - want[5]).abs() < 1e-9);
+        assert!((f64::from(s.frames.row(k)[5]) - want[5]).abs() < 1e-6 * want[5].abs().max(1.0));
     }
-    assert_eq!(s.n_frames(), 51);
+    assert_eq!(s.frames.len(), 51);
 }
 
 #[test]
@@ -228,23 +234,23 @@ fn fallbacks_and_bad_input() {
     let cb = codebook();
     // /b/ is absent; /m/ shares its viseme class.
     let t = target(&["sil", "aa", "b", "iy", "sil"], 0.2);
-    let s = blend::blend(&cb, &t, &BlendOptions::default()).unwrap();
+    let s = blend(&cb, &t, Blend::default()).unwrap();
     assert_eq!(s.phones[2].used, ph("m"));
     assert!(s.warnings[0].contains("/b/ is absent"), "{:?}", s.warnings);
     // /k/: no phone of its class in the codebook.
     let t = target(&["sil", "k", "sil"], 0.2);
     assert_eq!(
-        blend::blend(&cb, &t, &BlendOptions::default()).unwrap_err(),
+        blend(&cb, &t, Blend::default()).unwrap_err(),
         SynthError::NoFallback { phone: ph("k") }
     );
     assert_eq!(
-        blend::blend(&cb, &[], &BlendOptions::default()).unwrap_err(),
+        blend(&cb, &[], Blend::default()).unwrap_err(),
         SynthError::Empty
     );
     let mut t = target(&["sil", "aa", "m", "sil"], 0.2);
     t[2].end = t[2].start; // zero length
     t[3].start = t[2].end;
-    let s = blend::blend(&cb, &t, &BlendOptions::default()).unwrap();
+    let s = blend(&cb, &t, Blend::default()).unwrap();
     assert!(
         s.warnings.iter().any(|w| w.contains("zero length")),
         "{:?}",
@@ -253,18 +259,18 @@ fn fallbacks_and_bad_input() {
     let mut bad = target(&["sil", "aa"], 0.2);
     bad[1].end = f64::NAN;
     assert!(matches!(
-        blend::blend(&cb, &bad, &BlendOptions::default()),
+        blend(&cb, &bad, Blend::default()),
         Err(SynthError::BadSegment { index: 1, .. })
     ));
     assert!(matches!(
-        blend::blend(
+        blend(
             &cb,
             &target(&["sil"], 0.2),
-            &BlendOptions {
+            Blend {
                 top_n: 0,
                 ..Default::default()
             }
         ),
-        Err(SynthError::Options(_))
+        Err(SynthError::Option(_))
     ));
 }

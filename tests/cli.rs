@@ -107,7 +107,7 @@ fn demo_writes_its_outputs() {
         "key.json",
         "plot.png",
         "codebook/codebook.json",
-        "smoothed/frames/0000.png",
+        "smoothed/frames/000000.png",
     ] {
         assert!(Path::new(&tmp.path().join(f)).is_file(), "missing {f}");
     }
@@ -227,7 +227,7 @@ fn corpus_then_codebook() {
         corpus.join("heldout").to_str().unwrap(),
     ]);
     assert!(
-        o.status.success() && text(&o).contains("baseline: per-phoneme mean"),
+        o.status.success() && text(&o).contains("per-phoneme mean, unsmoothed"),
         "{}",
         text(&o)
     );

@@ -4,32 +4,37 @@ mod common;
 use std::path::Path;
 
 use common::Rng;
-use facespace::codebook::{
-    Codebook, CodebookError, Layout, Sentence, SimilarityOptions, load_corpus,
-};
-use facespace::npy;
+use facespace::codebook::{Codebook, CodebookError, SimilarityOptions};
+use facespace::corpus::{self, CorpusError, Sentence};
+use facespace::facespace::{FacespaceError, Frames, Layout};
+use facespace::manifest::ManifestError;
+use facespace::npy::{self, NpyError};
 use facespace::phonemes::{self, Phone, PhoneMap, Segment};
+use ndarray::Array2;
 
 fn ph(name: &str) -> Phone {
     Phone::parse(name).unwrap()
 }
 
 const LAYOUT: Layout = Layout {
-    pose: 4,
     shape: 1,
     appearance: 2,
 };
 
+fn frames(rows: Vec<f32>) -> Frames {
+    Frames::from_rows(LAYOUT, 25.0, rows).unwrap()
+}
+
 /// A sentence of one phone whose frames hold `value` in every parameter dimension
 /// (pose fixed), 10 frames at 25 fps.
 fn constant_sentence(phone: &str, value: [f32; 3]) -> Sentence {
-    let frames = (0..10)
+    let rows = (0..10)
         .flat_map(|_| [1.0, 0.0, 0.0, 0.0, value[0], value[1], value[2]])
         .collect();
     Sentence {
         name: phone.into(),
         source: "test".into(),
-        frames,
+        frames: frames(rows),
         segments: vec![Segment {
             start: 0.0,
             end: 0.4,
@@ -151,7 +156,7 @@ fn coarticulated_corpus(n_sentences: usize, seed: u64) -> Vec<Sentence> {
                 t += d;
             }
             let n = (t * 25.0).ceil() as usize;
-            let frames = (0..n)
+            let rows = (0..n)
                 .flat_map(|f| {
                     let time = f as f64 / 25.0;
                     // Dominance-weighted blend of the targets around this time.
@@ -172,7 +177,7 @@ fn coarticulated_corpus(n_sentences: usize, seed: u64) -> Vec<Sentence> {
             Sentence {
                 name: format!("s{i}"),
                 source: "generated".into(),
-                frames,
+                frames: frames(rows),
                 segments,
             }
         })
@@ -241,8 +246,8 @@ fn save_and_load_round_trip_and_validation() {
 
     // A tampered similarity matrix is caught.
     let mut s = npy::read::<f64>(&path.join("similarity.npy")).unwrap();
-    s.data[41] += 0.5;
-    npy::write(&path.join("similarity.npy"), &s.shape, &s.data).unwrap();
+    s[[1, 1]] += 0.5;
+    npy::write(&path.join("similarity.npy"), s.view()).unwrap();
     assert!(
         Codebook::load(&path)
             .unwrap_err()
@@ -270,8 +275,32 @@ fn save_and_load_round_trip_and_validation() {
     .unwrap();
     assert!(matches!(
         Codebook::load(&path),
-        Err(CodebookError::Version { found: 7, .. })
+        Err(CodebookError::Manifest(ManifestError::Version { found, .. })) if found == "7"
     ));
+    // Sentence files are plain names inside the folder: no absolute paths, no `..`, no
+    // devices.
+    cb.save(&path).unwrap();
+    let text = std::fs::read_to_string(&m).unwrap();
+    for name in ["/dev/zero", "../cb/sentence_0001.npy", "/etc/passwd"] {
+        std::fs::write(&m, text.replace("sentence_0001.npy", name)).unwrap();
+        let err = Codebook::load(&path).unwrap_err();
+        assert!(
+            matches!(err, CodebookError::Manifest(ManifestError::Escapes { .. })),
+            "{name}: {err}"
+        );
+    }
+    // A layout whose pose is not four values, or absurdly large, is refused as such.
+    for (from, to) in [
+        ("\"pose\": 4", "\"pose\": 41"),
+        ("\"shape\": 1", "\"shape\": 18446744073709551615"),
+    ] {
+        std::fs::write(&m, text.replace(from, to)).unwrap();
+        let err = Codebook::load(&path).unwrap_err();
+        assert!(
+            matches!(err, CodebookError::Manifest(ManifestError::Invalid { .. })),
+            "{to}: {err}"
+        );
+    }
 }
 
 #[test]
@@ -289,7 +318,7 @@ fn bad_sentences_are_errors() {
     .unwrap_err();
     assert!(err.to_string().contains("labels end at 2.000 s"), "{err}");
     let mut s = constant_sentence("m", [0.0; 3]);
-    s.frames.pop();
+    s.frames = s.frames.slice(0..1);
     assert!(matches!(
         Codebook::build(
             vec![s],
@@ -307,15 +336,36 @@ fn bad_sentences_are_errors() {
     };
     assert!(matches!(
         Codebook::build(vec![], 25.0, LAYOUT, None, bad, &mut facespace::no_progress),
-        Err(CodebookError::Options(_))
+        Err(CodebookError::Option(_))
     ));
+    // Frames of another layout or rate than the codebook's.
+    let s = constant_sentence("m", [0.0; 3]);
+    let err = Codebook::build(
+        vec![s.clone()],
+        25.0,
+        Layout::new(2, 1),
+        None,
+        SimilarityOptions::default(),
+        &mut facespace::no_progress,
+    )
+    .unwrap_err();
+    assert!(matches!(err, CodebookError::Frames { .. }), "{err}");
+    let err = Codebook::build(
+        vec![s],
+        50.0,
+        LAYOUT,
+        None,
+        SimilarityOptions::default(),
+        &mut facespace::no_progress,
+    )
+    .unwrap_err();
+    assert!(err.to_string().contains("25 fps"), "{err}");
 }
 
 fn write_sentence(dir: &Path, name: &str, frames: usize, label_end: f64) {
     npy::write(
         &dir.join(format!("{name}.npy")),
-        &[frames, 7],
-        &vec![0.5f32; frames * 7],
+        Array2::<f32>::from_elem((frames, 7), 0.5).view(),
     )
     .unwrap();
     let segs = [
@@ -338,36 +388,57 @@ fn corpus_folder_loading() {
     let dir = tempfile::tempdir().unwrap();
     write_sentence(dir.path(), "a", 25, 1.0);
     write_sentence(dir.path(), "b", 50, 2.04);
-    let s = load_corpus(dir.path(), 25.0, 7, None, &PhoneMap::default()).unwrap();
+    let load =
+        |dir: &Path, layout: Layout| corpus::load(dir, 25.0, layout, None, &PhoneMap::default());
+    let s = load(dir.path(), LAYOUT).unwrap();
     assert_eq!(s.len(), 2);
-    assert_eq!(s[1].frames.len(), 50 * 7);
+    assert_eq!(s[1].frames.len(), 50);
 
     write_sentence(dir.path(), "c", 25, 1.5);
-    let err = load_corpus(dir.path(), 25.0, 7, None, &PhoneMap::default()).unwrap_err();
+    let err = load(dir.path(), LAYOUT).unwrap_err();
     let msg = err.to_string();
     assert!(
-        matches!(err, CodebookError::DurationMismatch { .. })
+        matches!(err, CorpusError::DurationMismatch { .. })
             && msg.contains("c.npy")
             && msg.contains("c.lab"),
         "{msg}"
     );
     std::fs::remove_file(dir.path().join("c.lab")).unwrap();
     assert!(matches!(
-        load_corpus(dir.path(), 25.0, 7, None, &PhoneMap::default()),
-        Err(CodebookError::MissingLabels { .. })
+        load(dir.path(), LAYOUT),
+        Err(CorpusError::MissingLabels { .. })
     ));
     std::fs::remove_file(dir.path().join("c.npy")).unwrap();
-    assert!(matches!(
-        load_corpus(dir.path(), 25.0, 9, None, &PhoneMap::default()),
-        Err(CodebookError::Dims {
-            expected: 9,
-            found: 7,
-            ..
-        })
-    ));
+    let err = load(dir.path(), Layout::new(3, 2)).unwrap_err();
+    assert!(
+        matches!(
+            &err,
+            CorpusError::Frames {
+                source: FacespaceError::Width { found: 7, .. },
+                ..
+            }
+        ),
+        "{err}"
+    );
+    assert!(
+        err.to_string().contains("a.npy: 7 values per frame"),
+        "{err}"
+    );
+    // A one-dimensional array is no trajectory.
+    npy::write(
+        &dir.path().join("a.npy"),
+        ndarray::Array1::<f32>::zeros(7).view(),
+    )
+    .unwrap();
+    let err = load(dir.path(), LAYOUT).unwrap_err();
+    assert!(
+        matches!(err, CorpusError::Npy(NpyError::Shape { .. })),
+        "{err}"
+    );
+    write_sentence(dir.path(), "a", 25, 1.0);
     let empty = tempfile::tempdir().unwrap();
     assert!(matches!(
-        load_corpus(empty.path(), 25.0, 7, None, &PhoneMap::default()),
-        Err(CodebookError::EmptyCorpus { .. })
+        load(empty.path(), LAYOUT),
+        Err(CorpusError::Empty { .. })
     ));
 }

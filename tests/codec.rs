@@ -2,9 +2,11 @@
 //! ground truth and on the real clip; the file format's checks; the CLI.
 mod common;
 
-use facespace::codec::{self, Background, Clip, CodecError, EncodeOptions};
+use common::Params;
+use facespace::codec::{self, Clip, CodecError, EncodeOptions};
 use facespace::eval;
-use facespace::model::{FaceModel, FaceParams};
+use facespace::model::FaceModel;
+use facespace::render::{Background, CpuRenderer};
 use facespace::shape::Landmarks;
 use facespace::video::{Sink, Source};
 use image::{Rgb, RgbImage};
@@ -41,7 +43,7 @@ fn synthetic_sequence(model: &FaceModel, n: usize) -> (Vec<RgbImage>, Vec<Vec<f3
         let mut pose = base;
         pose.tx += 4.0 * t.sin();
         pose.ty += 2.0 * t.cos();
-        let params = FaceParams {
+        let params = Params {
             pose,
             shape: ss
                 .iter()
@@ -55,8 +57,8 @@ fn synthetic_sequence(model: &FaceModel, n: usize) -> (Vec<RgbImage>, Vec<Vec<f3
                 .collect(),
         };
         let mut img = RgbImage::from_pixel(360, 288, Rgb([40, 90, 210]));
-        let r = model.render_into(&params, &mut img).unwrap();
-        first.get_or_insert(r.landmarks);
+        common::render(model, &params, &mut img);
+        first.get_or_insert(model.landmarks(params.view()).unwrap());
         truth.push(params.to_vector());
         frames.push(img);
     }
@@ -88,14 +90,16 @@ fn synthetic_round_trip_recovers_the_parameters() {
         ..EncodeOptions::default()
     };
     let source = Source::open(&dir.path().join("frames")).unwrap();
-    let clip = codec::encode(&model, source, &options, facespace::no_progress).unwrap();
-    assert_eq!(clip.meta.frames, 24);
+    let clip = codec::encode(&model, source, &options, facespace::no_progress)
+        .unwrap()
+        .clip;
+    assert_eq!(clip.frames.len(), 24);
     let sd = model.standard_deviations();
     let ns = model.shape.n_params();
     let (mut worst_shape, mut worst_app) = (0.0f64, 0.0f64);
     let mut shape_errors = Vec::new();
     for (i, row) in truth.iter().enumerate() {
-        for (k, (a, b)) in clip.frame(i).iter().zip(row).enumerate().skip(4) {
+        for (k, (a, b)) in clip.frames.row(i).iter().zip(row).enumerate().skip(4) {
             let e = ((a - b) as f64).abs() / sd[k - 4];
             if k - 4 < ns {
                 worst_shape = worst_shape.max(e);
@@ -108,9 +112,12 @@ fn synthetic_round_trip_recovers_the_parameters() {
     // Decode onto the same plain background and compare inside the face.
     let mut sink = Sink::create(&dir.path().join("decoded"), 360, 288, 25.0, None).unwrap();
     codec::decode(
-        &model,
+        &CpuRenderer::new(&model),
         &clip,
-        Background::Plain,
+        Background::Plain {
+            width: 360,
+            height: 288,
+        },
         &mut sink,
         facespace::no_progress,
     )
@@ -125,8 +132,8 @@ fn synthetic_round_trip_recovers_the_parameters() {
         .zip(&frames)
         .enumerate()
         .map(|(i, (d, f))| {
-            let p = model.params_from_vector(&truth[i]).unwrap();
-            let l = model.reconstruct(&p).unwrap().landmarks;
+            let p = model.layout().split(&truth[i]).unwrap();
+            let l = model.landmarks(p).unwrap();
             eval::psnr_masked(d, f, &eval::face_mask(&model, &l.points, 360, 288))
         })
         .collect();
@@ -199,7 +206,9 @@ fn encoded_clip(model: &FaceModel) -> Clip {
         ..EncodeOptions::default()
     };
     let source = Source::open(&dir.path().join("frames")).unwrap();
-    codec::encode(model, source, &options, facespace::no_progress).unwrap()
+    codec::encode(model, source, &options, facespace::no_progress)
+        .unwrap()
+        .clip
 }
 
 #[test]
@@ -213,9 +222,15 @@ fn clip_folders_round_trip_quantise_and_refuse_other_models() {
     assert!(back == clip, "float32 clips load exactly");
     for bits in [16, 8] {
         let q = clip.quantised(bits).unwrap();
-        let table = q.meta.quantisation.clone().unwrap();
-        let dims = clip.dims();
-        for (i, (a, b)) in q.params.iter().zip(&clip.params).enumerate() {
+        let table = q.quantisation.clone().unwrap();
+        let dims = clip.frames.layout().dims();
+        for (i, (a, b)) in q
+            .frames
+            .as_slice()
+            .iter()
+            .zip(clip.frames.as_slice())
+            .enumerate()
+        {
             let step = (table.max[i % dims] - table.min[i % dims]) / ((1u32 << bits) - 1) as f32;
             assert!(
                 (a - b).abs() <= step / 2.0 + 1e-6 * b.abs().max(1.0),
@@ -224,12 +239,12 @@ fn clip_folders_round_trip_quantise_and_refuse_other_models() {
         }
         assert_eq!(
             q.stream_bytes(),
-            clip.params.len() * bits as usize / 8 + 8 * dims
+            clip.frames.as_slice().len() * bits as usize / 8 + 8 * dims
         );
         q.save(&path, None).unwrap();
         assert!(path.join(format!("params_u{bits}.npy")).is_file());
         let loaded = Clip::load(&path, &model).unwrap();
-        for (a, b) in loaded.params.iter().zip(&q.params) {
+        for (a, b) in loaded.frames.as_slice().iter().zip(q.frames.as_slice()) {
             assert!((a - b).abs() <= 1e-6 * b.abs().max(1.0));
         }
     }

@@ -1,8 +1,8 @@
 //! The generated demo corpus: determinism, split, labels, and S on it.
 mod common;
 
-use facespace::codebook::{Codebook, Layout, SimilarityOptions};
-use facespace::corpus::{self, CorpusOptions, HELD_OUT, SENTENCES};
+use facespace::codebook::{Codebook, SimilarityOptions};
+use facespace::corpus::demo::{self as corpus, CorpusOptions, HELD_OUT, SENTENCES};
 use facespace::model::{FaceModel, load_training_set};
 use facespace::phonemes::Phone;
 
@@ -34,16 +34,16 @@ fn generation_is_deterministic_and_split() {
     .unwrap()
     .sentences;
     assert!(
-        other[0].frames != a[0].frames,
+        other[0].sentence.frames != a[0].sentence.frames,
         "another seed, another corpus"
     );
     assert_eq!(a.len(), SENTENCES.len());
     assert_eq!(a.iter().filter(|s| s.held_out).count(), HELD_OUT);
     assert!(a[..SENTENCES.len() - HELD_OUT].iter().all(|s| !s.held_out));
-    let dims = model.n_params();
-    for s in &a {
-        let n = s.frames.len() / dims;
-        assert_eq!(s.frames.len(), n * dims);
+    for g in &a {
+        let s = &g.sentence;
+        assert_eq!(s.frames.layout(), model.layout());
+        let n = s.frames.len();
         assert!(
             (s.segments.last().unwrap().end - n as f64 / 25.0).abs() < 1e-9,
             "{}: labels end with the frames",
@@ -54,7 +54,7 @@ fn generation_is_deterministic_and_split() {
             assert!((w[0].end - w[1].start).abs() < 1e-12 && w[0].duration() > 0.0);
         }
         // The head is still: every frame has the same pose.
-        assert!(s.frames.chunks_exact(dims).all(|r| r[..4] == s.frames[..4]));
+        assert!(s.frames.iter().all(|p| p.pose == s.frames.params(0).pose));
     }
 }
 
@@ -73,7 +73,7 @@ fn similarity_on_the_demo_corpus_ranks_viseme_partners() {
     let cb = Codebook::build(
         sentences,
         25.0,
-        Layout::of(&model),
+        model.layout(),
         Some(model.hash()),
         SimilarityOptions::default(),
         &mut facespace::no_progress,

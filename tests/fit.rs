@@ -1,9 +1,9 @@
 //! AAM search on synthetic renders with exact ground truth and on real held-out frames.
 mod common;
 
-use common::Rng;
+use common::{Params, Rng};
 use facespace::fit::{FitError, FitOptions, Fitter};
-use facespace::model::{FaceModel, FaceParams, load_training_set};
+use facespace::model::{FaceModel, load_training_set};
 use facespace::shape::{Landmarks, Similarity, centroid};
 use image::{Rgb, RgbImage};
 
@@ -24,18 +24,19 @@ fn synthetic(
             .map(|x| (rng.range(-k, k) * (*x as f64).sqrt()) as f32)
             .collect()
     };
-    let truth = FaceParams {
+    let truth = Params {
         pose,
         shape: draw(&model.shape.pca.variances, 2.0, rng),
         appearance: draw(&model.appearance.pca.variances, 1.0, rng),
     };
     let mut img = RgbImage::from_pixel(size.0, size.1, Rgb([40, 90, 210]));
-    let r = model.render_into(&truth, &mut img).unwrap();
+    common::render(model, &truth, &mut img);
+    let landmarks = model.landmarks(truth.view()).unwrap();
     for p in img.pixels_mut() {
         p.0 =
             p.0.map(|c| (c as f64 + 2.0 * rng.normal()).round().clamp(0.0, 255.0) as u8);
     }
-    (img, r.landmarks)
+    (img, landmarks)
 }
 
 /// `points` moved about their centroid by a similarity and shifted.

@@ -3,11 +3,14 @@ mod common;
 
 use std::path::Path;
 
-use common::Rng;
-use facespace::model::{FaceModel, FaceParams, ModelError, load_training_set};
-use facespace::npy;
+use common::{Params, Rng};
+use facespace::facespace::FacespaceError;
+use facespace::manifest::ManifestError;
+use facespace::model::{FaceModel, ModelError, load_training_set};
+use facespace::npy::{self, NpyError};
 use facespace::shape::Similarity;
 use image::RgbImage;
+use ndarray::Array2;
 
 fn copy_dir(from: &Path, to: &Path) {
     std::fs::create_dir_all(to).unwrap();
@@ -17,13 +20,13 @@ fn copy_dir(from: &Path, to: &Path) {
     }
 }
 
-fn random_params(model: &FaceModel, rng: &mut Rng, pose: Similarity) -> FaceParams {
+fn random_params(model: &FaceModel, rng: &mut Rng, pose: Similarity) -> Params {
     let draw = |vars: &[f32], rng: &mut Rng| {
         vars.iter()
             .map(|v| (rng.range(-2.0, 2.0) * (*v as f64).sqrt()) as f32)
             .collect()
     };
-    FaceParams {
+    Params {
         pose,
         shape: draw(&model.shape.pca.variances, rng),
         appearance: draw(&model.appearance.pca.variances, rng),
@@ -61,7 +64,7 @@ fn save_then_load_gives_identical_arrays() {
     assert_eq!(back, model);
     // The arrays are plain .npy files a numpy user can open.
     let mean = npy::read::<f32>(&path.join("appearance_mean.npy")).unwrap();
-    assert_eq!(mean.shape, vec![model.frame.n_pixels(), 3]);
+    assert_eq!(mean.shape(), &[model.frame.n_pixels(), 3]);
     // Saving over an existing model replaces it whole.
     model.save(&path).unwrap();
     assert_eq!(FaceModel::load(&path).unwrap(), model);
@@ -89,7 +92,7 @@ fn project_of_reconstruct_recovers_random_parameters() {
             260.0,
         );
         let b = random_params(&model, &mut rng, pose);
-        let r = model.reconstruct(&b).unwrap();
+        let r = model.reconstruct(b.view()).unwrap();
         let (pose2, bs) = model.shape.project(&r.landmarks).unwrap();
         for ((x, y), s) in b.shape.iter().zip(&bs).zip(&sd_s) {
             assert!((x - y).abs() < 1e-3 * s, "shape {x} vs {y}");
@@ -162,7 +165,7 @@ fn project_of_rendered_frame_recovers_parameters() {
             260.0,
         );
         let b = random_params(&model, &mut rng, pose);
-        let r = model.reconstruct(&b).unwrap();
+        let r = model.reconstruct(b.view()).unwrap();
         if folded_triangles(&model, &r.landmarks.points) > 0
             || r.texture.iter().any(|v| !(0.0..=255.0).contains(v))
         {
@@ -171,12 +174,13 @@ fn project_of_rendered_frame_recovers_parameters() {
         }
         compared += 1;
         let mut canvas = RgbImage::new(640, 520);
-        model.render_into(&b, &mut canvas).unwrap();
-        let back = model.project(&canvas, &r.landmarks).unwrap();
+        common::render(&model, &b, &mut canvas);
+        let row = model.project(&canvas, &r.landmarks).unwrap();
+        let back = model.layout().split(&row).unwrap();
         let sq: f32 = b
             .appearance
             .iter()
-            .zip(&back.appearance)
+            .zip(back.appearance)
             .map(|(x, y)| (x - y).powi(2))
             .sum();
         worst_rms = worst_rms.max((sq / dim).sqrt());
@@ -206,7 +210,9 @@ fn training_images_project_close_to_themselves() {
     let model = common::small_model();
     for e in common::faces() {
         let p = model.project(&e.image, &e.landmarks).unwrap();
-        let r = model.reconstruct(&p).unwrap();
+        let r = model
+            .reconstruct(model.layout().split(&p).unwrap())
+            .unwrap();
         // With every mode kept, reconstruction reproduces the training landmarks.
         let err = r
             .landmarks
@@ -230,14 +236,28 @@ fn params_vector_round_trip_and_length_check() {
     let mut rng = Rng::new(1);
     let b = random_params(&model, &mut rng, Similarity::new(3.0, 0.1, 5.0, 6.0));
     let v = b.to_vector();
-    assert_eq!(v.len(), model.n_params());
-    let back = model.params_from_vector(&v).unwrap();
-    assert_eq!(back.shape, b.shape);
-    assert_eq!(back.appearance, b.appearance);
+    let layout = model.layout();
+    assert_eq!(v.len(), layout.dims());
+    let back = layout.split(&v).unwrap();
+    assert_eq!(back.shape, b.shape.as_slice());
+    assert_eq!(back.appearance, b.appearance.as_slice());
     assert!(matches!(
-        model.params_from_vector(&v[1..]),
-        Err(ModelError::ParamCount { .. })
+        layout.split(&v[1..]),
+        Err(FacespaceError::Width { found, .. }) if found == v.len() - 1
     ));
+    // A point of another layout is refused by the model, naming both.
+    let short = Params {
+        shape: b.shape[1..].to_vec(),
+        ..b
+    };
+    let err = model.reconstruct(short.view()).unwrap_err();
+    assert!(
+        matches!(
+            err,
+            ModelError::Facespace(FacespaceError::LayoutMismatch { .. })
+        ),
+        "{err}"
+    );
 }
 
 /// Triangles whose orientation at `points` is opposite to the reference frame's: the mesh
@@ -280,10 +300,15 @@ fn truncated_npy_is_named() {
 #[test]
 fn wrong_shape_npy_is_named() {
     let (_d, path) = saved_model();
-    npy::write(&path.join("shape_mean.npy"), &[67, 2], &vec![0f32; 134]).unwrap();
+    npy::write(
+        &path.join("shape_mean.npy"),
+        Array2::<f32>::zeros((67, 2)).view(),
+    )
+    .unwrap();
     let err = FaceModel::load(&path).unwrap_err();
     assert!(
-        matches!(&err, ModelError::ArrayShape { expected, found, .. } if expected == &vec![68, 2] && found == &vec![67, 2]),
+        matches!(&err, ModelError::Manifest(ManifestError::Npy(NpyError::Shape { expected, found, .. }))
+            if expected == &vec![Some(68), Some(2)] && found == &vec![67, 2]),
         "{err}"
     );
     assert!(err.to_string().contains("shape_mean.npy"));
@@ -294,13 +319,21 @@ fn nan_in_arrays_is_named() {
     let (_d, path) = saved_model();
     let f = path.join("appearance_variances.npy");
     let mut a = npy::read::<f32>(&f).unwrap();
-    a.data[1] = f32::NAN;
-    npy::write(&f, &a.shape, &a.data).unwrap();
+    a[[1]] = f32::NAN;
+    npy::write(&f, a.view()).unwrap();
     let err = FaceModel::load(&path).unwrap_err();
     assert!(
-        matches!(err, ModelError::NotFinite { index: 1, .. }),
+        matches!(
+            err,
+            ModelError::Manifest(ManifestError::Npy(NpyError::NotFinite { index: 1, .. }))
+        ),
         "{err}"
     );
+    // A negative variance is refused at load, not later in a clamp.
+    a[[1]] = -1.0;
+    npy::write(&f, a.view()).unwrap();
+    let err = FaceModel::load(&path).unwrap_err();
+    assert!(err.to_string().contains("negative"), "{err}");
 }
 
 #[test]
@@ -312,25 +345,34 @@ fn unknown_version_and_broken_manifest() {
     let err = FaceModel::load(&path).unwrap_err();
     assert!(
         matches!(
-            err,
-            ModelError::Version {
-                found: 99,
+            &err,
+            ModelError::Manifest(ManifestError::Version {
+                found,
                 supported: 1,
                 ..
-            }
+            }) if found == "99"
         ),
         "{err}"
     );
+    // A version written as a string is reported as written, not as version 0.
+    std::fs::write(&m, text.replace("\"version\": 1", "\"version\": \"1\"")).unwrap();
+    let err = FaceModel::load(&path).unwrap_err();
+    assert!(err.to_string().contains("version \"1\""), "{err}");
     std::fs::write(&m, &text[..text.len() / 2]).unwrap();
     assert!(matches!(
         FaceModel::load(&path),
-        Err(ModelError::Manifest { .. })
+        Err(ModelError::Manifest(ManifestError::Invalid { .. }))
     ));
     std::fs::write(&m, text.replace("\"width\"", "\"wide\"")).unwrap();
     assert!(matches!(
         FaceModel::load(&path),
-        Err(ModelError::Manifest { .. })
+        Err(ModelError::Manifest(ManifestError::Invalid { .. }))
     ));
+    // An array file name that leaves the folder is refused.
+    std::fs::write(&m, text.replace("\"mask.npy\"", "\"../mask.npy\"")).unwrap();
+    let err = FaceModel::load(&path).unwrap_err();
+    assert!(matches!(err, ModelError::Inconsistent { .. }), "{err}");
+    assert!(err.to_string().contains("../mask.npy"), "{err}");
     let err = FaceModel::load(Path::new("/no/such/model")).unwrap_err();
     assert!(
         err.to_string().contains("/no/such/model/model.json"),
@@ -343,9 +385,9 @@ fn mask_that_disagrees_with_the_mesh_is_caught() {
     let (_d, path) = saved_model();
     let f = path.join("mask.npy");
     let mut a = npy::read::<u8>(&f).unwrap();
-    let i = a.data.iter().position(|&v| v == 255).unwrap();
-    a.data[i] = 0;
-    npy::write(&f, &a.shape, &a.data).unwrap();
+    let first = a.iter_mut().find(|v| **v == 255).unwrap();
+    *first = 0;
+    npy::write(&f, a.view()).unwrap();
     assert!(matches!(
         FaceModel::load(&path),
         Err(ModelError::Inconsistent { .. })

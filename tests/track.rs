@@ -42,8 +42,8 @@ fn track_command_and_bad_input() {
     let o = facespace(&["track", clip.to_str().unwrap(), "-o", out.to_str().unwrap()]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert_eq!(
-        facespace::npy::read::<f32>(&out).unwrap().shape,
-        vec![50, 68, 2]
+        facespace::npy::read::<f32>(&out).unwrap().shape(),
+        &[50, 68, 2]
     );
     // An empty folder.
     let empty = tmp.path().join("empty");

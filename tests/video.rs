@@ -169,7 +169,10 @@ fn bad_input_is_a_clear_error_and_leaves_nothing_behind() {
     std::fs::write(&junk, b"hello").unwrap();
     assert!(matches!(
         Source::open(&junk),
-        Err(VideoError::Decode { .. })
+        Err(VideoError::Mp4 {
+            source: facespace::video::mp4::Mp4Error::Container(_),
+            ..
+        })
     ));
     // Odd dimensions cannot be H.264 4:2:0.
     let odd = Sink::create(&dir.path().join("odd.mp4"), 361, 288, 25.0, None);

@@ -3,7 +3,9 @@ mod common;
 
 use std::collections::BTreeSet;
 
+use common::Params;
 use facespace::mesh::{self, MeshError, ReferenceFrame, Triangle};
+use facespace::render::{CpuRenderer, Renderer};
 use facespace::shape::read_pts;
 use facespace::warp::{self, WarpError};
 use image::RgbImage;
@@ -209,10 +211,14 @@ fn render_dilation_stays_next_to_the_mesh() {
         facespace::model::load_training_set(&common::root().join("tests/data/demo-heldout"), None)
             .unwrap();
     for e in face.iter().take(3) {
-        let params = model.project(&e.image, &e.landmarks).unwrap();
+        let row = model.project(&e.image, &e.landmarks).unwrap();
+        let params = model.layout().split(&row).unwrap();
         let sentinel = image::Rgb([1, 2, 3]);
         let mut canvas = RgbImage::from_pixel(e.image.width(), e.image.height(), sentinel);
-        let r = model.render_into(&params, &mut canvas).unwrap();
+        CpuRenderer::new(&model)
+            .render_into(params, &mut canvas)
+            .unwrap();
+        let r = model.reconstruct(params).unwrap();
         let boxes: Vec<[f64; 4]> = model
             .frame
             .triangles
@@ -250,39 +256,33 @@ fn render_dilation_stays_next_to_the_mesh() {
 /// background, and the edge lies between the two.
 #[test]
 fn feathered_compositing_blends_only_the_edge() {
-    use facespace::render::{Compositor, CpuRenderer, Renderer};
+    use facespace::render::Compositor;
     let model = common::small_model();
     let face = &common::faces()[0];
-    let landmarks = &face.landmarks;
-    let params = model
-        .params_from_vector(&{
-            let (pose, shape) = model.shape.project(landmarks).unwrap();
-            let mut v = pose.to_array().map(|x| x as f32).to_vec();
-            v.extend(shape);
-            v.extend(vec![0.0; model.appearance.n_params()]);
-            v
-        })
-        .unwrap();
-    let row: Vec<f64> = params.to_vector().iter().map(|&x| x as f64).collect();
+    let (pose, shape) = model.shape.project(&face.landmarks).unwrap();
+    let params = Params {
+        pose,
+        shape,
+        appearance: vec![0.0; model.appearance.n_params()],
+    };
     let (w, h) = face.image.dimensions();
     let background = RgbImage::from_fn(w, h, |x, y| {
         image::Rgb([(x % 256) as u8, (y % 256) as u8, 200])
     });
-    let hard = CpuRenderer
-        .render(&model, &row, &background)
-        .unwrap()
-        .remove(0);
-    let none = Compositor::new(&model, 0.0)
-        .render(&model, &row, &background)
-        .unwrap()
-        .remove(0);
+    let draw = |r: &dyn Renderer| {
+        let mut canvas = background.clone();
+        r.render_into(params.view(), &mut canvas).unwrap();
+        canvas
+    };
+    let hard = draw(&CpuRenderer::new(&model));
+    let none = draw(&Compositor::new(&model, 0.0));
     assert!(hard == none, "feather 0 must equal the plain renderer");
     let soft = Compositor::new(&model, 6.0);
     let alpha = soft.alpha();
     assert!(alpha.iter().all(|a| (0.0..=1.0).contains(a)));
     assert!(alpha.iter().filter(|&&a| a == 1.0).count() > alpha.len() / 2);
     assert!(alpha.iter().any(|&a| a < 0.2));
-    let blended = soft.render(&model, &row, &background).unwrap().remove(0);
+    let blended = draw(&soft);
     let (mut same_inside, mut kept_outside, mut between) = (0, 0, 0);
     for ((h, b), bg) in hard.pixels().zip(blended.pixels()).zip(background.pixels()) {
         if h == bg {

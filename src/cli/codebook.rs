@@ -4,10 +4,11 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
-use facespace::codebook::{Codebook, Layout, SimilarityOptions, load_corpus};
-use facespace::model::FaceModel;
+use facespace::codebook::{Codebook, SimilarityOptions};
 use facespace::phonemes::{PHONES, Phone, PhoneMap};
-use facespace::plot;
+use facespace::{plot, video};
+
+use super::{load_model, progress_bar};
 
 #[derive(Subcommand)]
 pub enum CodebookCommand {
@@ -56,7 +57,10 @@ pub struct BuildArgs {
 pub fn run(command: CodebookCommand) -> Result<()> {
     match command {
         CodebookCommand::Build(a) => build(a),
-        CodebookCommand::Info { codebook } => info(&load(&codebook)?),
+        CodebookCommand::Info { codebook } => {
+            info(&load(&codebook)?);
+            Ok(())
+        }
         CodebookCommand::Similarity { codebook, png } => similarity_png(&load(&codebook)?, &png),
     }
 }
@@ -67,28 +71,26 @@ fn load(dir: &Path) -> Result<Codebook> {
 
 fn build(a: BuildArgs) -> Result<()> {
     let start = std::time::Instant::now();
-    let model = FaceModel::load(&a.model)
-        .with_context(|| format!("loading model {}", a.model.display()))?;
+    let model = load_model(&a.model)?;
     let map = match &a.phone_map {
         Some(p) => PhoneMap::read(p)?,
         None => PhoneMap::default(),
     };
-    let layout = Layout::of(&model);
-    let sentences = load_corpus(&a.corpus, a.fps, layout.dims(), a.tier.as_deref(), &map)
-        .with_context(|| format!("reading corpus {}", a.corpus.display()))?;
     let options = SimilarityOptions {
         gamma: a.gamma,
         ..SimilarityOptions::default()
     };
-    let (bar, mut progress) = super::progress_bar();
-    let cb = Codebook::build(
-        sentences,
+    let (bar, mut progress) = progress_bar();
+    let cb = Codebook::from_corpus(
+        &a.corpus,
+        &model,
         a.fps,
-        layout,
-        Some(model.hash()),
+        a.tier.as_deref(),
+        &map,
         options,
         &mut progress,
-    )?;
+    )
+    .with_context(|| format!("building a codebook from {}", a.corpus.display()))?;
     bar.finish_and_clear();
     cb.save(&a.output)
         .with_context(|| format!("saving codebook {}", a.output.display()))?;
@@ -97,15 +99,12 @@ fn build(a: BuildArgs) -> Result<()> {
         a.output.display(),
         start.elapsed().as_secs_f64()
     );
-    info(&cb)
+    info(&cb);
+    Ok(())
 }
 
-pub fn info(cb: &Codebook) -> Result<()> {
-    let frames: usize = cb
-        .sentences
-        .iter()
-        .map(|s| s.frames.len() / cb.dims())
-        .sum();
+fn info(cb: &Codebook) {
+    let frames = cb.n_frames();
     println!("  sentences   {}", cb.sentences.len());
     println!(
         "  frames      {frames} at {} fps ({:.1} s)",
@@ -113,11 +112,9 @@ pub fn info(cb: &Codebook) -> Result<()> {
         frames as f64 / cb.fps
     );
     println!(
-        "  face-space  {} values (pose {}, shape {}, appearance {}), model {}",
+        "  face-space  {} values {}, model {}",
         cb.dims(),
-        cb.layout.pose,
-        cb.layout.shape,
-        cb.layout.appearance,
+        cb.layout,
         cb.model_hash.as_deref().unwrap_or("unknown")
     );
     let absent: Vec<&str> = Phone::all()
@@ -143,7 +140,6 @@ pub fn info(cb: &Codebook) -> Result<()> {
             near.join(", ")
         );
     }
-    Ok(())
 }
 
 fn similarity_png(cb: &Codebook, png: &Path) -> Result<()> {
@@ -154,7 +150,7 @@ fn similarity_png(cb: &Codebook, png: &Path) -> Result<()> {
         .flat_map(|a| present.iter().map(move |b| cb.similarity(*a, *b)))
         .collect();
     let img = plot::heat_map(&values, &labels, "phoneme similarity S");
-    super::model::save_png(&img, png)?;
+    video::write_png(png, &img)?;
     println!("wrote {} ({} phones)", png.display(), present.len());
     Ok(())
 }

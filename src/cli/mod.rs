@@ -1,16 +1,27 @@
-//! Subcommands, progress bars and human-readable reports.
+//! Subcommands: each parses its arguments, makes one library call with a progress bar, and
+//! prints what came back. No library logic lives here.
 
 mod codebook;
 mod codec;
 mod corpus;
 mod demo;
+mod eval;
 mod model;
 mod synth;
 mod track;
 
-use clap::{Parser, Subcommand};
-use facespace::Progress;
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::{Args, Parser, Subcommand};
+use facespace::codec::{EncodeOptions, TrackingSummary};
+use facespace::fit::{DEFAULT_REINIT_ERROR, FitOptions};
+use facespace::model::FaceModel;
+use facespace::{Progress, shape};
 use indicatif::{ProgressBar, ProgressStyle};
+
+/// The committed demo model, the default of every `--model`.
+const DEMO_MODEL: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/models/demo/model");
 
 #[derive(Parser)]
 #[command(
@@ -45,12 +56,13 @@ enum Command {
     /// Synthesise a face-space trajectory and video from phonemes or text (top-N blending).
     Synth(synth::SynthArgs),
     /// Score synthesis against held-out sentences (r_pca, r_h, RMSE, DTW) with baselines.
-    Eval(synth::EvalArgs),
-    /// Build a model from the bundled faces and write reconstructions to out/demo.
+    Eval(eval::EvalArgs),
+    /// The whole pipeline on the demo model: generated corpus → codebook → an unseen
+    /// sentence, smoothed and unsmoothed, over the talker's real frame.
     Demo(demo::DemoArgs),
 }
 
-pub fn run() -> anyhow::Result<()> {
+pub fn run() -> Result<()> {
     match Cli::parse().command {
         Command::Model(c) => model::run(c),
         Command::Codebook(c) => codebook::run(c),
@@ -59,15 +71,15 @@ pub fn run() -> anyhow::Result<()> {
         Command::Encode(a) => codec::encode(a),
         Command::Decode(a) => codec::decode(a),
         Command::CodecReport(a) => codec::report(a),
-        Command::Synth(a) => synth::synth(a),
-        Command::Eval(a) => synth::evaluate(a),
+        Command::Synth(a) => synth::run(a),
+        Command::Eval(a) => eval::run(a),
         Command::Demo(a) => demo::run(a),
     }
 }
 
 /// A progress bar on stderr (hidden when stderr is not a terminal) and the callback that
 /// drives it.
-pub fn progress_bar() -> (ProgressBar, impl FnMut(Progress)) {
+fn progress_bar() -> (ProgressBar, impl FnMut(Progress)) {
     let bar = ProgressBar::new(1);
     bar.set_style(
         ProgressStyle::with_template("{spinner} {msg:<18} [{bar:30}] {pos}/{len} {elapsed}")
@@ -80,4 +92,59 @@ pub fn progress_bar() -> (ProgressBar, impl FnMut(Progress)) {
         handle.set_message(p.stage);
     };
     (bar, callback)
+}
+
+/// Loads a model, naming it in the error.
+fn load_model(path: &std::path::Path) -> Result<FaceModel> {
+    use anyhow::Context;
+    FaceModel::load(path).with_context(|| format!("loading model {}", path.display()))
+}
+
+/// How frames are tracked (shared by `track` and `encode`).
+#[derive(Args)]
+struct TrackingArgs {
+    /// Landmarks of the first frame; without it the first frame is searched on a grid.
+    #[arg(long)]
+    init: Option<PathBuf>,
+    /// Pyramid levels.
+    #[arg(long, default_value_t = 2)]
+    levels: usize,
+    /// Residual RMS (grey levels) above which a frame is re-initialised.
+    #[arg(long, default_value_t = DEFAULT_REINIT_ERROR)]
+    reinit_error: f64,
+    /// Alternating-refinement steps per frame after the project-out search (slower, more
+    /// accurate when the appearance is far from the mean; 0 = off).
+    #[arg(long, default_value_t = 0)]
+    refine: usize,
+}
+
+impl TrackingArgs {
+    fn options(&self, bits: Option<u32>) -> Result<EncodeOptions> {
+        let init = match &self.init {
+            Some(p) => Some(shape::read_pts(p)?),
+            None => None,
+        };
+        Ok(EncodeOptions {
+            levels: self.levels,
+            reinit_error: self.reinit_error,
+            init,
+            fit: FitOptions {
+                refine_iterations: self.refine,
+                ..FitOptions::default()
+            },
+            bits,
+        })
+    }
+}
+
+/// One line on a tracking record.
+fn tracking_line(s: &TrackingSummary, seconds: f64) -> String {
+    format!(
+        "{} frames in {seconds:.2} s ({:.0} fps incl. decoding): residual mean {:.2}, max {:.2} grey levels; {} re-initialised",
+        s.frames,
+        s.frames as f64 / seconds,
+        s.mean_error,
+        s.max_error,
+        s.reinitialised,
+    )
 }

@@ -7,9 +7,10 @@ use clap::{Args, Subcommand};
 use facespace::mesh::Triangle;
 use facespace::model::{BuildOptions, FaceModel, load_training_set};
 use facespace::pca::Components;
-use facespace::shape::{Landmarks, read_pts};
-use facespace::warp;
-use image::RgbImage;
+use facespace::shape::read_pts;
+use facespace::video;
+
+use super::{load_model, progress_bar};
 
 #[derive(Subcommand)]
 pub enum ModelCommand {
@@ -101,7 +102,7 @@ fn build(a: BuildArgs) -> Result<()> {
     };
     let examples = load_training_set(&a.images, a.landmarks.as_deref())
         .with_context(|| format!("loading training images from {}", a.images.display()))?;
-    let (bar, mut progress) = super::progress_bar();
+    let (bar, mut progress) = progress_bar();
     let model =
         FaceModel::build(&examples, &options, &mut progress).context("building the model")?;
     bar.finish_and_clear();
@@ -117,7 +118,7 @@ fn build(a: BuildArgs) -> Result<()> {
     Ok(())
 }
 
-pub fn print_summary(model: &FaceModel) {
+fn print_summary(model: &FaceModel) {
     let f = &model.frame;
     println!("  landmarks        {}", model.shape.n_landmarks());
     println!("  triangles        {}", f.triangles.len());
@@ -147,13 +148,14 @@ pub fn print_summary(model: &FaceModel) {
         );
     }
     println!(
-        "  face-space       {} values per frame (4 pose + shape + appearance)",
-        model.n_params()
+        "  face-space       {} values per frame {}",
+        model.layout().dims(),
+        model.layout()
     );
 }
 
 fn info(dir: &Path) -> Result<()> {
-    let model = FaceModel::load(dir).with_context(|| format!("loading model {}", dir.display()))?;
+    let model = load_model(dir)?;
     println!("model {}", dir.display());
     print_summary(&model);
     println!("  training images  {}", model.source.len());
@@ -181,75 +183,25 @@ fn human_bytes(n: u64) -> String {
     }
 }
 
-/// Side-by-side original | reconstruction, cropped to the face, and the texture PSNR.
-pub fn reconstruct_pair(
-    model: &FaceModel,
-    image: &RgbImage,
-    landmarks: &Landmarks,
-) -> Result<(RgbImage, f64)> {
-    let params = model.project(image, landmarks)?;
-    let mut canvas = image.clone();
-    let r = model.render_into(&params, &mut canvas)?;
-    let original = warp::to_reference(&model.frame, image, &landmarks.points)?;
-    let mse = original
-        .iter()
-        .zip(&r.texture)
-        .map(|(a, b)| ((a - b) as f64).powi(2))
-        .sum::<f64>()
-        / original.len() as f64;
-    let psnr = 10.0 * (255.0f64 * 255.0 / mse.max(1e-12)).log10();
-    let (lo, hi) = landmarks.bounds();
-    let margin = 0.25 * (hi[0] - lo[0]).max(hi[1] - lo[1]);
-    let clamp = |v: f64, max: u32| v.clamp(0.0, max as f64) as u32;
-    let (x0, y0) = (
-        clamp(lo[0] - margin, image.width()),
-        clamp(lo[1] - margin, image.height()),
-    );
-    let (x1, y1) = (
-        clamp(hi[0] + margin, image.width()),
-        clamp(hi[1] + margin, image.height()),
-    );
-    let (w, h) = ((x1 - x0).max(1), (y1 - y0).max(1));
-    let mut out = RgbImage::new(2 * w, h);
-    image::imageops::replace(
-        &mut out,
-        &image::imageops::crop_imm(image, x0, y0, w, h).to_image(),
-        0,
-        0,
-    );
-    image::imageops::replace(
-        &mut out,
-        &image::imageops::crop_imm(&canvas, x0, y0, w, h).to_image(),
-        w as i64,
-        0,
-    );
-    Ok((out, psnr))
-}
-
-pub fn save_png(image: &RgbImage, path: &Path) -> Result<()> {
-    facespace::video::write_png(path, image).with_context(|| format!("writing {}", path.display()))
-}
-
 fn reconstruct(a: ReconstructArgs) -> Result<()> {
-    let model = FaceModel::load(&a.model)
-        .with_context(|| format!("loading model {}", a.model.display()))?;
-    let image = image::open(&a.image)
-        .with_context(|| format!("reading image {}", a.image.display()))?
-        .to_rgb8();
+    let model = load_model(&a.model)?;
+    let image = video::read_frame(&a.image)?;
     let pts = a
         .landmarks
         .clone()
         .unwrap_or_else(|| a.image.with_extension("pts"));
     let landmarks =
         read_pts(&pts).with_context(|| format!("reading landmarks for {}", a.image.display()))?;
-    let (pair, psnr) = reconstruct_pair(&model, &image, &landmarks).with_context(|| {
-        format!(
-            "reconstructing {} with {}",
-            a.image.display(),
-            pts.display()
-        )
-    })?;
-    save_png(&pair, &a.output)?;
+    let (pair, psnr) = model
+        .reconstruction_pair(&image, &landmarks)
+        .with_context(|| {
+            format!(
+                "reconstructing {} with {}",
+                a.image.display(),
+                pts.display()
+            )
+        })?;
+    video::write_png(&a.output, &pair)?;
     println!(
         "wrote {} (original | reconstruction); texture PSNR {psnr:.1} dB",
         a.output.display()

@@ -5,126 +5,42 @@
 //! sentence edge the context is `sil`). The N best are time-warped to the target duration and
 //! averaged with weights `s_j / Σ s`; phones are concatenated and sampled at the frame rate.
 
-use serde::Serialize;
-use thiserror::Error;
-
 use crate::codebook::{Codebook, Occurrence};
+use crate::facespace::Frames;
+use crate::options;
 use crate::phonemes::{Phone, Segment};
 use crate::trajectory::frame_times;
 
-#[derive(Debug, Error, PartialEq)]
-pub enum SynthError {
-    #[error("nothing to synthesise: the target has no phones")]
-    Empty,
-    #[error("target phone {index} ({phone}) has a negative or non-finite duration")]
-    BadSegment { index: usize, phone: Phone },
-    #[error("target phones overlap or are out of order at phone {0}")]
-    Unsorted(usize),
-    #[error(
-        "phone {phone} is absent from the codebook and no phone of its viseme class is present"
-    )]
-    NoFallback { phone: Phone },
-    #[error("invalid option: {0}")]
-    Options(String),
-}
+use super::{Chosen, PhoneReport, SynthError, Synthesis, Synthesiser, stand_in, validate_request};
 
-/// Options of [`blend`].
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
-pub struct BlendOptions {
-    /// Context width C (1 = triphone).
+/// Widest context scored (phones either side).
+pub const MAX_CONTEXT: usize = 20;
+
+/// Top-N context blending ([blend] §5).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct Blend {
+    /// Context width C (1 = triphone; 0 scores every occurrence alike).
     pub context: usize,
     /// Examples averaged per phone, N.
     pub top_n: usize,
-    /// Output frame rate.
-    pub fps: f64,
 }
 
-impl Default for BlendOptions {
+impl Default for Blend {
+    /// C = 1, N = 3: the source's best setting.
     fn default() -> Self {
-        BlendOptions {
+        Blend {
             context: 1,
             top_n: 3,
-            fps: 25.0,
         }
     }
 }
 
-/// One example chosen for a target phone.
-#[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct Chosen {
-    pub sentence: String,
-    pub segment: usize,
-    pub score: f64,
-    pub weight: f64,
-}
-
-/// What was done for one target phone.
-#[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct PhoneReport {
-    pub phone: Phone,
-    /// The phone whose examples were used (differs from `phone` after a fallback).
-    pub used: Phone,
-    pub start: f64,
-    pub end: f64,
-    pub chosen: Vec<Chosen>,
-}
-
-/// A synthesised trajectory: frames at `fps` and what was chosen.
-#[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct Synthesis {
-    pub fps: f64,
-    pub dims: usize,
-    /// `frames × dims`, row-major.
-    #[serde(skip)]
-    pub frames: Vec<f64>,
-    pub phones: Vec<PhoneReport>,
-    /// Human-readable notes: fallbacks, skipped zero-length phones.
-    pub warnings: Vec<String>,
-}
-
-impl Synthesis {
-    pub fn n_frames(&self) -> usize {
-        self.frames.len() / self.dims
-    }
-
-    pub fn times(&self) -> Vec<f64> {
-        (0..self.n_frames()).map(|i| i as f64 / self.fps).collect()
-    }
-}
-
-/// Checks the target: non-empty, finite non-negative durations, in order.
-pub fn validate_target(target: &[Segment]) -> Result<(), SynthError> {
-    if target.is_empty() {
-        return Err(SynthError::Empty);
-    }
-    for (index, s) in target.iter().enumerate() {
-        if !(s.start.is_finite() && s.end.is_finite()) || s.end < s.start || s.start < 0.0 {
-            return Err(SynthError::BadSegment {
-                index,
-                phone: s.phone,
-            });
-        }
-        if index > 0 && s.start < target[index - 1].end - 1e-9 {
-            return Err(SynthError::Unsorted(index));
-        }
-    }
-    if target.iter().all(|s| s.duration() <= 0.0) {
-        return Err(SynthError::Empty);
-    }
-    Ok(())
-}
-
-/// The phone whose examples stand in for `p`: itself if present, else the most frequent
-/// present phone of its viseme class (S has no row for a phone the corpus never shows).
-pub fn stand_in(codebook: &Codebook, p: Phone) -> Option<Phone> {
-    if !codebook.occurrences[p.index()].is_empty() {
-        return Some(p);
-    }
-    codebook
-        .present()
-        .into_iter()
-        .filter(|q| q.viseme() == p.viseme())
-        .max_by_key(|q| (codebook.occurrences[q.index()].len(), std::cmp::Reverse(*q)))
+impl Blend {
+    /// The per-phoneme mean baseline: no context, every occurrence averaged.
+    pub const PHONE_MEAN: Blend = Blend {
+        context: 0,
+        top_n: usize::MAX,
+    };
 }
 
 /// Context phone at `offset` from position `i` (negative: left), `sil` beyond the edges.
@@ -163,109 +79,118 @@ pub fn select(
     target: &[Segment],
     i: usize,
     phone: Phone,
-    options: &BlendOptions,
+    blend: &Blend,
 ) -> Vec<(Occurrence, f64)> {
     let mut scored: Vec<(Occurrence, f64)> = codebook.occurrences[phone.index()]
         .iter()
-        .map(|&o| (o, context_score(codebook, target, i, o, options.context)))
+        .map(|&o| (o, context_score(codebook, target, i, o, blend.context)))
         .collect();
     scored.sort_by(|a, b| b.1.total_cmp(&a.1));
-    scored.truncate(options.top_n);
+    scored.truncate(blend.top_n);
     scored
 }
 
-/// Synthesises a trajectory for `target` by top-N context blending.
-pub fn blend(
-    codebook: &Codebook,
-    target: &[Segment],
-    options: &BlendOptions,
-) -> Result<Synthesis, SynthError> {
-    if options.top_n == 0 || !(options.fps > 0.0 && options.fps.is_finite()) {
-        return Err(SynthError::Options(format!(
-            "top-n {} and fps {} must be positive",
-            options.top_n, options.fps
-        )));
+impl Synthesiser for Blend {
+    fn name(&self) -> String {
+        if *self == Blend::PHONE_MEAN {
+            "per-phoneme mean".into()
+        } else {
+            format!("blend C={} N={}", self.context, self.top_n)
+        }
     }
-    validate_target(target)?;
-    let dims = codebook.dims();
-    let mut warnings = Vec::new();
-    let mut phones = Vec::with_capacity(target.len());
-    // Per target phone: (occurrence, weight) pairs.
-    let mut mixes: Vec<Vec<(Occurrence, f64)>> = Vec::with_capacity(target.len());
-    for (i, seg) in target.iter().enumerate() {
-        let used =
-            stand_in(codebook, seg.phone).ok_or(SynthError::NoFallback { phone: seg.phone })?;
-        if used != seg.phone {
-            warnings.push(format!(
-                "phone {i} /{}/ is absent from the codebook: used /{used}/ (same viseme class)",
-                seg.phone
-            ));
-        }
-        if seg.duration() <= 0.0 {
-            warnings.push(format!(
-                "phone {i} /{}/ has zero length and was skipped",
-                seg.phone
-            ));
-        }
-        let chosen = select(codebook, target, i, used, options);
-        let total: f64 = chosen.iter().map(|c| c.1).sum();
-        let mix: Vec<(Occurrence, f64)> = chosen
-            .iter()
-            .map(|&(o, s)| {
-                (
-                    o,
-                    if total > 0.0 {
-                        s / total
-                    } else {
-                        1.0 / chosen.len() as f64
-                    },
-                )
-            })
-            .collect();
-        phones.push(PhoneReport {
-            phone: seg.phone,
-            used,
-            start: seg.start,
-            end: seg.end,
-            chosen: mix
+
+    /// Synthesises a trajectory for `target` by top-N context blending.
+    fn synthesise(
+        &self,
+        codebook: &Codebook,
+        target: &[Segment],
+        fps: f64,
+    ) -> Result<Synthesis, SynthError> {
+        options::count_in("top-n", self.top_n, 1, usize::MAX)?;
+        options::count_in("context width", self.context, 0, MAX_CONTEXT)?;
+        validate_request(target, fps)?;
+        let dims = codebook.dims();
+        let mut warnings = Vec::new();
+        let mut phones = Vec::with_capacity(target.len());
+        // Per target phone: (occurrence, weight) pairs.
+        let mut mixes: Vec<Vec<(Occurrence, f64)>> = Vec::with_capacity(target.len());
+        for (i, seg) in target.iter().enumerate() {
+            let used =
+                stand_in(codebook, seg.phone).ok_or(SynthError::NoFallback { phone: seg.phone })?;
+            if used != seg.phone {
+                warnings.push(format!(
+                    "phone {i} /{}/ is absent from the codebook: used /{used}/ (same viseme class)",
+                    seg.phone
+                ));
+            }
+            if seg.duration() <= 0.0 {
+                warnings.push(format!(
+                    "phone {i} /{}/ has zero length and was skipped",
+                    seg.phone
+                ));
+            }
+            let chosen = select(codebook, target, i, used, self);
+            let total: f64 = chosen.iter().map(|c| c.1).sum();
+            let mix: Vec<(Occurrence, f64)> = chosen
                 .iter()
-                .zip(&chosen)
-                .map(|(&(o, w), &(_, s))| Chosen {
-                    sentence: codebook.sentences[o.sentence].name.clone(),
-                    segment: o.segment,
-                    score: s,
-                    weight: w,
+                .map(|&(o, s)| {
+                    (
+                        o,
+                        if total > 0.0 {
+                            s / total
+                        } else {
+                            1.0 / chosen.len() as f64
+                        },
+                    )
                 })
-                .collect(),
-        });
-        mixes.push(mix);
-    }
-    let (start, end) = (target[0].start, target[target.len() - 1].end);
-    let times = frame_times(end - start, options.fps);
-    let mut frames = vec![0.0; times.len() * dims];
-    let mut value = vec![0.0; dims];
-    let mut seg = 0;
-    for (row, &t) in frames.chunks_exact_mut(dims).zip(&times) {
-        let t = t + start;
-        // The target phone holding t (the last one for the final frame).
-        while seg + 1 < target.len() && (t >= target[seg].end || target[seg].duration() <= 0.0) {
-            seg += 1;
+                .collect();
+            phones.push(PhoneReport {
+                phone: seg.phone,
+                used,
+                start: seg.start,
+                end: seg.end,
+                chosen: mix
+                    .iter()
+                    .zip(&chosen)
+                    .map(|(&(o, w), &(_, s))| Chosen {
+                        sentence: codebook.sentences[o.sentence].name.clone(),
+                        segment: o.segment,
+                        score: s,
+                        weight: w,
+                    })
+                    .collect(),
+            });
+            mixes.push(mix);
         }
-        let s = &target[seg];
-        for &(o, w) in &mixes[seg] {
-            let g = codebook.segment(o);
-            let warp = codebook.trajectories[o.sentence]
-                .warp(g.start, g.end, s.duration().max(1e-9))
-                .expect("valid segments");
-            warp.eval_into((t - s.start).clamp(0.0, s.duration()), &mut value);
-            row.iter_mut().zip(&value).for_each(|(r, v)| *r += w * v);
+        let (start, end) = (target[0].start, target[target.len() - 1].end);
+        let times = frame_times(end - start, fps);
+        let mut rows = vec![0f32; times.len() * dims];
+        let mut acc = vec![0.0; dims];
+        let mut value = vec![0.0; dims];
+        let mut seg = 0;
+        for (row, &t) in rows.chunks_exact_mut(dims).zip(&times) {
+            let t = t + start;
+            // The target phone holding t (the last one for the final frame).
+            while seg + 1 < target.len() && (t >= target[seg].end || target[seg].duration() <= 0.0)
+            {
+                seg += 1;
+            }
+            let s = &target[seg];
+            acc.iter_mut().for_each(|a| *a = 0.0);
+            for &(o, w) in &mixes[seg] {
+                let g = codebook.segment(o);
+                let warp = codebook.trajectories[o.sentence]
+                    .warp(g.start, g.end, s.duration().max(1e-9))
+                    .expect("valid segments");
+                warp.eval_into((t - s.start).clamp(0.0, s.duration()), &mut value);
+                acc.iter_mut().zip(&value).for_each(|(r, v)| *r += w * v);
+            }
+            row.iter_mut().zip(&acc).for_each(|(r, a)| *r = *a as f32);
         }
+        Ok(Synthesis {
+            frames: Frames::from_rows(codebook.layout, fps, rows)?,
+            phones,
+            warnings,
+        })
     }
-    Ok(Synthesis {
-        fps: options.fps,
-        dims,
-        frames,
-        phones,
-        warnings,
-    })
 }

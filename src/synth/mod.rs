@@ -1,4 +1,246 @@
-//! Synthesis of face-space trajectories from phonemes (DESIGN §8).
+//! Synthesis of face-space sequences from phones (DESIGN §8).
+//!
+//! A [`Synthesiser`] turns target phones with timings into frames ([`blend`]: top-N context
+//! blending); [`synthesise`] runs one and applies the smoothing spline ([`smooth`]) as asked,
+//! keeping both variants for an A/B comparison; [`output`] renders and writes the result.
 
 pub mod blend;
+pub mod output;
 pub mod smooth;
+
+use serde::Serialize;
+use thiserror::Error;
+
+use crate::codebook::Codebook;
+use crate::facespace::{FacespaceError, Frames};
+use crate::options::{self, InvalidOption};
+use crate::phonemes::{Phone, Segment};
+use smooth::{SmoothError, SmoothingSpline};
+
+/// Default smoothing weight λ of the cubic smoothing spline (seconds³ per parameter unit²),
+/// chosen with `facespace eval --lambda-grid` (BENCHMARKS.md).
+pub const DEFAULT_SMOOTHING: f64 = 1e-5;
+
+/// What can go wrong synthesising.
+#[derive(Debug, Error, PartialEq)]
+#[non_exhaustive]
+pub enum SynthError {
+    /// No phones with a duration.
+    #[error("nothing to synthesise: the target has no phones")]
+    Empty,
+    /// A phone with a negative or non-finite time.
+    #[error("target phone {index} ({phone}) has a negative or non-finite duration")]
+    BadSegment {
+        /// Its position in the target.
+        index: usize,
+        /// The phone.
+        phone: Phone,
+    },
+    /// Overlapping or unordered phones.
+    #[error("target phones overlap or are out of order at phone {0}")]
+    Unsorted(usize),
+    /// A phone neither the codebook nor its viseme class has.
+    #[error(
+        "phone {phone} is absent from the codebook and no phone of its viseme class is present"
+    )]
+    NoFallback {
+        /// The phone.
+        phone: Phone,
+    },
+    /// An option out of range.
+    #[error(transparent)]
+    Option(#[from] InvalidOption),
+    /// Frames that do not fit (non-finite values, say).
+    #[error(transparent)]
+    Frames(#[from] FacespaceError),
+    /// The smoothing spline failed.
+    #[error("smoothing: {0}")]
+    Smooth(#[from] SmoothError),
+}
+
+/// One example chosen for a target phone.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Chosen {
+    /// The codebook sentence.
+    pub sentence: String,
+    /// The segment within it.
+    pub segment: usize,
+    /// Its score.
+    pub score: f64,
+    /// Its weight in the mix.
+    pub weight: f64,
+}
+
+/// What was done for one target phone.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PhoneReport {
+    /// The target phone.
+    pub phone: Phone,
+    /// The phone whose examples were used (differs from `phone` after a fallback).
+    pub used: Phone,
+    /// Start, seconds.
+    pub start: f64,
+    /// End, seconds.
+    pub end: f64,
+    /// The examples used.
+    pub chosen: Vec<Chosen>,
+}
+
+/// A synthesised sequence and what was chosen for it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Synthesis {
+    /// The frames, from the first target phone's start.
+    pub frames: Frames,
+    /// Per target phone, what was used.
+    pub phones: Vec<PhoneReport>,
+    /// Human-readable notes: fallbacks, skipped zero-length phones.
+    pub warnings: Vec<String>,
+}
+
+/// Turns target phones into face-space frames.
+pub trait Synthesiser {
+    /// A short description for reports and evaluation tables, e.g. `blend C=1 N=3`.
+    fn name(&self) -> String;
+
+    /// Frames at `fps` for `target` (validated first with [`validate_target`]).
+    fn synthesise(
+        &self,
+        codebook: &Codebook,
+        target: &[Segment],
+        fps: f64,
+    ) -> Result<Synthesis, SynthError>;
+}
+
+/// Checks the target: non-empty, finite non-negative durations, in order.
+pub fn validate_target(target: &[Segment]) -> Result<(), SynthError> {
+    if target.is_empty() {
+        return Err(SynthError::Empty);
+    }
+    for (index, s) in target.iter().enumerate() {
+        if !(s.start.is_finite() && s.end.is_finite()) || s.end < s.start || s.start < 0.0 {
+            return Err(SynthError::BadSegment {
+                index,
+                phone: s.phone,
+            });
+        }
+        if index > 0 && s.start < target[index - 1].end - 1e-9 {
+            return Err(SynthError::Unsorted(index));
+        }
+    }
+    if target.iter().all(|s| s.duration() <= 0.0) {
+        return Err(SynthError::Empty);
+    }
+    Ok(())
+}
+
+/// Longest utterance synthesised (seconds): an hour; a damaged label file cannot ask for
+/// years of frames.
+pub const MAX_DURATION: f64 = 3600.0;
+
+/// Checks the target and the frame rate together: the frame count they imply is bounded.
+pub fn validate_request(target: &[Segment], fps: f64) -> Result<(), SynthError> {
+    crate::facespace::check_fps(fps)?;
+    validate_target(target)?;
+    let span = target[target.len() - 1].end - target[0].start;
+    options::in_range("utterance length (s)", span, 0.0, MAX_DURATION)?;
+    Ok(())
+}
+
+/// The phone whose examples stand in for `p`: itself if present, else the most frequent
+/// present phone of its viseme class (S has no row for a phone the corpus never shows).
+pub fn stand_in(codebook: &Codebook, p: Phone) -> Option<Phone> {
+    if !codebook.occurrences[p.index()].is_empty() {
+        return Some(p);
+    }
+    codebook
+        .present()
+        .into_iter()
+        .filter(|q| q.viseme() == p.viseme())
+        .max_by_key(|q| (codebook.occurrences[q.index()].len(), std::cmp::Reverse(*q)))
+}
+
+/// Smooths every column of `frames` with the cubic smoothing spline of weight `lambda` over
+/// the frame times (fewer than 3 frames are returned as they are).
+pub fn smoothed(frames: &Frames, lambda: f64) -> Result<Frames, SynthError> {
+    let mut out = frames.clone();
+    if frames.len() >= 3 {
+        let spline = SmoothingSpline::new(&frames.times(), None, lambda)?;
+        let mut column = vec![0.0; frames.len()];
+        for mut col in out.values_mut().columns_mut() {
+            column
+                .iter_mut()
+                .zip(col.iter())
+                .for_each(|(c, &v)| *c = f64::from(v));
+            for (v, s) in col.iter_mut().zip(spline.smooth(&column)?) {
+                *v = s as f32;
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// Whether and how an utterance is smoothed.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Smoothing {
+    /// As synthesised.
+    Off,
+    /// Smoothed with weight λ.
+    On(f64),
+    /// Both, for an A/B comparison: smoothed with weight λ, and as synthesised.
+    Ab(f64),
+}
+
+/// An utterance: its target, the synthesis, and the variants its smoothing asks for.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Utterance {
+    /// The phones spoken.
+    pub target: Vec<Segment>,
+    /// What the synthesiser was.
+    pub method: String,
+    /// The frames as synthesised, and what was chosen.
+    pub synthesis: Synthesis,
+    /// The smoothed frames, when smoothing is on or A/B.
+    pub smoothed: Option<Frames>,
+    /// The smoothing asked for.
+    pub smoothing: Smoothing,
+}
+
+impl Utterance {
+    /// The variants to write: `("smoothed", …)`, `("unsmoothed", …)` or both.
+    pub fn variants(&self) -> Vec<(&'static str, &Frames)> {
+        let raw = ("unsmoothed", &self.synthesis.frames);
+        match (&self.smoothed, self.smoothing) {
+            (Some(s), Smoothing::Ab(_)) => vec![("smoothed", s), raw],
+            (Some(s), _) => vec![("smoothed", s)],
+            (None, _) => vec![raw],
+        }
+    }
+}
+
+/// Synthesises `target` at `fps` and smooths as `smoothing` asks: "synthesise, then smooth"
+/// in one place for the CLI, the demo, evaluation and benchmarks.
+pub fn synthesise(
+    synthesiser: &dyn Synthesiser,
+    codebook: &Codebook,
+    target: Vec<Segment>,
+    fps: f64,
+    smoothing: Smoothing,
+) -> Result<Utterance, SynthError> {
+    validate_request(&target, fps)?;
+    let synthesis = synthesiser.synthesise(codebook, &target, fps)?;
+    let smoothed = match smoothing {
+        Smoothing::Off => None,
+        Smoothing::On(l) | Smoothing::Ab(l) => {
+            options::in_range("smoothing λ", l, 0.0, f64::MAX)?;
+            Some(smoothed(&synthesis.frames, l)?)
+        }
+    };
+    Ok(Utterance {
+        target,
+        method: synthesiser.name(),
+        synthesis,
+        smoothed,
+        smoothing,
+    })
+}

@@ -16,13 +16,77 @@ use openh264::encoder::{
 };
 use openh264::formats::{YUVSlices, YUVSource};
 
+use thiserror::Error;
+
+use crate::options::InvalidOption;
+
+/// What can go wrong reading or writing an MP4.
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum Mp4Error {
+    /// Reading or writing the file failed.
+    #[error(transparent)]
+    Io(#[from] std::io::Error),
+    /// The container cannot be parsed.
+    #[error("not a readable MP4 ({0})")]
+    Container(#[from] mp4::Error),
+    /// No track of the kind needed.
+    #[error("no {0} track")]
+    NoTrack(&'static str),
+    /// OpenH264 failed.
+    #[error("H.264: {0}")]
+    Codec(#[from] openh264::Error),
+    /// A sample the track lists is absent.
+    #[error("sample {0} is missing (truncated file?)")]
+    MissingSample(u32),
+    /// A sample's NAL length prefixes do not fit it.
+    #[error("sample {0}: malformed NAL lengths")]
+    BadNal(u32),
+    /// A sample could not be read or decoded.
+    #[error("sample {id}: {source}")]
+    Sample {
+        /// The sample (1-based).
+        id: u32,
+        /// The cause.
+        source: Box<Mp4Error>,
+    },
+    /// 4:2:0 needs even sides.
+    #[error("H.264 4:2:0 needs even, non-zero width and height; got {width}×{height}")]
+    OddSize {
+        /// Width.
+        width: u32,
+        /// Height.
+        height: u32,
+    },
+    /// A frame of another size than the video.
+    #[error("frame {index} is {width}×{height}, the video {expected:?}")]
+    FrameSize {
+        /// The frame.
+        index: u64,
+        /// Its width.
+        width: u32,
+        /// Its height.
+        height: u32,
+        /// The video's size.
+        expected: (u32, u32),
+    },
+    /// The encoder's first frame lacked its parameter sets.
+    #[error("the encoder gave no SPS/PPS with its first frame")]
+    NoParameterSets,
+    /// Nothing to write.
+    #[error("no frames to write")]
+    NoFrames,
+    /// An out-of-range frame rate.
+    #[error(transparent)]
+    Option(#[from] InvalidOption),
+}
+
 type Mp4File = mp4::Mp4Reader<BufReader<File>>;
 
-fn open(path: &Path) -> Result<Mp4File, String> {
-    let file = File::open(path).map_err(|e| e.to_string())?;
-    let size = file.metadata().map_err(|e| e.to_string())?.len();
-    mp4::Mp4Reader::read_header(BufReader::new(file), size)
-        .map_err(|e| format!("not a readable MP4 ({e})"))
+fn open(path: &Path) -> Result<Mp4File, Mp4Error> {
+    let file = File::open(path)?;
+    let size = file.metadata()?.len();
+    Ok(mp4::Mp4Reader::read_header(BufReader::new(file), size)?)
 }
 
 fn track_of(file: &Mp4File, kind: mp4::MediaType) -> Option<u32> {
@@ -52,12 +116,13 @@ pub struct Reader {
 }
 
 impl Reader {
-    pub fn open(path: &Path) -> Result<Self, String> {
+    pub fn open(path: &Path) -> Result<Self, Mp4Error> {
         let file = open(path)?;
-        let track = track_of(&file, mp4::MediaType::H264).ok_or("no H.264 video track")?;
+        let track =
+            track_of(&file, mp4::MediaType::H264).ok_or(Mp4Error::NoTrack("H.264 video"))?;
         let t = &file.tracks()[&track];
-        let sps = t.sequence_parameter_set().map_err(|e| e.to_string())?;
-        let pps = t.picture_parameter_set().map_err(|e| e.to_string())?;
+        let sps = t.sequence_parameter_set()?;
+        let pps = t.picture_parameter_set()?;
         let length_size = t
             .trak
             .mdia
@@ -79,16 +144,13 @@ impl Reader {
         let mut decoder = Decoder::with_api_config(
             openh264::OpenH264API::from_source(),
             DecoderConfig::new().flush_after_decode(Flush::NoFlush),
-        )
-        .map_err(|e| e.to_string())?;
+        )?;
         let mut head = Vec::new();
         for nal in [sps, pps] {
             head.extend_from_slice(&[0, 0, 0, 1]);
             head.extend_from_slice(nal);
         }
-        decoder
-            .decode(&head)
-            .map_err(|e| format!("bad SPS/PPS: {e}"))?;
+        decoder.decode(&head)?;
         Ok(Reader {
             file,
             track,
@@ -110,28 +172,32 @@ impl Reader {
     }
 
     /// The next frame, `None` after the last.
-    pub fn next_frame(&mut self) -> Result<Option<RgbImage>, String> {
+    pub fn next_frame(&mut self) -> Result<Option<RgbImage>, Mp4Error> {
         while self.pending.is_empty() && self.next_sample <= self.samples {
             let id = self.next_sample;
             self.next_sample += 1;
+            let in_sample = |source: Mp4Error| Mp4Error::Sample {
+                id,
+                source: Box::new(source),
+            };
             let sample = self
                 .file
                 .read_sample(self.track, id)
-                .map_err(|e| format!("sample {id}: {e} (truncated file?)"))?
-                .ok_or_else(|| format!("sample {id} is missing"))?;
-            let annex_b = to_annex_b(&sample.bytes, self.length_size)
-                .ok_or_else(|| format!("sample {id}: malformed NAL lengths"))?;
+                .map_err(|e| in_sample(e.into()))?
+                .ok_or(Mp4Error::MissingSample(id))?;
+            let annex_b =
+                to_annex_b(&sample.bytes, self.length_size).ok_or(Mp4Error::BadNal(id))?;
             let decoded = self
                 .decoder
                 .decode(&annex_b)
-                .map_err(|e| format!("sample {id}: {e}"))?;
+                .map_err(|e| in_sample(e.into()))?;
             if let Some(yuv) = decoded {
                 self.pending.push_back(to_rgb(&yuv));
             }
         }
         if self.pending.is_empty() && !self.flushed {
             self.flushed = true;
-            let rest = self.decoder.flush_remaining().map_err(|e| e.to_string())?;
+            let rest = self.decoder.flush_remaining()?;
             self.pending.extend(rest.iter().map(to_rgb));
         }
         Ok(self.pending.pop_front())
@@ -172,25 +238,23 @@ pub struct AudioTrack {
 
 impl AudioTrack {
     /// The first AAC track of `path`, if it has one.
-    pub fn read(path: &Path) -> Result<Option<Self>, String> {
+    pub fn read(path: &Path) -> Result<Option<Self>, Mp4Error> {
         let mut file = open(path)?;
         let Some(track) = track_of(&file, mp4::MediaType::AAC) else {
             return Ok(None);
         };
         let t = &file.tracks()[&track];
-        let err = |e: mp4::Error| e.to_string();
         let config = mp4::AacConfig {
             bitrate: t.bitrate(),
-            profile: t.audio_profile().map_err(err)?,
-            freq_index: t.sample_freq_index().map_err(err)?,
-            chan_conf: t.channel_config().map_err(err)?,
+            profile: t.audio_profile()?,
+            freq_index: t.sample_freq_index()?,
+            chan_conf: t.channel_config()?,
         };
         let timescale = t.timescale();
         let samples = (1..=t.sample_count())
             .map(|id| {
-                file.read_sample(track, id)
-                    .map_err(err)?
-                    .ok_or_else(|| format!("audio sample {id} is missing"))
+                file.read_sample(track, id)?
+                    .ok_or(Mp4Error::MissingSample(id))
             })
             .collect::<Result<_, _>>()?;
         Ok(Some(AudioTrack {
@@ -219,9 +283,9 @@ impl AudioTrack {
     }
 
     /// Writes the track alone as an `.m4a`-style MP4, atomically.
-    pub fn save(&self, path: &Path) -> Result<(), String> {
+    pub fn save(&self, path: &Path) -> Result<(), Mp4Error> {
         let (tmp, mut writer) = start(path, 1000)?;
-        self.add_to(&mut writer, 1).map_err(|e| e.to_string())?;
+        self.add_to(&mut writer, 1)?;
         finish(tmp, writer, path)
     }
 }
@@ -229,9 +293,9 @@ impl AudioTrack {
 fn start(
     path: &Path,
     timescale: u32,
-) -> Result<(tempfile::NamedTempFile, mp4::Mp4Writer<BufWriter<File>>), String> {
-    let tmp = crate::atomic::staging_file(path).map_err(|e| e.to_string())?;
-    let file = tmp.reopen().map_err(|e| e.to_string())?;
+) -> Result<(tempfile::NamedTempFile, mp4::Mp4Writer<BufWriter<File>>), Mp4Error> {
+    let tmp = crate::atomic::staging_file(path)?;
+    let file = tmp.reopen()?;
     let config = mp4::Mp4Config {
         major_brand: str::parse("isom").expect("four letters"),
         minor_version: 512,
@@ -240,8 +304,7 @@ fn start(
             .to_vec(),
         timescale,
     };
-    let writer =
-        mp4::Mp4Writer::write_start(BufWriter::new(file), &config).map_err(|e| e.to_string())?;
+    let writer = mp4::Mp4Writer::write_start(BufWriter::new(file), &config)?;
     Ok((tmp, writer))
 }
 
@@ -249,13 +312,13 @@ fn finish(
     tmp: tempfile::NamedTempFile,
     mut writer: mp4::Mp4Writer<BufWriter<File>>,
     path: &Path,
-) -> Result<(), String> {
-    writer.write_end().map_err(|e| e.to_string())?;
+) -> Result<(), Mp4Error> {
+    writer.write_end()?;
     writer
         .into_writer()
         .into_inner()
-        .map_err(|e| e.error().to_string())?;
-    crate::atomic::persist(tmp, path).map_err(|e| e.to_string())
+        .map_err(|e| e.into_error())?;
+    Ok(crate::atomic::persist(tmp, path)?)
 }
 
 /// Track ticks per frame: the timescale is fps × this, so 29.97 fps is exact to 1/1000.
@@ -278,15 +341,12 @@ pub struct Writer {
 
 impl Writer {
     /// `width` and `height` must be even (4:2:0).
-    pub fn create(path: &Path, width: u32, height: u32, fps: f64) -> Result<Self, String> {
+    pub fn create(path: &Path, width: u32, height: u32, fps: f64) -> Result<Self, Mp4Error> {
         if width == 0 || height == 0 || width % 2 == 1 || height % 2 == 1 {
-            return Err(format!(
-                "H.264 4:2:0 needs even, non-zero width and height; got {width}×{height}"
-            ));
+            return Err(Mp4Error::OddSize { width, height });
         }
-        if !(fps.is_finite() && fps > 0.0 && fps <= 1000.0) {
-            return Err(format!("frame rate {fps} is out of range"));
-        }
+        // At least one tick per frame at the timescale fps × FRAME_TICKS.
+        crate::options::in_range("frame rate", fps, 0.01, crate::facespace::MAX_FPS)?;
         let timescale = (fps * f64::from(FRAME_TICKS)).round() as u32;
         // About 0.25 bit per pixel: visually clean for faces; the codec report measures it.
         let bits = (f64::from(width * height) * fps * 0.25) as u32;
@@ -301,9 +361,10 @@ impl Writer {
             .background_detection(false)
             .scene_change_detect(false)
             .adaptive_quantization(false)
-            .intra_frame_period(IntraFramePeriod::from_num_frames((2.0 * fps).round() as u32));
-        let encoder = Encoder::with_api_config(openh264::OpenH264API::from_source(), config)
-            .map_err(|e| e.to_string())?;
+            .intra_frame_period(IntraFramePeriod::from_num_frames(
+                ((2.0 * fps).round() as u32).max(1),
+            ));
+        let encoder = Encoder::with_api_config(openh264::OpenH264API::from_source(), config)?;
         let (tmp, writer) = start(path, timescale)?;
         Ok(Writer {
             tmp,
@@ -318,23 +379,21 @@ impl Writer {
         })
     }
 
-    pub fn write(&mut self, frame: &RgbImage) -> Result<(), String> {
+    pub fn write(&mut self, frame: &RgbImage) -> Result<(), Mp4Error> {
         if frame.dimensions() != (self.width, self.height) {
-            return Err(format!(
-                "frame {} is {}×{}, the video {}×{}",
-                self.frames,
-                frame.width(),
-                frame.height(),
-                self.width,
-                self.height
-            ));
+            return Err(Mp4Error::FrameSize {
+                index: self.frames,
+                width: frame.width(),
+                height: frame.height(),
+                expected: (self.width, self.height),
+            });
         }
         let (w, h) = (self.width as usize, self.height as usize);
         rgb_to_yuv420(frame, &mut self.yuv);
         let (luma, chroma) = self.yuv.split_at(w * h);
         let (cb, cr) = chroma.split_at(w * h / 4);
         let source = YUVSlices::new((luma, cb, cr), (w, h), (w, w / 2, w / 2));
-        let encoded = self.encoder.encode(&source).map_err(|e| e.to_string())?;
+        let encoded = self.encoder.encode(&source)?;
         let is_sync = matches!(encoded.frame_type(), FrameType::IDR);
         let mut sample = Vec::new();
         let (mut sps, mut pps) = (None, None);
@@ -355,21 +414,19 @@ impl Writer {
         }
         if !self.has_track {
             let (Some(sps), Some(pps)) = (sps, pps) else {
-                return Err("the encoder gave no SPS/PPS with its first frame".into());
+                return Err(Mp4Error::NoParameterSets);
             };
-            self.writer
-                .add_track(&mp4::TrackConfig {
-                    track_type: mp4::TrackType::Video,
-                    timescale: self.timescale,
-                    language: "und".into(),
-                    media_conf: mp4::MediaConfig::AvcConfig(mp4::AvcConfig {
-                        width: self.width as u16,
-                        height: self.height as u16,
-                        seq_param_set: sps,
-                        pic_param_set: pps,
-                    }),
-                })
-                .map_err(|e| e.to_string())?;
+            self.writer.add_track(&mp4::TrackConfig {
+                track_type: mp4::TrackType::Video,
+                timescale: self.timescale,
+                language: "und".into(),
+                media_conf: mp4::MediaConfig::AvcConfig(mp4::AvcConfig {
+                    width: self.width as u16,
+                    height: self.height as u16,
+                    seq_param_set: sps,
+                    pic_param_set: pps,
+                }),
+            })?;
             self.has_track = true;
         }
         let sample = mp4::Mp4Sample {
@@ -379,20 +436,18 @@ impl Writer {
             is_sync,
             bytes: sample.into(),
         };
-        self.writer
-            .write_sample(1, &sample)
-            .map_err(|e| e.to_string())?;
+        self.writer.write_sample(1, &sample)?;
         self.frames += 1;
         Ok(())
     }
 
     /// Closes the file (muxing `audio` beside the video) and renames it into place.
-    pub fn finish(mut self, path: &Path, audio: Option<&AudioTrack>) -> Result<u64, String> {
+    pub fn finish(mut self, path: &Path, audio: Option<&AudioTrack>) -> Result<u64, Mp4Error> {
         if self.frames == 0 {
-            return Err("no frames to write".into());
+            return Err(Mp4Error::NoFrames);
         }
         if let Some(a) = audio {
-            a.add_to(&mut self.writer, 2).map_err(|e| e.to_string())?;
+            a.add_to(&mut self.writer, 2)?;
         }
         finish(self.tmp, self.writer, path)?;
         Ok(self.frames)

@@ -66,3 +66,33 @@ pub fn iod_error(
     let (l, r) = (eye(36..42), eye(42..48));
     mean_error(fitted, reference) / (l[0] - r[0]).hypot(l[1] - r[1])
 }
+
+/// One frame's face-space point, owned (tests draw random ones).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Params {
+    pub pose: facespace::shape::Similarity,
+    pub shape: Vec<f32>,
+    pub appearance: Vec<f32>,
+}
+
+impl Params {
+    pub fn view(&self) -> facespace::facespace::FaceParams<'_> {
+        facespace::facespace::FaceParams {
+            pose: self.pose,
+            shape: &self.shape,
+            appearance: &self.appearance,
+        }
+    }
+
+    pub fn to_vector(&self) -> Vec<f32> {
+        self.view().to_vector()
+    }
+}
+
+/// Draws `model`'s face at `params` onto `canvas` with the reference renderer.
+pub fn render(model: &FaceModel, params: &Params, canvas: &mut image::RgbImage) {
+    use facespace::render::Renderer;
+    facespace::render::CpuRenderer::new(model)
+        .render_into(params.view(), canvas)
+        .unwrap();
+}

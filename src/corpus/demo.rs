@@ -23,22 +23,34 @@
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use crate::codebook::Sentence;
+use super::Sentence;
+use crate::facespace::{FacespaceError, Frames, POSE_DIMS};
 use crate::model::{FaceModel, ModelError, TrainingExample};
-use crate::phonemes::{self, DEFAULT_DURATIONS, N_VISEMES, Phone, PhonemeError, Segment};
+use crate::phonemes::{self, DEFAULT_DURATIONS, N_VISEMES, Phone, PhonemeError};
 use crate::rng::Rng;
 use crate::trajectory::frame_times;
 
+/// What can go wrong generating the demo corpus.
 #[derive(Debug, Error)]
-pub enum CorpusError {
+#[non_exhaustive]
+pub enum GenerateError {
+    /// A training frame could not be projected.
     #[error(transparent)]
     Model(#[from] ModelError),
+    /// A sentence's text did not become phones.
     #[error("sentence {index} ({text:?}): {source}")]
     Text {
+        /// Its index in [`SENTENCES`].
         index: usize,
+        /// Its text.
         text: String,
+        /// The cause.
         source: PhonemeError,
     },
+    /// Generated frames out of range (a model with non-finite parameters).
+    #[error(transparent)]
+    Frames(#[from] FacespaceError),
+    /// Too few training frames to pick targets from.
     #[error("need at least 3 training frames with landmarks, got {0}")]
     TooFewFrames(usize),
 }
@@ -144,7 +156,9 @@ const TAU: f64 = 0.05;
 /// Options of the generator.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CorpusOptions {
+    /// Seed of every random choice: same seed, same corpus.
     pub seed: u64,
+    /// Frame rate.
     pub fps: f64,
     /// Candidate training frames per viseme class.
     pub candidates: usize,
@@ -163,12 +177,12 @@ impl Default for CorpusOptions {
 /// One generated sentence.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GeneratedSentence {
-    pub name: String,
+    /// Its frames and phones.
+    pub sentence: Sentence,
+    /// Its text.
     pub text: String,
+    /// Whether it belongs to the held-out split.
     pub held_out: bool,
-    pub segments: Vec<Segment>,
-    /// `frames × dims` face-space points at `fps`.
-    pub frames: Vec<f32>,
 }
 
 /// Lip opening (mean inner-lip gap) and mouth width, over the inter-ocular distance, of
@@ -192,32 +206,23 @@ pub fn mouth_shape(points: &[[f64; 2]]) -> (f64, f64) {
 /// The generated corpus and the training frame whose pose it holds (its background).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Corpus {
+    /// Every sentence, in [`SENTENCES`] order.
     pub sentences: Vec<GeneratedSentence>,
     /// Index into the training frames.
     pub still_frame: usize,
 }
 
 impl Corpus {
-    /// The training and held-out sentences as codebook sentences.
+    /// The training and held-out sentences.
     pub fn split(&self) -> (Vec<Sentence>, Vec<Sentence>) {
-        let to_sentence = |s: &GeneratedSentence| Sentence {
-            name: s.name.clone(),
-            source: "generated demo corpus".into(),
-            frames: s.frames.clone(),
-            segments: s.segments.clone(),
+        let part = |held: bool| {
+            self.sentences
+                .iter()
+                .filter(|s| s.held_out == held)
+                .map(|s| s.sentence.clone())
+                .collect()
         };
-        (
-            self.sentences
-                .iter()
-                .filter(|s| !s.held_out)
-                .map(to_sentence)
-                .collect(),
-            self.sentences
-                .iter()
-                .filter(|s| s.held_out)
-                .map(to_sentence)
-                .collect(),
-        )
+        (part(false), part(true))
     }
 }
 
@@ -244,19 +249,20 @@ pub fn generate(
     model: &FaceModel,
     frames: &[TrainingExample],
     options: &CorpusOptions,
-) -> Result<Corpus, CorpusError> {
+) -> Result<Corpus, GenerateError> {
     if frames.len() < 3 {
-        return Err(CorpusError::TooFewFrames(frames.len()));
+        return Err(GenerateError::TooFewFrames(frames.len()));
     }
     let points: Vec<Vec<f32>> = frames
         .iter()
-        .map(|f| model.project(&f.image, &f.landmarks).map(|p| p.to_vector()))
+        .map(|f| model.project(&f.image, &f.landmarks))
         .collect::<Result<_, _>>()?;
-    let dims = model.n_params();
+    let layout = model.layout();
+    let dims = layout.dims();
     // The still head: the pose of the real frame nearest the mean pose, so the face can be
     // drawn back onto that very frame.
     let still = still_frame(&points);
-    let pose: Vec<f32> = points[still][..4].to_vec();
+    let pose: Vec<f32> = points[still][..POSE_DIMS].to_vec();
     // Mouth shapes as quantile ranks among the training frames.
     let shapes: Vec<(f64, f64)> = frames
         .iter()
@@ -301,7 +307,7 @@ pub fn generate(
         let mut durations = DEFAULT_DURATIONS;
         durations.iter_mut().for_each(|d| *d *= rate);
         let mut segments =
-            phonemes::text_to_segments(text, &durations).map_err(|source| CorpusError::Text {
+            phonemes::text_to_segments(text, &durations).map_err(|source| GenerateError::Text {
                 index,
                 text: text.to_string(),
                 source,
@@ -350,7 +356,7 @@ pub fn generate(
             }
             let row: Vec<f32> = acc.iter().map(|a| (a / wsum) as f32).collect();
             frames_out.extend_from_slice(&pose);
-            frames_out.extend_from_slice(&row[4..]);
+            frames_out.extend_from_slice(&row[POSE_DIMS..]);
         }
         // The labels end with the last frame's interval.
         let end = times.len() as f64 / options.fps;
@@ -358,15 +364,118 @@ pub fn generate(
             last.end = end;
         }
         out.push(GeneratedSentence {
-            name: format!("demo{:02}", index + 1),
+            sentence: Sentence {
+                name: format!("demo{:02}", index + 1),
+                source: "generated demo corpus".into(),
+                frames: Frames::from_rows(layout, options.fps, frames_out)?,
+                segments,
+            },
             text: text.to_string(),
             held_out: index >= SENTENCES.len() - HELD_OUT,
-            segments,
-            frames: frames_out,
         });
     }
     Ok(Corpus {
         sentences: out,
         still_frame: still,
     })
+}
+
+impl Corpus {
+    /// Writes the corpus folder: `train/` and `heldout/` with `NAME.npy`, `NAME.lab` and
+    /// `NAME.txt`, and `corpus.json` describing how it was made. With a renderer, every
+    /// frame is also drawn over `background` into `frames/NAME/`.
+    pub fn save(
+        &self,
+        dir: &std::path::Path,
+        model: &FaceModel,
+        options: &CorpusOptions,
+        still_frame_name: &str,
+        frames: Option<(&dyn crate::render::Renderer, &image::RgbImage)>,
+        mut progress: impl FnMut(crate::Progress),
+    ) -> Result<(), SaveError> {
+        for g in &self.sentences {
+            let s = &g.sentence;
+            let part = dir.join(if g.held_out { "heldout" } else { "train" });
+            crate::npy::write(&part.join(format!("{}.npy", s.name)), s.frames.values())?;
+            phonemes::write_labels(&part.join(format!("{}.lab", s.name)), &s.segments)?;
+            let txt = part.join(format!("{}.txt", s.name));
+            crate::atomic::write_file(&txt, format!("{}\n", g.text).as_bytes())
+                .map_err(|source| SaveError::Io { path: txt, source })?;
+        }
+        let names = |held: bool| -> Vec<&str> {
+            self.sentences
+                .iter()
+                .filter(|g| g.held_out == held)
+                .map(|g| g.sentence.name.as_str())
+                .collect()
+        };
+        let manifest = serde_json::json!({
+            "generator": "facespace corpus demo",
+            "note": "Trajectories are GENERATED (dominance-function coarticulation over real face-space points of the demo training frames), not recorded. Phone sequences come from the CMU dictionary, durations from a table with seeded jitter.",
+            "options": options,
+            "model_hash": model.hash(),
+            "still_frame": still_frame_name,
+            "fps": options.fps,
+            "train": names(false),
+            "heldout": names(true),
+            "texts": self.sentences.iter().map(|g| (&g.sentence.name, &g.text)).collect::<std::collections::BTreeMap<_, _>>(),
+        });
+        let path = dir.join("corpus.json");
+        let json = serde_json::to_string_pretty(&manifest).expect("manifest serialises");
+        crate::atomic::write_file(&path, json.as_bytes())
+            .map_err(|source| SaveError::Io { path, source })?;
+        if let Some((renderer, background)) = frames {
+            for (i, g) in self.sentences.iter().enumerate() {
+                let s = &g.sentence;
+                let (w, h) = background.dimensions();
+                let mut sink = crate::video::Sink::create(
+                    &dir.join("frames").join(&s.name),
+                    w,
+                    h,
+                    s.frames.fps(),
+                    None,
+                )?;
+                crate::render::stream(
+                    renderer,
+                    &s.frames,
+                    crate::render::Background::Still(background.clone()),
+                    |f| Ok::<(), SaveError>(sink.write(&f)?),
+                    crate::no_progress,
+                )?;
+                sink.finish()?;
+                progress(crate::Progress {
+                    stage: "rendering",
+                    done: i + 1,
+                    total: self.sentences.len(),
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// What can go wrong writing the demo corpus.
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum SaveError {
+    /// A file could not be written.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: std::path::PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// An array could not be written.
+    #[error(transparent)]
+    Npy(#[from] crate::npy::NpyError),
+    /// A label file could not be written.
+    #[error(transparent)]
+    Phonemes(#[from] PhonemeError),
+    /// Rendering failed.
+    #[error(transparent)]
+    Render(#[from] crate::render::RenderError),
+    /// A frame could not be written.
+    #[error(transparent)]
+    Video(#[from] crate::video::VideoError),
 }

@@ -1,0 +1,310 @@
+//! The synthesis codebook (DESIGN §7): every corpus sentence as a continuous face-space
+//! trajectory with its phone segments, an index of phone occurrences, the phoneme similarity
+//! matrix S ([blend] §4.2) and the phoneme distance matrix M ([unitsel] eq. 5) — computed in
+//! [`similarity`], stored by [`io`].
+
+mod io;
+pub mod similarity;
+
+use ndarray::Array2;
+use thiserror::Error;
+
+pub use io::CODEBOOK_VERSION;
+pub use similarity::SimilarityOptions;
+
+use crate::Progress;
+use crate::corpus::Sentence;
+use crate::facespace::{self, FacespaceError, Layout};
+use crate::manifest::ManifestError;
+use crate::model::FaceModel;
+use crate::npy::NpyError;
+use crate::options::{self, InvalidOption};
+use crate::phonemes::{self, Phone, Segment};
+use crate::trajectory::{Trajectory, TrajectoryError};
+
+/// What can go wrong building, loading or using a codebook.
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum CodebookError {
+    /// A file or folder could not be read or written.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file or folder.
+        path: std::path::PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// The folder's manifest or arrays are damaged or of another version.
+    #[error(transparent)]
+    Manifest(#[from] ManifestError),
+    /// An array could not be written.
+    #[error(transparent)]
+    Npy(#[from] NpyError),
+    /// A sentence's frames do not form a trajectory.
+    #[error("sentence {name}: {source}")]
+    Trajectory {
+        /// The sentence.
+        name: String,
+        /// The cause.
+        source: TrajectoryError,
+    },
+    /// A sentence that cannot join the codebook.
+    #[error("sentence {name}: {reason}")]
+    BadSentence {
+        /// The sentence.
+        name: String,
+        /// What is wrong.
+        reason: String,
+    },
+    /// Sentences of another layout or rate than the codebook's.
+    #[error("sentence {name}: {source}")]
+    Frames {
+        /// The sentence.
+        name: String,
+        /// What differs.
+        source: FacespaceError,
+    },
+    /// The codebook belongs to another model.
+    #[error(
+        "the codebook was built with model {codebook}, but the model given is {model}; use the model it was built with"
+    )]
+    ModelMismatch {
+        /// The codebook's model hash.
+        codebook: String,
+        /// The given model's hash.
+        model: String,
+    },
+    /// The codebook's layout is not the model's.
+    #[error(transparent)]
+    Layout(#[from] FacespaceError),
+    /// An option out of range.
+    #[error(transparent)]
+    Option(#[from] InvalidOption),
+    /// The corpus folder could not be read.
+    #[error(transparent)]
+    Corpus(#[from] crate::corpus::CorpusError),
+}
+
+/// Where a phone occurs: sentence index and segment index.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Occurrence {
+    /// Index into [`Codebook::sentences`].
+    pub sentence: usize,
+    /// Index into that sentence's segments.
+    pub segment: usize,
+}
+
+/// The codebook: sentences, their trajectories, the occurrence index, S and M.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Codebook {
+    /// Frame rate of every sentence.
+    pub fps: f64,
+    /// Face-space layout of every sentence.
+    pub layout: Layout,
+    /// [`FaceModel::hash`] of the model the frames belong to, if known.
+    pub model_hash: Option<String>,
+    /// The constants S and M were computed with.
+    pub options: SimilarityOptions,
+    /// The corpus sentences.
+    pub sentences: Vec<Sentence>,
+    /// One PCHIP trajectory per sentence over all dims (pose included).
+    pub trajectories: Vec<Trajectory>,
+    /// Occurrences of each phone, indexed by [`Phone::index`] (zero-length segments left out).
+    pub occurrences: Vec<Vec<Occurrence>>,
+    /// S, `Phone::COUNT²`; 1 on the diagonal, 0 to and from absent phones.
+    pub similarity: Array2<f64>,
+    /// M, `Phone::COUNT²`; 0 to and from absent phones.
+    pub distance: Array2<f64>,
+}
+
+const N: usize = Phone::COUNT;
+
+/// Equidistant samples per occurrence allowed (S's `samples`).
+pub const MAX_SAMPLES: usize = 1000;
+
+impl Codebook {
+    /// Builds trajectories, the occurrence index, S and M from sentences of one layout and
+    /// frame rate.
+    pub fn build(
+        sentences: Vec<Sentence>,
+        fps: f64,
+        layout: Layout,
+        model_hash: Option<String>,
+        options: SimilarityOptions,
+        progress: &mut dyn FnMut(Progress),
+    ) -> Result<Self, CodebookError> {
+        facespace::check_fps(fps)?;
+        options::count_in("samples per occurrence", options.samples, 2, MAX_SAMPLES)?;
+        if let Some(g) = options.gamma {
+            options::in_range("gamma", g, f64::MIN_POSITIVE, f64::MAX)?;
+        }
+        let total = sentences.len() + 1;
+        let mut trajectories = Vec::with_capacity(sentences.len());
+        for (i, s) in sentences.iter().enumerate() {
+            let bad = |reason: String| CodebookError::BadSentence {
+                name: s.name.clone(),
+                reason,
+            };
+            layout
+                .expect(s.frames.layout())
+                .map_err(|source| CodebookError::Frames {
+                    name: s.name.clone(),
+                    source,
+                })?;
+            if s.frames.fps() != fps {
+                return Err(bad(format!(
+                    "frames at {} fps, the codebook's rate is {fps}",
+                    s.frames.fps()
+                )));
+            }
+            if s.frames.len() < 2 {
+                return Err(bad(format!("{} frames (need at least 2)", s.frames.len())));
+            }
+            if s.segments.is_empty() {
+                return Err(bad("no phone segments".into()));
+            }
+            let n = s.frames.len();
+            let end = s.segments[s.segments.len() - 1].end;
+            if end > (n + 1) as f64 / fps + 1e-9 {
+                return Err(bad(format!(
+                    "labels end at {end:.3} s, after the {n} frames ({:.3} s)",
+                    n as f64 / fps
+                )));
+            }
+            trajectories.push(Trajectory::from_frames(&s.frames).map_err(|source| {
+                CodebookError::Trajectory {
+                    name: s.name.clone(),
+                    source,
+                }
+            })?);
+            progress(Progress {
+                stage: "trajectories",
+                done: i + 1,
+                total,
+            });
+        }
+        let mut occurrences = vec![Vec::new(); N];
+        for (si, s) in sentences.iter().enumerate() {
+            for (gi, g) in s.segments.iter().enumerate() {
+                if g.duration() > 0.0 {
+                    occurrences[g.phone.index()].push(Occurrence {
+                        sentence: si,
+                        segment: gi,
+                    });
+                }
+            }
+        }
+        let mut cb = Codebook {
+            fps,
+            layout,
+            model_hash,
+            options,
+            sentences,
+            trajectories,
+            occurrences,
+            similarity: Array2::zeros((N, N)),
+            distance: Array2::zeros((N, N)),
+        };
+        cb.similarity = similarity::similarity_matrix(&cb);
+        cb.distance = similarity::distance_matrix(&cb);
+        progress(Progress {
+            stage: "similarity",
+            done: total,
+            total,
+        });
+        Ok(cb)
+    }
+
+    /// Builds a codebook of `model`'s face-space from a corpus folder (see
+    /// [`crate::corpus::load`]).
+    pub fn from_corpus(
+        dir: &std::path::Path,
+        model: &FaceModel,
+        fps: f64,
+        tier: Option<&str>,
+        map: &phonemes::PhoneMap,
+        options: SimilarityOptions,
+        progress: &mut dyn FnMut(Progress),
+    ) -> Result<Self, CodebookError> {
+        let sentences = crate::corpus::load(dir, fps, model.layout(), tier, map)?;
+        Codebook::build(
+            sentences,
+            fps,
+            model.layout(),
+            Some(model.hash()),
+            options,
+            progress,
+        )
+    }
+
+    /// Checks that the codebook's frames are `model`'s: the recorded model hash (when there
+    /// is one) and the layout.
+    pub fn check_model(&self, model: &FaceModel) -> Result<(), CodebookError> {
+        if let Some(h) = &self.model_hash
+            && *h != model.hash()
+        {
+            return Err(CodebookError::ModelMismatch {
+                codebook: h.clone(),
+                model: model.hash(),
+            });
+        }
+        model.layout().expect(self.layout)?;
+        Ok(())
+    }
+
+    /// Values per frame.
+    pub fn dims(&self) -> usize {
+        self.layout.dims()
+    }
+
+    /// Frames over every sentence.
+    pub fn n_frames(&self) -> usize {
+        self.sentences.iter().map(|s| s.frames.len()).sum()
+    }
+
+    /// Phones with at least one (non-empty) occurrence.
+    pub fn present(&self) -> Vec<Phone> {
+        Phone::all()
+            .filter(|p| !self.occurrences[p.index()].is_empty())
+            .collect()
+    }
+
+    /// S between two phones.
+    pub fn similarity(&self, a: Phone, b: Phone) -> f64 {
+        self.similarity[[a.index(), b.index()]]
+    }
+
+    /// M between two phones.
+    pub fn distance(&self, a: Phone, b: Phone) -> f64 {
+        self.distance[[a.index(), b.index()]]
+    }
+
+    /// The `k` present phones most similar to `p` (itself excluded), most similar first.
+    pub fn nearest(&self, p: Phone, k: usize) -> Vec<(Phone, f64)> {
+        let mut v: Vec<(Phone, f64)> = self
+            .present()
+            .into_iter()
+            .filter(|&q| q != p)
+            .map(|q| (q, self.similarity(p, q)))
+            .collect();
+        v.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+        v.truncate(k);
+        v
+    }
+
+    /// Mean duration of each phone in the corpus (seconds), the built-in table where absent.
+    pub fn mean_durations(&self) -> [f64; N] {
+        let mut d = phonemes::DEFAULT_DURATIONS;
+        for p in self.present() {
+            let occ = &self.occurrences[p.index()];
+            d[p.index()] =
+                occ.iter().map(|o| self.segment(*o).duration()).sum::<f64>() / occ.len() as f64;
+        }
+        d
+    }
+
+    /// The segment of an occurrence.
+    pub fn segment(&self, o: Occurrence) -> &Segment {
+        &self.sentences[o.sentence].segments[o.segment]
+    }
+}

@@ -1,0 +1,292 @@
+//! The clip folder (DESIGN §12): `meta.json` and `params.npy` — frames × `[pose | b_s | b_a]`,
+//! float32 — or, quantised, `params_u16.npy` / `params_u8.npy` with each column's range in
+//! `meta.json` (`value = min + q·(max − min)/(2^bits − 1)`), plus `audio.m4a` when the input
+//! had sound.
+
+use std::path::{Path, PathBuf};
+
+use ndarray::Array2;
+use serde::{Deserialize, Serialize};
+
+use super::CodecError;
+use crate::facespace::{Frames, Layout};
+use crate::manifest;
+use crate::model::FaceModel;
+use crate::npy;
+use crate::{atomic, video};
+
+/// The clip folder format.
+pub const FORMAT: &str = "facespace-clip";
+/// The clip folder version this build writes and reads.
+pub const VERSION: u32 = 1;
+const META: &str = "meta.json";
+const AUDIO: &str = "audio.m4a";
+/// Frames a clip may declare (a cap for damaged manifests: ten hours at 100 fps).
+const MAX_FRAMES: usize = 3_600_000;
+
+/// `meta.json`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+struct ClipMeta {
+    format: String,
+    version: u32,
+    model_hash: String,
+    fps: f64,
+    width: u32,
+    height: u32,
+    frames: usize,
+    layout: Layout,
+    quantisation: Option<Quantisation>,
+    audio: Option<String>,
+    source: String,
+    tracking: Vec<FrameTrack>,
+}
+
+/// How the tracker fared on one frame.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FrameTrack {
+    /// Similarity `[s·cosθ, s·sinθ, tx, ty]` (also columns 0–3 of the parameters).
+    pub pose: [f64; 4],
+    /// Residual RMS of the fit (grey levels).
+    pub fit_error: f64,
+    /// Whether the frame was re-initialised after a lost fit.
+    pub reinitialised: bool,
+}
+
+/// Uniform scalar quantisation of each column over its range in the clip.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Quantisation {
+    /// 8 or 16.
+    pub bits: u32,
+    /// Per column, the smallest value.
+    pub min: Vec<f32>,
+    /// Per column, the largest value.
+    pub max: Vec<f32>,
+}
+
+/// An encoded clip: face-space frames and what else decoding needs.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Clip {
+    /// The face-space points, one per video frame.
+    pub frames: Frames,
+    /// [`FaceModel::hash`] of the model that encoded it; decoding checks it.
+    pub model_hash: String,
+    /// Video width.
+    pub width: u32,
+    /// Video height.
+    pub height: u32,
+    /// Quantisation, if the parameters are stored as integers.
+    pub quantisation: Option<Quantisation>,
+    /// The audio file in the folder, if the input had sound.
+    pub audio: Option<String>,
+    /// The input encoded.
+    pub source: String,
+    /// Per frame, how the tracker fared.
+    pub tracking: Vec<FrameTrack>,
+}
+
+impl Clip {
+    /// The clip as it decodes after quantising every column to `bits` (8 or 16) over its
+    /// range; [`Clip::save`] then stores the integers.
+    pub fn quantised(&self, bits: u32) -> Result<Clip, CodecError> {
+        if bits != 8 && bits != 16 {
+            return Err(CodecError::Bits(bits));
+        }
+        let dims = self.frames.layout().dims();
+        let (mut min, mut max) = (vec![f32::INFINITY; dims], vec![f32::NEG_INFINITY; dims]);
+        for row in self.frames.values().rows() {
+            for (k, &v) in row.iter().enumerate() {
+                min[k] = min[k].min(v);
+                max[k] = max[k].max(v);
+            }
+        }
+        let q = Quantisation { bits, min, max };
+        let codes = q.encode(self.frames.as_slice());
+        let frames = Frames::from_rows(self.frames.layout(), self.frames.fps(), q.decode(&codes))?;
+        Ok(Clip {
+            frames,
+            quantisation: Some(q),
+            ..self.clone()
+        })
+    }
+
+    /// Bytes of the parameter stream as stored (values, plus the range table if quantised).
+    pub fn stream_bytes(&self) -> usize {
+        let values = self.frames.len() * self.frames.layout().dims();
+        match &self.quantisation {
+            Some(q) => values * (q.bits as usize / 8) + 8 * self.frames.layout().dims(),
+            None => values * 4,
+        }
+    }
+
+    /// Saves the clip folder atomically; `audio_from` (the input video) gives `audio.m4a`
+    /// when it has sound. A non-empty folder without `meta.json` is never replaced.
+    pub fn save(&self, dir: &Path, audio_from: Option<&Path>) -> Result<(), CodecError> {
+        let io = |source| CodecError::Io {
+            path: dir.into(),
+            source,
+        };
+        atomic::replace_dir(
+            dir,
+            META,
+            |staged| {
+                let mut meta = ClipMeta {
+                    format: FORMAT.into(),
+                    version: VERSION,
+                    model_hash: self.model_hash.clone(),
+                    fps: self.frames.fps(),
+                    width: self.width,
+                    height: self.height,
+                    frames: self.frames.len(),
+                    layout: self.frames.layout(),
+                    quantisation: self.quantisation.clone(),
+                    audio: None,
+                    source: self.source.clone(),
+                    tracking: self.tracking.clone(),
+                };
+                let shape = (meta.frames, meta.layout.dims());
+                match &meta.quantisation {
+                    Some(q) => {
+                        let codes = q.encode(self.frames.as_slice());
+                        let name = format!("params_u{}.npy", q.bits);
+                        if q.bits == 8 {
+                            let bytes: Vec<u8> = codes.iter().map(|&c| c as u8).collect();
+                            let a = Array2::from_shape_vec(shape, bytes).expect("clip shape");
+                            npy::write(&staged.join(name), a.view())?;
+                        } else {
+                            let a = Array2::from_shape_vec(shape, codes).expect("clip shape");
+                            npy::write(&staged.join(name), a.view())?;
+                        }
+                    }
+                    None => npy::write(&staged.join("params.npy"), self.frames.values())?,
+                }
+                if let Some(input) = audio_from
+                    && video::extract_audio(input, &staged.join(AUDIO))?
+                {
+                    meta.audio = Some(AUDIO.into());
+                }
+                let json = serde_json::to_vec_pretty(&meta).expect("meta serialises");
+                atomic::write_file(&staged.join(META), &json).map_err(io)?;
+                Ok(())
+            },
+            io,
+        )
+    }
+
+    /// Loads a clip folder and checks it against `model` (hash, layout) and itself (format,
+    /// frame count, frame rate, finite values, codes within their bits).
+    pub fn load(dir: &Path, model: &FaceModel) -> Result<Clip, CodecError> {
+        let meta_path = dir.join(META);
+        let meta: ClipMeta = manifest::read(&meta_path, FORMAT, VERSION)?;
+        let invalid = |message: String| CodecError::Invalid {
+            path: meta_path.clone(),
+            message,
+        };
+        if meta.model_hash != model.hash() {
+            return Err(CodecError::HashMismatch {
+                path: dir.into(),
+                clip: meta.model_hash,
+                model: model.hash(),
+            });
+        }
+        model.layout().expect(meta.layout)?;
+        let dims = meta.layout.dims();
+        if meta.frames > MAX_FRAMES || meta.tracking.len() != meta.frames {
+            return Err(invalid(format!(
+                "{} frames with {} tracking records",
+                meta.frames,
+                meta.tracking.len()
+            )));
+        }
+        let shape = [Some(meta.frames), Some(dims)];
+        let (array, values): (PathBuf, Vec<f32>) = match &meta.quantisation {
+            None => {
+                let a: Array2<f32> = manifest::read_array(dir, "params.npy", &shape)?;
+                (dir.join("params.npy"), a.into_raw_vec_and_offset().0)
+            }
+            Some(q) => {
+                if q.min.len() != dims || q.max.len() != dims || !(q.bits == 8 || q.bits == 16) {
+                    return Err(invalid(
+                        "quantisation table does not match the layout".into(),
+                    ));
+                }
+                if let Some(k) = (0..dims).find(|&k| !(q.min[k] <= q.max[k])) {
+                    return Err(invalid(format!(
+                        "quantisation range of column {k} is empty or not finite ({} to {})",
+                        q.min[k], q.max[k]
+                    )));
+                }
+                let name = format!("params_u{}.npy", q.bits);
+                let codes: Vec<u16> = if q.bits == 8 {
+                    let a: Array2<u8> = manifest::read_array(dir, &name, &shape)?;
+                    a.iter().map(|&c| u16::from(c)).collect()
+                } else {
+                    let a: Array2<u16> = manifest::read_array(dir, &name, &shape)?;
+                    a.into_raw_vec_and_offset().0
+                };
+                if let Some(&c) = codes.iter().find(|&&c| u32::from(c) >= 1 << q.bits) {
+                    return Err(invalid(format!("code {c} exceeds {} bits", q.bits)));
+                }
+                (dir.join(name), q.decode(&codes))
+            }
+        };
+        let frames =
+            Frames::from_rows(meta.layout, meta.fps, values).map_err(|e| CodecError::Invalid {
+                path: array,
+                message: e.to_string(),
+            })?;
+        if let Some(audio) = &meta.audio {
+            manifest::member(dir, audio)?;
+        }
+        Ok(Clip {
+            frames,
+            model_hash: meta.model_hash,
+            width: meta.width,
+            height: meta.height,
+            quantisation: meta.quantisation,
+            audio: meta.audio,
+            source: meta.source,
+            tracking: meta.tracking,
+        })
+    }
+
+    /// The clip folder's audio file, if any.
+    pub fn audio_path(&self, dir: &Path) -> Option<PathBuf> {
+        self.audio.as_ref().map(|a| dir.join(a))
+    }
+}
+
+impl Quantisation {
+    fn step(&self, k: usize) -> f32 {
+        let levels = ((1u32 << self.bits) - 1) as f32;
+        (self.max[k] - self.min[k]) / levels
+    }
+
+    fn encode(&self, params: &[f32]) -> Vec<u16> {
+        let dims = self.min.len();
+        params
+            .iter()
+            .enumerate()
+            .map(|(i, &v)| {
+                let k = i % dims;
+                let step = self.step(k);
+                if step > 0.0 {
+                    ((v - self.min[k]) / step).round() as u16
+                } else {
+                    0
+                }
+            })
+            .collect()
+    }
+
+    fn decode(&self, codes: &[u16]) -> Vec<f32> {
+        let dims = self.min.len();
+        codes
+            .iter()
+            .enumerate()
+            .map(|(i, &c)| {
+                let k = i % dims;
+                self.min[k] + f32::from(c) * self.step(k)
+            })
+            .collect()
+    }
+}

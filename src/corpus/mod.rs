@@ -1,0 +1,155 @@
+//! Corpora: sentences of one talker as face-space frames with their phone labels — the raw
+//! material of a codebook. A corpus folder holds `NAME.npy` (frames × face-space, float32) with
+//! `NAME.lab`, `NAME.TextGrid` or `NAME.tsv` beside it; [`demo`] generates one for the demo
+//! talker, whose video has no sound to label.
+
+pub mod demo;
+
+use std::path::{Path, PathBuf};
+
+use ndarray::Array2;
+use thiserror::Error;
+
+use crate::facespace::{FacespaceError, Frames, Layout};
+use crate::npy::{self, NpyError};
+use crate::phonemes::{self, PhoneMap, PhonemeError, Segment};
+
+/// What can be wrong with a corpus.
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum CorpusError {
+    /// The folder could not be listed.
+    #[error("{path}: {source}")]
+    Io {
+        /// The folder.
+        path: PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// A trajectory file is damaged or of another width.
+    #[error(transparent)]
+    Npy(#[from] NpyError),
+    /// A label file is damaged.
+    #[error(transparent)]
+    Phonemes(#[from] PhonemeError),
+    /// Frames that do not fit the layout or rate.
+    #[error("{path}: {source}")]
+    Frames {
+        /// The trajectory file.
+        path: PathBuf,
+        /// What is wrong.
+        source: FacespaceError,
+    },
+    /// No sentences in the folder.
+    #[error("{dir}: no .npy trajectories with label files")]
+    Empty {
+        /// The folder.
+        dir: PathBuf,
+    },
+    /// A trajectory without labels.
+    #[error("{npy}: no label file of the same name (.lab, .TextGrid or .tsv)")]
+    MissingLabels {
+        /// The trajectory.
+        npy: PathBuf,
+    },
+    /// Labels and frames of different lengths.
+    #[error(
+        "{npy} lasts {frames_s:.3} s ({frames} frames at {fps} fps) but {labels} ends at {labels_s:.3} s"
+    )]
+    DurationMismatch {
+        /// The trajectory.
+        npy: PathBuf,
+        /// The labels.
+        labels: PathBuf,
+        /// Its frames.
+        frames: usize,
+        /// The frame rate.
+        fps: f64,
+        /// Seconds of frames.
+        frames_s: f64,
+        /// Where the labels end.
+        labels_s: f64,
+    },
+}
+
+/// One sentence: face-space frames and the phones spoken over them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sentence {
+    /// Name (the file stem).
+    pub name: String,
+    /// Where the frames and labels came from.
+    pub source: String,
+    /// The face-space frames.
+    pub frames: Frames,
+    /// The phone intervals, in seconds from the first frame.
+    pub segments: Vec<Segment>,
+}
+
+/// Reads a face-space trajectory file (`frames × layout.dims()`, float32) at `fps`.
+pub fn read_frames(path: &Path, layout: Layout, fps: f64) -> Result<Frames, CorpusError> {
+    // Any width is read, so that a file of another model is reported against the layout.
+    let values: Array2<f32> = npy::read_checked(path, &[None, None])?;
+    Frames::new(layout, fps, values).map_err(|source| CorpusError::Frames {
+        path: path.into(),
+        source,
+    })
+}
+
+/// Label file extensions tried, in order, beside each `.npy`.
+pub const LABEL_EXTENSIONS: [&str; 4] = ["lab", "TextGrid", "textgrid", "tsv"];
+
+/// Reads a corpus folder: every `NAME.npy` (frames × `layout` face-space parameters at `fps`)
+/// with `NAME.lab`, `NAME.TextGrid` or `NAME.tsv`. The labels must end within two frames of
+/// the frames' duration.
+pub fn load(
+    dir: &Path,
+    fps: f64,
+    layout: Layout,
+    tier: Option<&str>,
+    map: &PhoneMap,
+) -> Result<Vec<Sentence>, CorpusError> {
+    let files =
+        crate::video::files_with_extension(dir, "npy").map_err(|source| CorpusError::Io {
+            path: dir.into(),
+            source,
+        })?;
+    if files.is_empty() {
+        return Err(CorpusError::Empty { dir: dir.into() });
+    }
+    let mut sentences = Vec::with_capacity(files.len());
+    for npy_path in files {
+        let labels = LABEL_EXTENSIONS
+            .iter()
+            .map(|e| npy_path.with_extension(e))
+            .find(|p| p.is_file())
+            .ok_or_else(|| CorpusError::MissingLabels {
+                npy: npy_path.clone(),
+            })?;
+        let frames = read_frames(&npy_path, layout, fps)?;
+        let segments = phonemes::read_labels(&labels, tier, map)?;
+        let (frames_s, labels_s) = (frames.duration(), segments[segments.len() - 1].end);
+        if (frames_s - labels_s).abs() > 2.0 / fps {
+            return Err(CorpusError::DurationMismatch {
+                npy: npy_path,
+                labels,
+                frames: frames.len(),
+                fps,
+                frames_s,
+                labels_s,
+            });
+        }
+        let name = npy_path
+            .file_stem()
+            .unwrap_or_default()
+            .to_string_lossy()
+            .into_owned();
+        let source = format!("{} + {}", npy_path.display(), labels.display());
+        sentences.push(Sentence {
+            name,
+            source,
+            frames,
+            segments,
+        });
+    }
+    Ok(sentences)
+}

@@ -1,0 +1,179 @@
+//! The whole pipeline on the committed demo model (`facespace demo`, the README's first
+//! command): generate the demo corpus from the model's real training frames, build the
+//! codebook, synthesise a sentence that is not in the corpus, and write it smoothed and
+//! unsmoothed with a blind side-by-side, over one of the talker's real frames.
+
+use std::path::{Path, PathBuf};
+
+use thiserror::Error;
+
+use crate::Progress;
+use crate::codebook::{Codebook, CodebookError, SimilarityOptions};
+use crate::corpus::demo::{self as generator, CorpusOptions, GenerateError};
+use crate::model::{FaceModel, ModelError, load_training_set};
+use crate::phonemes::{self, PhonemeError};
+use crate::render::{Background, Compositor, DEFAULT_FEATHER};
+use crate::synth::blend::Blend;
+use crate::synth::output::{self, OutputError, OutputOptions, Report};
+use crate::synth::{DEFAULT_SMOOTHING, Smoothing, SynthError, synthesise};
+
+/// The demo utterance; it must not be one of the corpus sentences.
+pub const DEMO_TEXT: &str = "A brave pilot found the hidden map.";
+
+/// The demo model and its training frames, in the source tree.
+pub fn default_model() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("models/demo/model")
+}
+
+/// The demo model's training frames with their landmarks.
+pub fn default_training() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("models/demo/training")
+}
+
+/// What can go wrong in the demo.
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum DemoError {
+    /// The text is one of the corpus sentences.
+    #[error("{0:?} is a corpus sentence; the demo synthesises unseen text")]
+    SeenText(String),
+    /// The model or its training frames could not be loaded.
+    #[error(transparent)]
+    Model(#[from] ModelError),
+    /// The corpus could not be generated.
+    #[error(transparent)]
+    Generate(#[from] GenerateError),
+    /// The codebook could not be built or saved.
+    #[error(transparent)]
+    Codebook(#[from] CodebookError),
+    /// The text did not become phones.
+    #[error(transparent)]
+    Phonemes(#[from] PhonemeError),
+    /// Synthesis failed.
+    #[error(transparent)]
+    Synth(#[from] SynthError),
+    /// Writing the outputs failed.
+    #[error(transparent)]
+    Output(#[from] OutputError),
+}
+
+/// Options of [`run`].
+#[derive(Clone, Debug)]
+pub struct DemoOptions {
+    /// Output folder.
+    pub output: PathBuf,
+    /// The text to synthesise (not a corpus sentence).
+    pub text: String,
+    /// The model folder.
+    pub model: PathBuf,
+    /// Its training frames with `.pts` landmarks.
+    pub training: PathBuf,
+}
+
+impl Default for DemoOptions {
+    fn default() -> Self {
+        DemoOptions {
+            output: PathBuf::from("out/demo"),
+            text: DEMO_TEXT.into(),
+            model: default_model(),
+            training: default_training(),
+        }
+    }
+}
+
+/// What the demo did.
+#[derive(Clone, Debug)]
+pub struct DemoReport {
+    /// Shape parameters of the model.
+    pub shape_params: usize,
+    /// Appearance parameters of the model.
+    pub appearance_params: usize,
+    /// Real training frames the corpus draws on.
+    pub training_frames: usize,
+    /// Generated training sentences in the codebook.
+    pub sentences: usize,
+    /// Phones of the utterance.
+    pub phones: usize,
+    /// Frames of the utterance.
+    pub frames: usize,
+    /// The utterance's report (also in `report.json`).
+    pub report: Report,
+    /// What was written where.
+    pub files: Vec<(&'static str, PathBuf)>,
+}
+
+/// Runs the demo (see the module docs).
+pub fn run(options: &DemoOptions, progress: impl FnMut(Progress)) -> Result<DemoReport, DemoError> {
+    let normalise = |s: &str| {
+        s.to_lowercase()
+            .chars()
+            .filter(|c| c.is_alphanumeric() || *c == ' ')
+            .collect::<String>()
+    };
+    if generator::SENTENCES
+        .iter()
+        .any(|s| normalise(s) == normalise(&options.text))
+    {
+        return Err(DemoError::SeenText(options.text.clone()));
+    }
+    let model = FaceModel::load(&options.model)?;
+    let frames = load_training_set(&options.training, None)?;
+    let generated = generator::generate(&model, &frames, &CorpusOptions::default())?;
+    let background = frames[generated.still_frame].image.clone();
+    let (train, _) = generated.split();
+    let sentences = train.len();
+    let fps = CorpusOptions::default().fps;
+    let cb = Codebook::build(
+        train,
+        fps,
+        model.layout(),
+        Some(model.hash()),
+        SimilarityOptions::default(),
+        &mut crate::no_progress,
+    )?;
+    let o = &options.output;
+    cb.save(&o.join("codebook"))?;
+    let target = phonemes::text_to_segments(&options.text, &cb.mean_durations())?;
+    let utterance = synthesise(
+        &Blend::default(),
+        &cb,
+        target,
+        fps,
+        Smoothing::Ab(DEFAULT_SMOOTHING),
+    )?;
+    let renderer = Compositor::new(&model, DEFAULT_FEATHER);
+    let report = output::write(
+        o,
+        &renderer,
+        &utterance,
+        Background::Still(background),
+        &OutputOptions {
+            seed: 1,
+            text: Some(&options.text),
+            ..OutputOptions::default()
+        },
+        progress,
+    )?;
+    phonemes::write_labels(&o.join("utterance.lab"), &utterance.target)?;
+    Ok(DemoReport {
+        shape_params: model.shape.n_params(),
+        appearance_params: model.appearance.n_params(),
+        training_frames: frames.len(),
+        sentences,
+        phones: utterance.target.len(),
+        frames: utterance.synthesis.frames.len(),
+        report,
+        files: vec![
+            ("smoothed video", o.join("smoothed/video.mp4")),
+            ("smoothed frames", o.join("smoothed/frames")),
+            ("unsmoothed video", o.join("unsmoothed/video.mp4")),
+            (
+                "blind side by side (order in key.json)",
+                o.join("side_by_side.mp4"),
+            ),
+            ("trajectory plot", o.join("plot.png")),
+            ("phone timings", o.join("utterance.lab")),
+            ("codebook", o.join("codebook")),
+        ],
+    })
+}

@@ -1,0 +1,117 @@
+//! Training sets: images with hand-marked landmarks of the same file stem.
+
+use std::path::{Path, PathBuf};
+
+use image::RgbImage;
+use rayon::prelude::*;
+
+use super::ModelError;
+use crate::shape::{self, Landmarks};
+use crate::video;
+
+/// How far (as a fraction of the image size) a landmark may lie outside its image before the
+/// pair is taken to be from different frames.
+const OUTSIDE_TOLERANCE: f64 = 0.05;
+
+/// One training image with its hand-marked landmarks.
+#[derive(Clone, Debug)]
+pub struct TrainingExample {
+    /// Where it came from (recorded in the model's `source`).
+    pub name: String,
+    /// The image.
+    pub image: RgbImage,
+    /// Its landmarks.
+    pub landmarks: Landmarks,
+}
+
+/// Loads every image in `images` with the `.pts` file of the same stem from `landmarks`
+/// (default: the same folder), checking that the pairs belong together.
+pub fn load_training_set(
+    images: &Path,
+    landmarks: Option<&Path>,
+) -> Result<Vec<TrainingExample>, ModelError> {
+    let pts_dir = landmarks.unwrap_or(images);
+    let io = |dir: &Path| {
+        let dir = dir.to_path_buf();
+        move |source| ModelError::Io { path: dir, source }
+    };
+    let image_paths = video::image_files(images).map_err(io(images))?;
+    if image_paths.is_empty() {
+        return Err(ModelError::NoImages { dir: images.into() });
+    }
+    let stems: Vec<&std::ffi::OsStr> = image_paths.iter().filter_map(|p| p.file_stem()).collect();
+    let orphan = video::files_with_extension(pts_dir, "pts")
+        .map_err(io(pts_dir))?
+        .into_iter()
+        .find(|p| !p.file_stem().is_some_and(|s| stems.contains(&s)));
+    if let Some(pts) = orphan {
+        return Err(ModelError::OrphanLandmarks { pts });
+    }
+    let examples = image_paths
+        .par_iter()
+        .map(|image_path| {
+            let pts = pts_dir
+                .join(image_path.file_stem().unwrap_or_default())
+                .with_extension("pts");
+            if !pts.is_file() {
+                return Err(ModelError::MissingLandmarks {
+                    image: image_path.clone(),
+                    pts,
+                });
+            }
+            let landmarks = shape::read_pts(&pts)?;
+            let image = image::open(image_path)
+                .map_err(|source| ModelError::Image {
+                    path: image_path.clone(),
+                    source,
+                })?
+                .to_rgb8();
+            check_inside(&landmarks, &image, &pts, image_path)?;
+            Ok((
+                pts,
+                TrainingExample {
+                    name: image_path.display().to_string(),
+                    image,
+                    landmarks,
+                },
+            ))
+        })
+        .collect::<Result<Vec<(PathBuf, TrainingExample)>, _>>()?;
+    let (first_pts, first) = &examples[0];
+    for (pts, ex) in &examples {
+        if ex.landmarks.len() != first.landmarks.len() {
+            return Err(ModelError::LandmarkCount {
+                path: pts.clone(),
+                expected: first.landmarks.len(),
+                found: ex.landmarks.len(),
+                first: first_pts.clone(),
+            });
+        }
+    }
+    Ok(examples.into_iter().map(|(_, e)| e).collect())
+}
+
+fn check_inside(
+    landmarks: &Landmarks,
+    image: &RgbImage,
+    pts: &Path,
+    image_path: &Path,
+) -> Result<(), ModelError> {
+    let (w, h) = (image.width() as f64, image.height() as f64);
+    let (mx, my) = (OUTSIDE_TOLERANCE * w, OUTSIDE_TOLERANCE * h);
+    match landmarks
+        .points
+        .iter()
+        .position(|p| p[0] < -mx || p[1] < -my || p[0] > w + mx || p[1] > h + my)
+    {
+        Some(index) => Err(ModelError::LandmarksOutsideImage {
+            pts: pts.into(),
+            image: image_path.into(),
+            index,
+            point: landmarks.points[index],
+            width: image.width(),
+            height: image.height(),
+        }),
+        None => Ok(()),
+    }
+}

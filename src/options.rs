@@ -1,0 +1,62 @@
+//! Validation of numeric options and manifest fields at the API boundary: every check names
+//! the option, the value given and the range allowed, before any work starts.
+
+use thiserror::Error;
+
+/// An option or field outside its allowed range.
+#[derive(Clone, Debug, Error, PartialEq)]
+#[error("{name} = {value} is out of range: {allowed}")]
+pub struct InvalidOption {
+    /// What was given (an option or manifest field).
+    pub name: String,
+    /// The value, as given.
+    pub value: String,
+    /// The allowed range, in words.
+    pub allowed: String,
+}
+
+impl InvalidOption {
+    /// An option `name` whose `value` is not `allowed`.
+    pub fn new(
+        name: impl Into<String>,
+        value: impl std::fmt::Display,
+        allowed: impl Into<String>,
+    ) -> Self {
+        InvalidOption {
+            name: name.into(),
+            value: value.to_string(),
+            allowed: allowed.into(),
+        }
+    }
+}
+
+/// `value` if it is finite and within `[lo, hi]`.
+pub fn in_range(name: &str, value: f64, lo: f64, hi: f64) -> Result<f64, InvalidOption> {
+    if value.is_finite() && value >= lo && value <= hi {
+        Ok(value)
+    } else {
+        let lo_text = if lo == f64::MIN_POSITIVE {
+            "> 0".to_owned()
+        } else {
+            format!("≥ {lo}")
+        };
+        Err(InvalidOption::new(
+            name,
+            value,
+            format!("a finite number {lo_text} and ≤ {hi}"),
+        ))
+    }
+}
+
+/// `value` if it is within `[lo, hi]`.
+pub fn count_in(name: &str, value: usize, lo: usize, hi: usize) -> Result<usize, InvalidOption> {
+    if (lo..=hi).contains(&value) {
+        Ok(value)
+    } else {
+        Err(InvalidOption::new(
+            name,
+            value,
+            format!("a whole number from {lo} to {hi}"),
+        ))
+    }
+}

@@ -1,0 +1,105 @@
+//! Text → phones: the embedded CMU Pronouncing Dictionary and a duration table.
+
+use std::collections::BTreeMap;
+use std::io::Read;
+use std::sync::OnceLock;
+
+use super::{Phone, PhonemeError, Segment};
+
+static CMUDICT_GZ: &[u8] = include_bytes!("../../data/cmudict/cmudict.txt.gz");
+
+/// The CMU Pronouncing Dictionary (first pronunciation of each word), decompressed once.
+pub fn dictionary() -> &'static BTreeMap<String, Vec<Phone>> {
+    static DICT: OnceLock<BTreeMap<String, Vec<Phone>>> = OnceLock::new();
+    DICT.get_or_init(|| {
+        let mut text = String::new();
+        flate2::read::GzDecoder::new(CMUDICT_GZ)
+            .read_to_string(&mut text)
+            .expect("embedded dictionary decompresses");
+        text.lines()
+            .filter_map(|l| {
+                let mut it = l.split_whitespace();
+                let word = it.next()?.to_owned();
+                let phones: Option<Vec<Phone>> = it.map(Phone::parse).collect();
+                Some((word, phones?))
+            })
+            .collect()
+    })
+}
+
+/// Mean phone durations in seconds for read English speech, used when no codebook gives
+/// its own: approximate figures of the kind reported for TIMIT (vowels ~70–160 ms,
+/// consonants ~40–120 ms). Indexed like [`PHONES`].
+pub const DEFAULT_DURATIONS: [f64; 40] = [
+    0.20, 0.12, 0.13, 0.08, 0.12, 0.15, 0.14, 0.07, 0.10, 0.06, 0.04, 0.09, 0.11, 0.12, 0.10, 0.07,
+    0.06, 0.07, 0.10, 0.09, 0.08, 0.07, 0.07, 0.06, 0.07, 0.12, 0.16, 0.08, 0.07, 0.11, 0.12, 0.07,
+    0.10, 0.07, 0.10, 0.06, 0.06, 0.06, 0.09, 0.09,
+];
+
+/// Silence at the start and end of an utterance, and at a punctuation mark.
+const EDGE_SILENCE: f64 = 0.2;
+const PAUSE: f64 = 0.15;
+
+/// Words of `text` → phone segments with durations from `durations` (seconds per phone,
+/// indexed like [`PHONES`]). Silence opens and closes the utterance and marks `, . ; : ? !`.
+/// Every word missing from the dictionary is listed in one error.
+pub fn text_to_segments(text: &str, durations: &[f64; 40]) -> Result<Vec<Segment>, PhonemeError> {
+    let dict = dictionary();
+    let mut phones = vec![Phone::SIL];
+    let mut missing = Vec::new();
+    let mut words = 0;
+    let mut word = String::new();
+    let mut flush = |word: &mut String, phones: &mut Vec<Phone>, missing: &mut Vec<String>| {
+        if word.is_empty() {
+            return;
+        }
+        let w = word.trim_matches('\'').to_lowercase();
+        match dict.get(&w) {
+            Some(p) => phones.extend_from_slice(p),
+            None => missing.push(w),
+        }
+        words += 1;
+        word.clear();
+    };
+    for c in text.chars() {
+        if c.is_alphanumeric() || c == '\'' {
+            word.push(c);
+        } else {
+            flush(&mut word, &mut phones, &mut missing);
+            if matches!(c, ',' | '.' | ';' | ':' | '?' | '!') && phones.last() != Some(&Phone::SIL)
+            {
+                phones.push(Phone::SIL);
+            }
+        }
+    }
+    flush(&mut word, &mut phones, &mut missing);
+    if !missing.is_empty() {
+        return Err(PhonemeError::OutOfDictionary(missing));
+    }
+    if words == 0 {
+        return Err(PhonemeError::NoWords);
+    }
+    if phones.last() != Some(&Phone::SIL) {
+        phones.push(Phone::SIL);
+    }
+    let mut t = 0.0;
+    let last = phones.len() - 1;
+    Ok(phones
+        .iter()
+        .enumerate()
+        .map(|(i, &phone)| {
+            let d = match phone {
+                Phone::SIL if i == 0 || i == last => EDGE_SILENCE,
+                Phone::SIL => PAUSE,
+                p => durations[p.index()],
+            };
+            let s = Segment {
+                start: t,
+                end: t + d,
+                phone,
+            };
+            t += d;
+            s
+        })
+        .collect())
+}

@@ -1,0 +1,247 @@
+//! Phone set, viseme classes, phoneme-timing files ([`labels`]: HTK, TextGrid, TSV) and text →
+//! phonemes ([`dictionary`]) (DESIGN §6).
+//!
+//! Labels are normalised to ARPAbet (the 39 CMU phones, stress digits dropped, case folded)
+//! plus `sil`; `sil`, `sp`, `pau`, `spn` and the empty label are silence. A few common
+//! ARPAbet extensions (TIMIT/SAPI `ax`, `ix`, `h`, `axr`, `ux`, `el`, `em`, `en`, `nx`, `dx`)
+//! fold onto their nearest CMU phone; any other set needs a [`PhoneMap`].
+
+pub mod dictionary;
+pub mod labels;
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+pub use dictionary::{DEFAULT_DURATIONS, dictionary, text_to_segments};
+pub use labels::{
+    format_htk, format_tsv, parse_htk, parse_textgrid, parse_tsv, read_htk, read_labels,
+    read_textgrid, read_tsv, write_labels,
+};
+
+use labels::read_text;
+
+/// The phones, `sil` first; a [`Phone`] is an index into this list.
+pub const PHONES: [&str; 40] = [
+    "sil", "aa", "ae", "ah", "ao", "aw", "ay", "b", "ch", "d", "dh", "eh", "er", "ey", "f", "g",
+    "hh", "ih", "iy", "jh", "k", "l", "m", "n", "ng", "ow", "oy", "p", "r", "s", "sh", "t", "th",
+    "uh", "uw", "v", "w", "y", "z", "zh",
+];
+
+/// Viseme class of each phone in [`PHONES`] order: the 22 classes of [unitsel] Table 1.
+const VISEMES: [u8; 40] = [
+    0, 2, 1, 1, 3, 9, 11, 21, 16, 19, 17, 4, 5, 4, 18, 20, 12, 6, 6, 16, //
+    20, 14, 21, 19, 20, 8, 10, 21, 13, 15, 16, 19, 17, 4, 7, 18, 7, 6, 15, 16,
+];
+
+/// Number of viseme classes.
+pub const N_VISEMES: usize = 22;
+
+const SILENCE: [&str; 5] = ["sil", "sp", "pau", "spn", ""];
+const ALIASES: [(&str, &str); 10] = [
+    ("ax", "ah"),
+    ("ix", "ih"),
+    ("h", "hh"),
+    ("axr", "er"),
+    ("ux", "uw"),
+    ("el", "l"),
+    ("em", "m"),
+    ("en", "n"),
+    ("nx", "n"),
+    ("dx", "t"),
+];
+
+/// One phone of [`PHONES`].
+#[derive(Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct Phone(u8);
+
+impl std::fmt::Debug for Phone {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl Phone {
+    pub const SIL: Phone = Phone(0);
+    pub const COUNT: usize = PHONES.len();
+
+    /// Normalises a label (case, stress digits, silence, known aliases); `None` if unknown.
+    pub fn parse(label: &str) -> Option<Phone> {
+        let l: String = label
+            .trim()
+            .chars()
+            .filter(|c| !c.is_ascii_digit())
+            .collect::<String>()
+            .to_ascii_lowercase();
+        if SILENCE.contains(&l.as_str()) || l == "<sil>" {
+            return Some(Phone::SIL);
+        }
+        let l = ALIASES
+            .iter()
+            .find(|(a, _)| *a == l)
+            .map_or(l.as_str(), |(_, b)| b);
+        PHONES.iter().position(|p| *p == l).map(|i| Phone(i as u8))
+    }
+
+    pub fn from_index(i: usize) -> Option<Phone> {
+        (i < PHONES.len()).then_some(Phone(i as u8))
+    }
+
+    pub fn index(self) -> usize {
+        self.0 as usize
+    }
+
+    pub fn name(self) -> &'static str {
+        PHONES[self.index()]
+    }
+
+    /// Viseme class, 0–21 (DESIGN §6).
+    pub fn viseme(self) -> u8 {
+        VISEMES[self.index()]
+    }
+
+    pub fn all() -> impl Iterator<Item = Phone> {
+        (0..PHONES.len()).map(|i| Phone(i as u8))
+    }
+}
+
+impl std::fmt::Display for Phone {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl Serialize for Phone {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.name())
+    }
+}
+
+impl<'de> Deserialize<'de> for Phone {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let s = String::deserialize(d)?;
+        Phone::parse(&s).ok_or_else(|| serde::de::Error::custom(format!("unknown phone {s:?}")))
+    }
+}
+
+/// A labelled interval, in seconds.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Segment {
+    pub start: f64,
+    pub end: f64,
+    pub phone: Phone,
+}
+
+impl Segment {
+    pub fn duration(&self) -> f64 {
+        self.end - self.start
+    }
+}
+
+#[derive(Debug, Error)]
+pub enum PhonemeError {
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}:{line}: {reason}")]
+    Parse {
+        path: PathBuf,
+        line: usize,
+        reason: String,
+    },
+    #[error("{path}:{line}: unknown phone label {label:?} (give a phone map for other phone sets)")]
+    UnknownLabel {
+        path: PathBuf,
+        line: usize,
+        label: String,
+    },
+    #[error("{path}: no tier named {wanted}; the tiers are {found:?}")]
+    NoTier {
+        path: PathBuf,
+        wanted: String,
+        found: Vec<String>,
+    },
+    #[error("{path}: no phone intervals")]
+    Empty { path: PathBuf },
+    #[error("words not in the pronouncing dictionary: {}", .0.join(", "))]
+    OutOfDictionary(Vec<String>),
+    #[error("no words in the text")]
+    NoWords,
+}
+
+/// A mapping from another phone set's labels to ARPAbet, read from a two-column file
+/// (`label<whitespace>arpabet`, `#` comments).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PhoneMap(BTreeMap<String, Phone>);
+
+impl PhoneMap {
+    pub fn read(path: &Path) -> Result<Self, PhonemeError> {
+        let text = read_text(path)?;
+        let mut map = BTreeMap::new();
+        for (i, raw) in text.lines().enumerate() {
+            let line = raw.split('#').next().unwrap_or("").trim();
+            if line.is_empty() {
+                continue;
+            }
+            let parse = |reason: String| PhonemeError::Parse {
+                path: path.into(),
+                line: i + 1,
+                reason,
+            };
+            let mut it = line.split_whitespace();
+            let (Some(from), Some(to), None) = (it.next(), it.next(), it.next()) else {
+                return Err(parse(format!("expected `label arpabet`, found {line:?}")));
+            };
+            let phone =
+                Phone::parse(to).ok_or_else(|| parse(format!("{to:?} is not an ARPAbet phone")))?;
+            map.insert(from.to_owned(), phone);
+        }
+        Ok(PhoneMap(map))
+    }
+
+    /// The map's entry for `label`, else the built-in normalisation.
+    pub fn phone(&self, label: &str) -> Option<Phone> {
+        self.0
+            .get(label.trim())
+            .copied()
+            .or_else(|| Phone::parse(label))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_phone_has_a_viseme_and_classes_match_the_table() {
+        let class = |names: &[&str]| {
+            names
+                .iter()
+                .map(|n| Phone::parse(n).unwrap().viseme())
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(class(&["p", "b", "m"]), vec![21; 3]);
+        assert_eq!(class(&["f", "v"]), vec![18; 2]);
+        assert_eq!(class(&["d", "t", "n"]), vec![19; 3]);
+        assert_eq!(class(&["ae", "ax", "ah"]), vec![1; 3]);
+        assert_eq!(class(&["iy", "y", "ih", "ix"]), vec![6; 4]);
+        assert_eq!(class(&["sh", "ch", "jh", "zh"]), vec![16; 4]);
+        assert_eq!(class(&["h", "hh"]), vec![12; 2]);
+        assert_eq!(Phone::SIL.viseme(), 0);
+        let used: std::collections::BTreeSet<u8> = Phone::all().map(|p| p.viseme()).collect();
+        assert_eq!(used.len(), N_VISEMES, "all 22 classes are used");
+    }
+
+    #[test]
+    fn labels_normalise() {
+        assert_eq!(Phone::parse("AH0"), Phone::parse("ah"));
+        assert_eq!(Phone::parse("sp"), Some(Phone::SIL));
+        assert_eq!(Phone::parse(""), Some(Phone::SIL));
+        assert_eq!(Phone::parse("ax").unwrap().name(), "ah");
+        assert_eq!(Phone::parse("qq"), None);
+    }
+}

@@ -1,0 +1,254 @@
+//! Renderers: face-space points → images (DESIGN §10).
+//!
+//! A [`Renderer`] draws one frame's face onto a caller's canvas (which holds the background);
+//! [`CpuRenderer`] is the reference (the piecewise affine warp of [`crate::warp`]) and
+//! [`Compositor`] blends the face in with a feathered edge; a GPU renderer implements the same
+//! trait. [`stream`] renders a whole sequence batch by batch over a [`Background`] while the
+//! caller consumes the frames in order, so memory does not grow with the sequence.
+
+mod composite;
+
+use std::ops::Range;
+use std::path::PathBuf;
+use std::sync::mpsc;
+
+use image::{Rgb, RgbImage};
+use rayon::prelude::*;
+use thiserror::Error;
+
+pub use composite::{Compositor, DEFAULT_FEATHER};
+
+use crate::Progress;
+use crate::facespace::{FaceParams, Frames};
+use crate::model::{FaceModel, ModelError};
+use crate::video::{Source, VideoError};
+use crate::warp::{self, WarpError};
+
+/// The grey drawn behind faces when no background is given.
+pub const BACKGROUND: Rgb<u8> = Rgb([96, 96, 96]);
+
+/// Frames rendered together (in parallel) before they are handed on.
+pub const BATCH: usize = 32;
+
+/// What can go wrong rendering.
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum RenderError {
+    /// The parameters do not fit the model.
+    #[error(transparent)]
+    Model(#[from] ModelError),
+    /// The warp failed (e.g. non-finite landmarks).
+    #[error("warp: {0}")]
+    Warp(#[from] WarpError),
+    /// The background video failed.
+    #[error(transparent)]
+    Video(#[from] VideoError),
+    /// The background video ended before the frames did.
+    #[error("{path}: the background video has {frames} frames, fewer than the {needed} to render")]
+    BackgroundTooShort {
+        /// The video.
+        path: PathBuf,
+        /// Frames it has.
+        frames: usize,
+        /// Frames needed.
+        needed: usize,
+    },
+    /// A canvas of another size than the background.
+    #[error("{what} is {found:?}, the frames are {expected:?}")]
+    Size {
+        /// What differs.
+        what: String,
+        /// Its size.
+        found: (u32, u32),
+        /// The size expected.
+        expected: (u32, u32),
+    },
+}
+
+/// Draws faces from face-space points.
+pub trait Renderer: Sync {
+    /// The model whose faces are drawn.
+    fn model(&self) -> &FaceModel;
+
+    /// Draws one frame's face onto `canvas`, which holds its background.
+    fn render_into(&self, params: FaceParams<'_>, canvas: &mut RgbImage)
+    -> Result<(), RenderError>;
+
+    /// Draws frames `start..start + canvases.len()` of `frames` onto their canvases (the CPU
+    /// renderers: rayon across frames).
+    fn render_batch(
+        &self,
+        frames: &Frames,
+        start: usize,
+        canvases: &mut [RgbImage],
+    ) -> Result<(), RenderError> {
+        canvases
+            .par_iter_mut()
+            .enumerate()
+            .try_for_each(|(k, canvas)| self.render_into(frames.params(start + k), canvas))
+    }
+
+    /// What renders, for reports (e.g. "CPU", or a GPU adapter and backend).
+    fn describe(&self) -> String {
+        "CPU".into()
+    }
+}
+
+/// The reference renderer on the CPU: the face drawn with a hard edge.
+#[derive(Clone, Copy, Debug)]
+pub struct CpuRenderer<'m> {
+    model: &'m FaceModel,
+}
+
+impl<'m> CpuRenderer<'m> {
+    /// A renderer of `model`'s faces.
+    pub fn new(model: &'m FaceModel) -> Self {
+        CpuRenderer { model }
+    }
+}
+
+impl Renderer for CpuRenderer<'_> {
+    fn model(&self) -> &FaceModel {
+        self.model
+    }
+
+    fn render_into(
+        &self,
+        params: FaceParams<'_>,
+        canvas: &mut RgbImage,
+    ) -> Result<(), RenderError> {
+        let r = self.model.reconstruct(params)?;
+        warp::from_reference_into(&self.model.frame, &r.texture, &r.landmarks.points, canvas)?;
+        Ok(())
+    }
+}
+
+/// What faces are drawn over.
+pub enum Background {
+    /// A flat [`BACKGROUND`] canvas of this size.
+    Plain {
+        /// Width.
+        width: u32,
+        /// Height.
+        height: u32,
+    },
+    /// The same image behind every frame.
+    Still(RgbImage),
+    /// The frames of a video, one per rendered frame.
+    Video(Box<Source>),
+}
+
+impl Background {
+    /// A plain canvas large enough for every frame's face (pose included), with even sides
+    /// for 4:2:0 video.
+    pub fn plain_for(model: &FaceModel, frames: &Frames) -> Background {
+        let (mut w, mut h) = (16.0f64, 16.0f64);
+        for p in frames.iter() {
+            if let Ok(l) = model.landmarks(p) {
+                let (_, hi) = l.bounds();
+                w = w.max(hi[0] + 20.0);
+                h = h.max(hi[1] + 20.0);
+            }
+        }
+        let even = |v: f64| ((v.min(4096.0).ceil() as u32) + 1) & !1;
+        Background::Plain {
+            width: even(w),
+            height: even(h),
+        }
+    }
+
+    /// The size of every canvas.
+    pub fn size(&self) -> (u32, u32) {
+        match self {
+            Background::Plain { width, height } => (*width, *height),
+            Background::Still(image) => image.dimensions(),
+            Background::Video(source) => (source.info().width, source.info().height),
+        }
+    }
+
+    /// The canvases of the next `n` frames (`needed` in all, for the error message).
+    pub(crate) fn canvases(
+        &mut self,
+        n: usize,
+        needed: usize,
+    ) -> Result<Vec<RgbImage>, RenderError> {
+        Ok(match self {
+            Background::Plain { width, height } => {
+                vec![RgbImage::from_pixel(*width, *height, BACKGROUND); n]
+            }
+            Background::Still(image) => vec![image.clone(); n],
+            Background::Video(source) => (0..n)
+                .map(|_| {
+                    source
+                        .next_frame()?
+                        .ok_or_else(|| RenderError::BackgroundTooShort {
+                            path: source.path().into(),
+                            frames: source.frames_read(),
+                            needed,
+                        })
+                })
+                .collect::<Result<_, _>>()?,
+        })
+    }
+}
+
+/// Runs `produce` over batches of `0..total` on a worker thread while this thread hands each
+/// item of the previous batch to `consume`, in order: rendering in parallel overlaps the
+/// sequential consumer (a video encoder, say). Stops at the first error of either side.
+pub fn pipeline<T: Send, E: Send>(
+    total: usize,
+    mut produce: impl FnMut(Range<usize>) -> Result<Vec<T>, E> + Send,
+    mut consume: impl FnMut(T) -> Result<(), E>,
+    mut progress: impl FnMut(Progress),
+) -> Result<(), E> {
+    std::thread::scope(|scope| {
+        let (tx, rx) = mpsc::sync_channel::<Result<Vec<T>, E>>(1);
+        scope.spawn(move || {
+            let mut done = 0;
+            while done < total {
+                let end = (done + BATCH).min(total);
+                let batch = produce(done..end);
+                let failed = batch.is_err();
+                if tx.send(batch).is_err() || failed {
+                    break;
+                }
+                done = end;
+            }
+        });
+        let mut done = 0;
+        for batch in rx {
+            for item in batch? {
+                consume(item)?;
+                done += 1;
+            }
+            progress(Progress {
+                stage: "rendering",
+                done,
+                total,
+            });
+        }
+        Ok(())
+    })
+}
+
+/// Renders every frame of `frames` over `background` (batches in parallel on a worker
+/// thread) and hands each image to `consume`, in order.
+pub fn stream<E: Send + From<RenderError>>(
+    renderer: &dyn Renderer,
+    frames: &Frames,
+    mut background: Background,
+    consume: impl FnMut(RgbImage) -> Result<(), E>,
+    progress: impl FnMut(Progress),
+) -> Result<(), E> {
+    let total = frames.len();
+    pipeline(
+        total,
+        |range| {
+            let mut canvases = background.canvases(range.len(), total)?;
+            renderer.render_batch(frames, range.start, &mut canvases)?;
+            Ok(canvases)
+        },
+        consume,
+        progress,
+    )
+}

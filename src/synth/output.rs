@@ -1,0 +1,249 @@
+//! Writing an utterance: for each variant `trajectory.npy` (frames × face-space),
+//! `landmarks.npy` (frames × landmarks × 2), `frames/` (PNG) and `video.mp4` (`.y4m` when a
+//! side is odd); for an A/B comparison both variants in `smoothed/` and `unsmoothed/`, a blind
+//! `side_by_side.mp4` whose order a seeded coin decides, and its `key.json`; then `plot.png`
+//! and `report.json`. Frames are rendered and written batch by batch (memory does not grow
+//! with the utterance).
+
+use std::path::{Path, PathBuf};
+
+use image::RgbImage;
+use ndarray::Array3;
+use serde::Serialize;
+use thiserror::Error;
+
+use super::{PhoneReport, Smoothing, Utterance};
+use crate::facespace::Frames;
+use crate::model::ModelError;
+use crate::npy::{self, NpyError};
+use crate::render::{Background, RenderError, Renderer, pipeline};
+use crate::rng::Rng;
+use crate::video::{self, Sink, VideoError};
+use crate::{Progress, atomic, plot};
+
+/// What can go wrong writing an utterance.
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum OutputError {
+    /// Rendering failed.
+    #[error(transparent)]
+    Render(#[from] RenderError),
+    /// A video or image could not be written.
+    #[error(transparent)]
+    Video(#[from] VideoError),
+    /// An array could not be written.
+    #[error(transparent)]
+    Npy(#[from] NpyError),
+    /// Frames that do not fit the renderer's model.
+    #[error(transparent)]
+    Model(#[from] ModelError),
+    /// A file could not be written.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+}
+
+/// Options of [`write`].
+#[derive(Clone, Copy, Debug, Default)]
+pub struct OutputOptions<'a> {
+    /// Sound muxed into every MP4.
+    pub audio: Option<&'a Path>,
+    /// Seed of the blind A/B order.
+    pub seed: u64,
+    /// The real trajectory of the same utterance, drawn in the plot.
+    pub real: Option<&'a Frames>,
+    /// The text spoken, recorded in the report.
+    pub text: Option<&'a str>,
+}
+
+/// Which variant is on which side of the blind side-by-side.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct AbKey {
+    /// The variant on the left.
+    pub left: &'static str,
+    /// The variant on the right.
+    pub right: &'static str,
+    /// The seed of the coin.
+    pub seed: u64,
+}
+
+/// `report.json`: what was synthesised, how, and what was chosen.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Report {
+    /// The text spoken, when it was given as text.
+    pub text: Option<String>,
+    /// The synthesiser.
+    pub method: String,
+    /// The smoothing.
+    pub smoothing: Smoothing,
+    /// Frames per second.
+    pub fps: f64,
+    /// Frames written per variant.
+    pub frames: usize,
+    /// What rendered the frames.
+    pub renderer: String,
+    /// Per target phone, what was used.
+    pub phones: Vec<PhoneReport>,
+    /// Fallbacks and other notes.
+    pub warnings: Vec<String>,
+    /// The A/B order, for an A/B comparison.
+    pub ab_key: Option<AbKey>,
+}
+
+/// The sinks of one variant.
+struct VariantSinks {
+    frames: Sink,
+    video: Sink,
+}
+
+/// `dir/stem.mp4`, or `.y4m` when a side is odd (4:2:0 needs even sides).
+fn video_path(dir: &Path, stem: &str, (w, h): (u32, u32)) -> PathBuf {
+    let ext = if w % 2 == 0 && h % 2 == 0 {
+        "mp4"
+    } else {
+        "y4m"
+    };
+    dir.join(format!("{stem}.{ext}"))
+}
+
+/// Renders and writes `utterance` into `dir` over `background` (see the module docs).
+pub fn write(
+    dir: &Path,
+    renderer: &dyn Renderer,
+    utterance: &Utterance,
+    mut background: Background,
+    options: &OutputOptions<'_>,
+    progress: impl FnMut(Progress),
+) -> Result<Report, OutputError> {
+    let model = renderer.model();
+    let variants = utterance.variants();
+    let ab = variants.len() == 2;
+    let size = background.size();
+    let fps = utterance.synthesis.frames.fps();
+    let mut sinks = Vec::with_capacity(variants.len());
+    for (name, frames) in &variants {
+        let vdir = if ab {
+            dir.join(name)
+        } else {
+            dir.to_path_buf()
+        };
+        npy::write(&vdir.join("trajectory.npy"), frames.values())?;
+        let n_landmarks = model.shape.n_landmarks();
+        let mut landmarks = Array3::<f32>::zeros((frames.len(), n_landmarks, 2));
+        for (i, p) in frames.iter().enumerate() {
+            for (k, q) in model.landmarks(p)?.points.iter().enumerate() {
+                landmarks[[i, k, 0]] = q[0] as f32;
+                landmarks[[i, k, 1]] = q[1] as f32;
+            }
+        }
+        npy::write(&vdir.join("landmarks.npy"), landmarks.view())?;
+        sinks.push(VariantSinks {
+            frames: Sink::create(&vdir.join("frames"), size.0, size.1, fps, None)?,
+            video: Sink::create(
+                &video_path(&vdir, "video", size),
+                size.0,
+                size.1,
+                fps,
+                options.audio,
+            )?,
+        });
+    }
+    let key = ab.then(|| {
+        let smoothed_left = Rng::new(options.seed).uniform() < 0.5;
+        let (left, right) = if smoothed_left {
+            ("smoothed", "unsmoothed")
+        } else {
+            ("unsmoothed", "smoothed")
+        };
+        AbKey {
+            left,
+            right,
+            seed: options.seed,
+        }
+    });
+    let mut side_by_side = match key {
+        Some(_) => {
+            let wide = (2 * size.0, size.1);
+            Some(Sink::create(
+                &video_path(dir, "side_by_side", wide),
+                wide.0,
+                wide.1,
+                fps,
+                options.audio,
+            )?)
+        }
+        None => None,
+    };
+    let total = variants[0].1.len();
+    pipeline(
+        total,
+        |range| -> Result<Vec<Vec<RgbImage>>, OutputError> {
+            let canvases = background.canvases(range.len(), total)?;
+            let mut per_variant = Vec::with_capacity(variants.len());
+            for (_, frames) in &variants {
+                let mut c = canvases.clone();
+                renderer.render_batch(frames, range.start, &mut c)?;
+                per_variant.push(c);
+            }
+            // Frame-major: one item per frame holding every variant's image.
+            Ok((0..range.len())
+                .map(|k| per_variant.iter().map(|v| v[k].clone()).collect())
+                .collect())
+        },
+        |images: Vec<RgbImage>| -> Result<(), OutputError> {
+            for (image, s) in images.iter().zip(&mut sinks) {
+                s.frames.write(image)?;
+                s.video.write(image)?;
+            }
+            if let (Some(sink), Some(key)) = (&mut side_by_side, key) {
+                let (l, r) = if key.left == "smoothed" {
+                    (&images[0], &images[1])
+                } else {
+                    (&images[1], &images[0])
+                };
+                sink.write(&video::side_by_side(l, r))?;
+            }
+            Ok(())
+        },
+        progress,
+    )?;
+    for s in sinks {
+        s.frames.finish()?;
+        s.video.finish()?;
+    }
+    if let Some(sink) = side_by_side {
+        sink.finish()?;
+    }
+    let io = |path: PathBuf| move |source| OutputError::Io { path, source };
+    if let Some(key) = key {
+        let path = dir.join("key.json");
+        let json = serde_json::to_vec_pretty(&key).expect("key serialises");
+        atomic::write_file(&path, &json).map_err(io(path.clone()))?;
+    }
+    let mut series: Vec<(&str, ndarray::ArrayView2<'_, f32>)> =
+        variants.iter().map(|(n, f)| (*n, f.values())).collect();
+    if let Some(real) = options.real {
+        series.push(("real", real.values()));
+    }
+    let plot = plot::parameter_plot(model.layout(), fps, &series, &utterance.target);
+    video::write_png(&dir.join("plot.png"), &plot)?;
+    let report = Report {
+        text: options.text.map(str::to_owned),
+        method: utterance.method.clone(),
+        smoothing: utterance.smoothing,
+        fps,
+        frames: total,
+        renderer: renderer.describe(),
+        phones: utterance.synthesis.phones.clone(),
+        warnings: utterance.synthesis.warnings.clone(),
+        ab_key: key,
+    };
+    let path = dir.join("report.json");
+    let json = serde_json::to_vec_pretty(&report).expect("report serialises");
+    atomic::write_file(&path, &json).map_err(io(path.clone()))?;
+    Ok(report)
+}
