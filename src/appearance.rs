@@ -1,4 +1,4 @@
-//! The appearance model ([blend] §3): PCA of shape-normalised RGB textures, the pixels inside
+//! The appearance model (\[blend\] §3): PCA of shape-normalised RGB textures, the pixels inside
 //! the reference mesh, `a ≈ ā + P_a b_a`. Independent of the shape model: the two are never
 //! combined by a third PCA, because independent models animate more naturally.
 
@@ -7,6 +7,7 @@ use crate::pca::{Components, PcaError, PcaModel};
 /// RGB appearance model over the mask pixels of a reference frame (values in grey levels).
 #[derive(Clone, Debug, PartialEq)]
 pub struct AppearanceModel {
+    /// PCA of the textures (`n_pixels × 3` values each).
     pub pca: PcaModel,
 }
 
@@ -19,6 +20,7 @@ impl AppearanceModel {
         })
     }
 
+    /// Appearance parameters `b_a`.
     pub fn n_params(&self) -> usize {
         self.pca.n_components()
     }

@@ -269,7 +269,7 @@ impl Frames {
     /// From row-major values (`frames × layout.dims()` of them).
     pub fn from_rows(layout: Layout, fps: f64, rows: Vec<f32>) -> Result<Self, FacespaceError> {
         let dims = layout.dims();
-        if rows.len() % dims != 0 {
+        if !rows.len().is_multiple_of(dims) {
             return Err(FacespaceError::Width {
                 layout,
                 found: rows.len() % dims,

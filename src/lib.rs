@@ -19,6 +19,79 @@
 //!    pipeline on the committed demo model.
 //!
 //! The library never prints: long work reports through a [`Progress`] callback.
+//!
+//! # The whole pipeline, on the committed test data
+//!
+//! Load the demo model, encode a clip of its talker through face-space, make the clip (with
+//! phone labels — generated ones: the clip has no sound) a one-sentence codebook, synthesise
+//! the phones again by top-N blending, and render the frames:
+//!
+//! ```
+//! use std::path::Path;
+//!
+//! use facespace::codebook::{Codebook, SimilarityOptions};
+//! use facespace::codec::{self, EncodeOptions};
+//! use facespace::corpus::Sentence;
+//! use facespace::model::FaceModel;
+//! use facespace::phonemes::{self, PhoneMap};
+//! use facespace::render::{self, Background, CpuRenderer, RenderError};
+//! use facespace::synth::{self, Smoothing, blend::Blend};
+//! use facespace::video::Source;
+//! use facespace::{no_progress, shape};
+//!
+//! # fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+//! let model = FaceModel::load(&root.join("models/demo/model"))?;
+//!
+//! // Track and project every frame of a 50-frame clip of the same talker.
+//! let options = EncodeOptions {
+//!     init: Some(shape::read_pts(&root.join("tests/data/clip/01000.pts"))?),
+//!     ..EncodeOptions::default()
+//! };
+//! let source = Source::open(&root.join("tests/data/clip"))?;
+//! let clip = codec::encode(&model, source, &options, no_progress)?.clip;
+//! assert_eq!(clip.frames.len(), 50);
+//!
+//! // The clip and its phone timings become a codebook (S and M included).
+//! let labels = root.join("tests/data/labels/clip.lab");
+//! let phones = phonemes::read_labels(&labels, None, &PhoneMap::default())?;
+//! let sentence = Sentence {
+//!     name: "clip".into(),
+//!     source: "tests/data/clip".into(),
+//!     frames: clip.frames.clone(),
+//!     segments: phones.clone(),
+//! };
+//! let fps = clip.frames.fps();
+//! let codebook = Codebook::build(
+//!     vec![sentence],
+//!     fps,
+//!     model.layout(),
+//!     Some(model.hash()),
+//!     SimilarityOptions::default(),
+//!     &mut no_progress,
+//! )?;
+//!
+//! // Synthesise the same phones from the codebook, smoothed.
+//! let smoothing = Smoothing::On(synth::DEFAULT_SMOOTHING);
+//! let utterance = synth::synthesise(&Blend::default(), &codebook, phones, fps, smoothing)?;
+//! let frames = &utterance.variants()[0].1;
+//!
+//! // Render every frame over a plain background.
+//! let mut images = Vec::new();
+//! let background = Background::plain_for(&model, frames);
+//! render::stream(
+//!     &CpuRenderer::new(&model),
+//!     frames,
+//!     background,
+//!     |image| Ok::<_, RenderError>(images.push(image)),
+//!     no_progress,
+//! )?;
+//! assert_eq!(images.len(), frames.len());
+//! # Ok(())
+//! # }
+//! ```
+
+#![warn(missing_docs)]
 
 pub mod appearance;
 pub mod atomic;

@@ -10,26 +10,44 @@ use crate::shape::Point;
 /// Triangle vertex indices into a landmark list.
 pub type Triangle = [u32; 3];
 
+/// What can be wrong with a mesh or reference frame.
 #[derive(Debug, Error)]
+#[non_exhaustive]
 pub enum MeshError {
+    /// Points that cannot be triangulated (too few, coincident, collinear).
     #[error("cannot triangulate: {0}")]
     Degenerate(String),
+    /// A triangle naming a landmark that does not exist.
     #[error("triangle {index} refers to landmark {vertex}, but there are only {count} landmarks")]
     IndexOutOfRange {
+        /// The triangle.
         index: usize,
+        /// The vertex it names.
         vertex: u32,
+        /// Landmarks there are.
         count: usize,
     },
+    /// A triangle without area.
     #[error("triangle {index} {triangle:?} has (near) zero area {area:.3e}")]
     ZeroArea {
+        /// The triangle.
         index: usize,
+        /// Its vertices.
         triangle: Triangle,
+        /// Its area.
         area: f64,
     },
+    /// A reference frame too small to hold a face.
     #[error("reference frame of {0} pixels is too small (need at least 100)")]
     TooFewPixels(usize),
+    /// A reference frame too large to allocate sensibly.
     #[error("a {width}×{height} reference frame exceeds {MAX_FRAME_PIXELS} pixels")]
-    TooLarge { width: f64, height: f64 },
+    TooLarge {
+        /// Its width.
+        width: f64,
+        /// Its height.
+        height: f64,
+    },
 }
 
 /// Largest reference frame (bounding box, pixels) placed: a damaged placement cannot ask for
@@ -114,8 +132,11 @@ pub fn validate(points: &[Point], triangles: &[Triangle]) -> Result<(), MeshErro
 /// One pixel of the reference-frame mask.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MaskPixel {
+    /// Column.
     pub x: u32,
+    /// Row.
     pub y: u32,
+    /// The triangle covering it.
     pub triangle: u32,
     /// Barycentric coordinates of the pixel centre in its triangle (sum to 1).
     pub bary: [f32; 3],
@@ -124,7 +145,9 @@ pub struct MaskPixel {
 /// How a reference frame was placed: `pixel = scale · x̄ + offset` for the mean shape `x̄`.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Placement {
+    /// Pixels per unit of the (unit-norm) mean shape.
     pub scale: f64,
+    /// Where the mean shape's origin lies, pixels.
     pub offset: Point,
 }
 
@@ -132,10 +155,13 @@ pub struct Placement {
 /// precomputed per-pixel triangle and barycentric map.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ReferenceFrame {
+    /// Width, pixels.
     pub width: usize,
+    /// Height, pixels.
     pub height: usize,
     /// The mesh vertices in reference-frame pixels.
     pub landmarks: Vec<Point>,
+    /// The mesh's triangles.
     pub triangles: Vec<Triangle>,
     /// Mask pixels, in row-major order; appearance vectors follow this order.
     pub pixels: Vec<MaskPixel>,
@@ -205,7 +231,7 @@ impl ReferenceFrame {
             (max[0] + MARGIN).ceil() + 1.0,
             (max[1] + MARGIN).ceil() + 1.0,
         );
-        if !(w * h <= MAX_FRAME_PIXELS as f64) {
+        if w * h > MAX_FRAME_PIXELS as f64 || !(w * h).is_finite() {
             return Err(MeshError::TooLarge {
                 width: w,
                 height: h,
@@ -327,6 +353,7 @@ impl BarycentricMap {
         })
     }
 
+    /// Barycentric coordinates of `p` (they sum to 1; all ≥ 0 inside the triangle).
     pub fn at(&self, p: Point) -> [f64; 3] {
         let (dx, dy) = (p[0] - self.origin[0], p[1] - self.origin[1]);
         let l1 = self.inv[0][0] * dx + self.inv[0][1] * dy;

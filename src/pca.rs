@@ -8,49 +8,69 @@ use nalgebra::{DMatrix, SymmetricEigen};
 use rayon::prelude::*;
 use thiserror::Error;
 
+use crate::options::InvalidOption;
+
 /// How many components to keep.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum Components {
     /// Exactly this many (fewer if the data has lower rank).
     Count(usize),
     /// The fewest that explain `fraction` of the variance, at most `max`.
-    Variance { fraction: f64, max: Option<usize> },
+    Variance {
+        /// Fraction of the variance, in (0, 1].
+        fraction: f64,
+        /// At most this many components.
+        max: Option<usize>,
+    },
 }
 
 impl Components {
     /// Checks the request once, at the API entry.
     pub fn validate(self) -> Result<Self, PcaError> {
         match self {
-            Components::Count(0) => Err(PcaError::BadComponents("a count of 0 components".into())),
+            Components::Count(0) => Err(InvalidOption::new("components", 0, "at least 1").into()),
             Components::Variance { fraction, .. } if !(fraction > 0.0 && fraction <= 1.0) => {
-                Err(PcaError::BadComponents(format!(
-                    "variance fraction {fraction} (must be in (0, 1])"
-                )))
+                Err(InvalidOption::new("variance fraction", fraction, "in (0, 1]").into())
             }
             Components::Variance { max: Some(0), .. } => {
-                Err(PcaError::BadComponents("a maximum of 0 components".into()))
+                Err(InvalidOption::new("maximum components", 0, "at least 1").into())
             }
             ok => Ok(ok),
         }
     }
 }
 
+/// What can go wrong fitting a PCA model.
 #[derive(Debug, Error)]
+#[non_exhaustive]
 pub enum PcaError {
+    /// Fewer than two samples.
     #[error("PCA needs at least 2 samples, got {0}")]
     TooFewSamples(usize),
+    /// Samples of different lengths.
     #[error("sample {index} has {found} values, sample 0 has {expected}")]
     Ragged {
+        /// The odd sample (`usize::MAX`: the mean given).
         index: usize,
+        /// Sample 0's length.
         expected: usize,
+        /// This sample's length.
         found: usize,
     },
+    /// A NaN or infinity.
     #[error("sample {index} holds a non-finite value at position {position}")]
-    NotFinite { index: usize, position: usize },
+    NotFinite {
+        /// The sample.
+        index: usize,
+        /// The value.
+        position: usize,
+    },
+    /// Every sample equal.
     #[error("the samples do not vary: every sample equals the mean")]
     NoVariance,
+    /// A component request out of range.
     #[error("invalid component request: {0}")]
-    BadComponents(String),
+    BadComponents(#[from] InvalidOption),
 }
 
 /// A linear model `x ≈ mean + componentsᵀ b`.
@@ -60,9 +80,13 @@ pub enum PcaError {
 /// about `mean`, so `variance_ratio` tells how much the kept components explain.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PcaModel {
+    /// The mean, `dim` values.
     pub mean: Vec<f32>,
+    /// The components, `n_components × dim`, one orthonormal component per row.
     pub components: Vec<f32>,
+    /// The variance along each component, descending.
     pub variances: Vec<f32>,
+    /// The training data's variance about the mean (every direction).
     pub total_variance: f64,
 }
 
@@ -172,10 +196,12 @@ impl PcaModel {
         })
     }
 
+    /// Values per sample.
     pub fn dim(&self) -> usize {
         self.mean.len()
     }
 
+    /// Components kept.
     pub fn n_components(&self) -> usize {
         self.variances.len()
     }

@@ -1,4 +1,4 @@
-//! Continuous face-space trajectories ([blend] §4, DESIGN §5): monotone piecewise cubic
+//! Continuous face-space trajectories (\[blend\] §4, DESIGN §5): monotone piecewise cubic
 //! Hermite interpolation (PCHIP; Fritsch & Carlson 1980, the tangents of scipy's
 //! `PchipInterpolator`) through every per-frame sample, per dimension. It never overshoots
 //! the data — a natural cubic spline could open the mouth wider than was ever recorded.
@@ -7,26 +7,48 @@ use thiserror::Error;
 
 use crate::facespace::Frames;
 
+/// What can be wrong with a trajectory or a segment of one.
 #[derive(Debug, Error, PartialEq)]
+#[non_exhaustive]
 pub enum TrajectoryError {
+    /// No samples.
     #[error("a trajectory needs at least one sample")]
     Empty,
+    /// Values that do not fill the samples.
     #[error("{values} values do not form {samples} samples of {dims} dimensions")]
     Shape {
+        /// Samples (times).
         samples: usize,
+        /// Dimensions.
         dims: usize,
+        /// Values given.
         values: usize,
     },
+    /// Times out of order.
     #[error("sample times must increase strictly: t[{index}] = {time} follows {previous}")]
     NotIncreasing {
+        /// The sample.
         index: usize,
+        /// Its time.
         time: f64,
+        /// The time before it.
         previous: f64,
     },
+    /// A NaN or infinity.
     #[error("sample {index} holds a non-finite value")]
-    NotFinite { index: usize },
+    NotFinite {
+        /// The sample.
+        index: usize,
+    },
+    /// An empty or reversed segment.
     #[error("segment {start}–{end} s is empty or reversed")]
-    BadSegment { start: f64, end: f64 },
+    BadSegment {
+        /// Start, seconds.
+        start: f64,
+        /// End, seconds.
+        end: f64,
+    },
+    /// A duration that is not positive and finite.
     #[error("target duration {0} s must be positive and finite")]
     BadDuration(f64),
 }
@@ -34,13 +56,17 @@ pub enum TrajectoryError {
 /// Samples `values` (`times.len() × dims`, row-major) at `times`, with PCHIP tangents.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Trajectory {
+    /// Sample times, strictly increasing.
     pub times: Vec<f64>,
+    /// Values per sample.
     pub dims: usize,
+    /// `times.len() × dims` values, row-major.
     pub values: Vec<f64>,
     slopes: Vec<f64>,
 }
 
 impl Trajectory {
+    /// A trajectory through `values` at `times`, PCHIP tangents computed per dimension.
     pub fn new(times: Vec<f64>, values: Vec<f64>, dims: usize) -> Result<Self, TrajectoryError> {
         let n = times.len();
         if n == 0 || dims == 0 {
@@ -94,18 +120,22 @@ impl Trajectory {
         Self::new(frames.times(), values, frames.layout().dims())
     }
 
+    /// Number of samples.
     pub fn len(&self) -> usize {
         self.times.len()
     }
 
+    /// Whether there are no samples (never, once built).
     pub fn is_empty(&self) -> bool {
         self.times.is_empty()
     }
 
+    /// The first sample's time.
     pub fn start(&self) -> f64 {
         self.times[0]
     }
 
+    /// The last sample's time.
     pub fn end(&self) -> f64 {
         self.times[self.len() - 1]
     }
@@ -117,6 +147,7 @@ impl Trajectory {
         out
     }
 
+    /// [`Trajectory::eval`] into `out` (`dims` long).
     pub fn eval_into(&self, t: f64, out: &mut [f64]) {
         let n = self.len();
         let dims = self.dims;
@@ -198,10 +229,12 @@ pub struct TimeWarp<'a> {
 }
 
 impl TimeWarp<'_> {
+    /// The value at warped time `t` into `out`.
     pub fn eval_into(&self, t: f64, out: &mut [f64]) {
         self.trajectory.eval_into(self.start + t * self.rate, out);
     }
 
+    /// Values at each of the warped `times`.
     pub fn sample(&self, times: &[f64]) -> Vec<f64> {
         self.trajectory.sample(
             &times

@@ -89,7 +89,11 @@ fn errors_are_reported_not_panicked() {
         out.to_str().unwrap(),
     ]);
     assert_eq!(o.status.code(), Some(1));
-    assert!(text(&o).contains("variance fraction 1.5"), "{}", text(&o));
+    assert!(
+        text(&o).contains("variance fraction = 1.5 is out of range: in (0, 1]"),
+        "{}",
+        text(&o)
+    );
 }
 
 /// `facespace demo` writes everything it promises; the MP4 has one frame per synthesised frame.

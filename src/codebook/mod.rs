@@ -1,7 +1,7 @@
 //! The synthesis codebook (DESIGN §7): every corpus sentence as a continuous face-space
 //! trajectory with its phone segments, an index of phone occurrences, the phoneme similarity
-//! matrix S ([blend] §4.2) and the phoneme distance matrix M ([unitsel] eq. 5) — computed in
-//! [`similarity`], stored by [`io`].
+//! matrix S (\[blend\] §4.2) and the phoneme distance matrix M (\[unitsel\] eq. 5) — computed in
+//! [`similarity`], stored by the `io` submodule.
 
 mod io;
 pub mod similarity;

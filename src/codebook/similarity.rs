@@ -1,4 +1,4 @@
-//! The phoneme similarity matrix S ([blend] §4.2) and distance matrix M ([unitsel] eq. 5),
+//! The phoneme similarity matrix S (\[blend\] §4.2) and distance matrix M (\[unitsel\] eq. 5),
 //! computed from a codebook's trajectories (DESIGN §7).
 
 use ndarray::Array2;
@@ -79,7 +79,7 @@ fn occurrence_samples(cb: &Codebook, o: Occurrence) -> Vec<f64> {
         .collect()
 }
 
-/// S ([blend] §4.2, DESIGN §7): `D_ij = v_i v_j Σ_k w_k Σ_t (P̄_i[t,k] − P̄_j[t,k])²`,
+/// S (\[blend\] §4.2, DESIGN §7): `D_ij = v_i v_j Σ_k w_k Σ_t (P̄_i[t,k] − P̄_j[t,k])²`,
 /// `S = exp(−γ D)`. `v_i`: the mean w-weighted area between phone i's occurrences and its
 /// mean trajectory, normalised to mean 1 over present phones (phones seen once get 1).
 pub(super) fn similarity_matrix(cb: &Codebook) -> Array2<f64> {
@@ -156,7 +156,7 @@ pub(super) fn similarity_matrix(cb: &Codebook) -> Array2<f64> {
     s
 }
 
-/// M ([unitsel] eq. 5): `M(i,j) = sqrt(Σ_k γ_k (A_i,k − A_j,k)² / Σ_k γ_k)` over the mean
+/// M (\[unitsel\] eq. 5): `M(i,j) = sqrt(Σ_k γ_k (A_i,k − A_j,k)² / Σ_k γ_k)` over the mean
 /// appearance parameters `A_i` of the frames labelled i, `γ_k = exp(β₂ |k − K|)`.
 pub(super) fn distance_matrix(cb: &Codebook) -> Array2<f64> {
     let range = cb.layout.appearance_range();

@@ -209,7 +209,9 @@ impl Clip {
                         "quantisation table does not match the layout".into(),
                     ));
                 }
-                if let Some(k) = (0..dims).find(|&k| !(q.min[k] <= q.max[k])) {
+                if let Some(k) =
+                    (0..dims).find(|&k| q.min[k].partial_cmp(&q.max[k]).is_none_or(|o| o.is_gt()))
+                {
                     return Err(invalid(format!(
                         "quantisation range of column {k} is empty or not finite ({} to {})",
                         q.min[k], q.max[k]

@@ -1,4 +1,4 @@
-//! Objective measures (DESIGN §9, [unitsel] §6–7): of synthesised trajectories against real
+//! Objective measures (DESIGN §9, \[unitsel\] §6–7): of synthesised trajectories against real
 //! ones — Pearson r of the first appearance parameter (r_pca) and of the mouth height (r_h),
 //! landmark RMSE in pixels, the dynamic-time-warping cost — with the systems and baselines
 //! they compare ([`systems`]); and of video through face-space, PSNR and SSIM inside the face

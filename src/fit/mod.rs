@@ -25,16 +25,28 @@ use crate::shape::{Landmarks, Point};
 use crate::warp::{self, GreyImage};
 use level::{Level, dot, project_out, scale_points, steepest_descent};
 
+/// What can go wrong in the AAM search.
 #[derive(Debug, Error)]
+#[non_exhaustive]
 pub enum FitError {
+    /// A model without appearance components cannot be searched with.
     #[error("the model has no appearance components to project out")]
     NoAppearance,
+    /// The Gauss–Newton system has no solution.
     #[error("the fitting Hessian is singular")]
     Singular,
+    /// A frame smaller than any searched face.
     #[error("a {width}×{height} frame is too small to hold the model's face at any searched scale")]
-    TooSmall { width: u32, height: u32 },
+    TooSmall {
+        /// Frame width.
+        width: u32,
+        /// Frame height.
+        height: u32,
+    },
+    /// Landmarks or warps that do not fit the model.
     #[error(transparent)]
     Model(#[from] ModelError),
+    /// An option out of range.
     #[error(transparent)]
     Option(#[from] InvalidOption),
 }
@@ -42,6 +54,7 @@ pub enum FitError {
 /// Options of the search.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FitOptions {
+    /// Gauss–Newton iterations per pyramid level at most.
     pub max_iterations: usize,
     /// Stop when no landmark moves more than this (pixels).
     pub tolerance: f64,
@@ -78,10 +91,13 @@ impl Default for FitOptions {
 /// The outcome of one fit.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FitResult {
+    /// The fitted landmarks.
     pub landmarks: Landmarks,
+    /// Iterations spent over all levels.
     pub iterations: usize,
     /// RMS of the residual left after projecting out the appearance model (grey levels).
     pub error: f64,
+    /// Whether the finest level stopped below the tolerance.
     pub converged: bool,
 }
 

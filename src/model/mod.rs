@@ -1,7 +1,7 @@
 //! The face model: independent shape and appearance models over one reference frame
 //! (DESIGN §3). Projection turns a frame and its landmarks into a face-space point
 //! ([`crate::facespace`]); reconstruction turns a point back into landmarks and a
-//! shape-normalised texture. Persistence is in [`io`], training sets in [`training`].
+//! shape-normalised texture. Persistence (`io`) and training sets (`training`) are submodules.
 
 mod io;
 mod training;

@@ -29,7 +29,7 @@ pub fn dictionary() -> &'static BTreeMap<String, Vec<Phone>> {
 
 /// Mean phone durations in seconds for read English speech, used when no codebook gives
 /// its own: approximate figures of the kind reported for TIMIT (vowels ~70–160 ms,
-/// consonants ~40–120 ms). Indexed like [`PHONES`].
+/// consonants ~40–120 ms). Indexed like [`super::PHONES`].
 pub const DEFAULT_DURATIONS: [f64; 40] = [
     0.20, 0.12, 0.13, 0.08, 0.12, 0.15, 0.14, 0.07, 0.10, 0.06, 0.04, 0.09, 0.11, 0.12, 0.10, 0.07,
     0.06, 0.07, 0.10, 0.09, 0.08, 0.07, 0.07, 0.06, 0.07, 0.12, 0.16, 0.08, 0.07, 0.11, 0.12, 0.07,
@@ -41,7 +41,7 @@ const EDGE_SILENCE: f64 = 0.2;
 const PAUSE: f64 = 0.15;
 
 /// Words of `text` → phone segments with durations from `durations` (seconds per phone,
-/// indexed like [`PHONES`]). Silence opens and closes the utterance and marks `, . ; : ? !`.
+/// indexed like [`super::PHONES`]). Silence opens and closes the utterance and marks `, . ; : ? !`.
 /// Every word missing from the dictionary is listed in one error.
 pub fn text_to_segments(text: &str, durations: &[f64; 40]) -> Result<Vec<Segment>, PhonemeError> {
     let dict = dictionary();

@@ -1,5 +1,5 @@
 //! Phone set, viseme classes, phoneme-timing files ([`labels`]: HTK, TextGrid, TSV) and text →
-//! phonemes ([`dictionary`]) (DESIGN §6).
+//! phonemes ([`mod@dictionary`]) (DESIGN §6).
 //!
 //! Labels are normalised to ARPAbet (the 39 CMU phones, stress digits dropped, case folded)
 //! plus `sil`; `sil`, `sp`, `pau`, `spn` and the empty label are silence. A few common
@@ -8,6 +8,7 @@
 
 pub mod dictionary;
 pub mod labels;
+mod textgrid;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -30,7 +31,7 @@ pub const PHONES: [&str; 40] = [
     "uh", "uw", "v", "w", "y", "z", "zh",
 ];
 
-/// Viseme class of each phone in [`PHONES`] order: the 22 classes of [unitsel] Table 1.
+/// Viseme class of each phone in [`PHONES`] order: the 22 classes of \[unitsel\] Table 1.
 const VISEMES: [u8; 40] = [
     0, 2, 1, 1, 3, 9, 11, 21, 16, 19, 17, 4, 5, 4, 18, 20, 12, 6, 6, 16, //
     20, 14, 21, 19, 20, 8, 10, 21, 13, 15, 16, 19, 17, 4, 7, 18, 7, 6, 15, 16,
@@ -64,7 +65,9 @@ impl std::fmt::Debug for Phone {
 }
 
 impl Phone {
+    /// Silence.
     pub const SIL: Phone = Phone(0);
+    /// Number of phones.
     pub const COUNT: usize = PHONES.len();
 
     /// Normalises a label (case, stress digits, silence, known aliases); `None` if unknown.
@@ -85,14 +88,17 @@ impl Phone {
         PHONES.iter().position(|p| *p == l).map(|i| Phone(i as u8))
     }
 
+    /// The phone at index `i` of [`PHONES`].
     pub fn from_index(i: usize) -> Option<Phone> {
         (i < PHONES.len()).then_some(Phone(i as u8))
     }
 
+    /// Index into [`PHONES`] (and the rows of S and M).
     pub fn index(self) -> usize {
         self.0 as usize
     }
 
+    /// The ARPAbet name, lower case.
     pub fn name(self) -> &'static str {
         PHONES[self.index()]
     }
@@ -102,6 +108,7 @@ impl Phone {
         VISEMES[self.index()]
     }
 
+    /// Every phone, in index order.
     pub fn all() -> impl Iterator<Item = Phone> {
         (0..PHONES.len()).map(|i| Phone(i as u8))
     }
@@ -129,46 +136,73 @@ impl<'de> Deserialize<'de> for Phone {
 /// A labelled interval, in seconds.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Segment {
+    /// Start, seconds.
     pub start: f64,
+    /// End, seconds.
     pub end: f64,
+    /// The phone.
     pub phone: Phone,
 }
 
 impl Segment {
+    /// `end − start`.
     pub fn duration(&self) -> f64 {
         self.end - self.start
     }
 }
 
+/// What can be wrong with phone labels or text.
 #[derive(Debug, Error)]
+#[non_exhaustive]
 pub enum PhonemeError {
+    /// A file could not be read or written.
     #[error("{path}: {source}")]
     Io {
+        /// The file.
         path: PathBuf,
+        /// The cause.
         source: std::io::Error,
     },
+    /// A malformed line.
     #[error("{path}:{line}: {reason}")]
     Parse {
+        /// The file.
         path: PathBuf,
+        /// The line (1-based).
         line: usize,
+        /// What is wrong.
         reason: String,
     },
+    /// A label that is no known phone.
     #[error("{path}:{line}: unknown phone label {label:?} (give a phone map for other phone sets)")]
     UnknownLabel {
+        /// The file.
         path: PathBuf,
+        /// The line (1-based).
         line: usize,
+        /// The label.
         label: String,
     },
+    /// A TextGrid without the tier asked for.
     #[error("{path}: no tier named {wanted}; the tiers are {found:?}")]
     NoTier {
+        /// The file.
         path: PathBuf,
+        /// The tier looked for.
         wanted: String,
+        /// The tiers there are.
         found: Vec<String>,
     },
+    /// A file without intervals.
     #[error("{path}: no phone intervals")]
-    Empty { path: PathBuf },
+    Empty {
+        /// The file.
+        path: PathBuf,
+    },
+    /// Words the dictionary lacks.
     #[error("words not in the pronouncing dictionary: {}", .0.join(", "))]
     OutOfDictionary(Vec<String>),
+    /// Text without words.
     #[error("no words in the text")]
     NoWords,
 }
@@ -179,6 +213,7 @@ pub enum PhonemeError {
 pub struct PhoneMap(BTreeMap<String, Phone>);
 
 impl PhoneMap {
+    /// Reads a map file, naming the line of any error.
     pub fn read(path: &Path) -> Result<Self, PhonemeError> {
         let text = read_text(path)?;
         let mut map = BTreeMap::new();

@@ -1,4 +1,4 @@
-//! Top-N context blending ([blend] §5, DESIGN §8).
+//! Top-N context blending (\[blend\] §5, DESIGN §8).
 //!
 //! For each target phone p with left context l₁…l_C and right context r₁…r_C, every codebook
 //! occurrence j of p is scored `s_j = Σᵢ S(lᵢ, l_ij)/(i+1) + Σᵢ S(rᵢ, r_ij)/(i+1)` (beyond a
@@ -16,7 +16,7 @@ use super::{Chosen, PhoneReport, SynthError, Synthesis, Synthesiser, stand_in, v
 /// Widest context scored (phones either side).
 pub const MAX_CONTEXT: usize = 20;
 
-/// Top-N context blending ([blend] §5).
+/// Top-N context blending (\[blend\] §5).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct Blend {
     /// Context width C (1 = triphone; 0 scores every occurrence alike).
@@ -53,7 +53,7 @@ fn context(segments: &[Segment], i: usize, offset: isize) -> Phone {
     }
 }
 
-/// Context score `s_j` of an occurrence for the target phone at `i` (eq. of [blend] §5).
+/// Context score `s_j` of an occurrence for the target phone at `i` (eq. of \[blend\] §5).
 pub fn context_score(
     codebook: &Codebook,
     target: &[Segment],

@@ -47,7 +47,7 @@ pub enum OutputError {
     },
 }
 
-/// Options of [`write`].
+/// Options of [`write()`].
 #[derive(Clone, Copy, Debug, Default)]
 pub struct OutputOptions<'a> {
     /// Sound muxed into every MP4.

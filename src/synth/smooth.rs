@@ -10,18 +10,30 @@
 
 use thiserror::Error;
 
+/// What can be wrong with a smoothing problem.
 #[derive(Debug, Error, PartialEq)]
+#[non_exhaustive]
 pub enum SmoothError {
+    /// Fewer than three knots.
     #[error("a smoothing spline needs at least 3 points, got {0}")]
     TooFewPoints(usize),
+    /// Knots out of order (the index of the first offender).
     #[error("knots must increase strictly: x[{0}] does not exceed the knot before it")]
     NotIncreasing(usize),
+    /// λ negative or not finite.
     #[error("smoothing weight λ = {0} must be finite and ≥ 0")]
     BadLambda(f64),
+    /// A weight not positive and finite (its index).
     #[error("weights must be finite and > 0 (weight {0})")]
     BadWeight(usize),
+    /// Values or weights of another length than the knots.
     #[error("{found} values given for {expected} knots")]
-    Length { expected: usize, found: usize },
+    Length {
+        /// Knots.
+        expected: usize,
+        /// Values given.
+        found: usize,
+    },
 }
 
 /// A factorised smoothing problem for fixed knots, weights and λ.
@@ -37,6 +49,7 @@ pub struct SmoothingSpline {
 }
 
 impl SmoothingSpline {
+    /// Factorises the problem for knots `x`, weights `w` (default 1) and weight `lambda`.
     pub fn new(x: &[f64], w: Option<&[f64]>, lambda: f64) -> Result<Self, SmoothError> {
         let n = x.len();
         if n < 3 {

@@ -23,6 +23,10 @@
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
+mod save;
+
+pub use save::SaveError;
+
 use super::Sentence;
 use crate::facespace::{FacespaceError, Frames, POSE_DIMS};
 use crate::model::{FaceModel, ModelError, TrainingExample};
@@ -378,104 +382,4 @@ pub fn generate(
         sentences: out,
         still_frame: still,
     })
-}
-
-impl Corpus {
-    /// Writes the corpus folder: `train/` and `heldout/` with `NAME.npy`, `NAME.lab` and
-    /// `NAME.txt`, and `corpus.json` describing how it was made. With a renderer, every
-    /// frame is also drawn over `background` into `frames/NAME/`.
-    pub fn save(
-        &self,
-        dir: &std::path::Path,
-        model: &FaceModel,
-        options: &CorpusOptions,
-        still_frame_name: &str,
-        frames: Option<(&dyn crate::render::Renderer, &image::RgbImage)>,
-        mut progress: impl FnMut(crate::Progress),
-    ) -> Result<(), SaveError> {
-        for g in &self.sentences {
-            let s = &g.sentence;
-            let part = dir.join(if g.held_out { "heldout" } else { "train" });
-            crate::npy::write(&part.join(format!("{}.npy", s.name)), s.frames.values())?;
-            phonemes::write_labels(&part.join(format!("{}.lab", s.name)), &s.segments)?;
-            let txt = part.join(format!("{}.txt", s.name));
-            crate::atomic::write_file(&txt, format!("{}\n", g.text).as_bytes())
-                .map_err(|source| SaveError::Io { path: txt, source })?;
-        }
-        let names = |held: bool| -> Vec<&str> {
-            self.sentences
-                .iter()
-                .filter(|g| g.held_out == held)
-                .map(|g| g.sentence.name.as_str())
-                .collect()
-        };
-        let manifest = serde_json::json!({
-            "generator": "facespace corpus demo",
-            "note": "Trajectories are GENERATED (dominance-function coarticulation over real face-space points of the demo training frames), not recorded. Phone sequences come from the CMU dictionary, durations from a table with seeded jitter.",
-            "options": options,
-            "model_hash": model.hash(),
-            "still_frame": still_frame_name,
-            "fps": options.fps,
-            "train": names(false),
-            "heldout": names(true),
-            "texts": self.sentences.iter().map(|g| (&g.sentence.name, &g.text)).collect::<std::collections::BTreeMap<_, _>>(),
-        });
-        let path = dir.join("corpus.json");
-        let json = serde_json::to_string_pretty(&manifest).expect("manifest serialises");
-        crate::atomic::write_file(&path, json.as_bytes())
-            .map_err(|source| SaveError::Io { path, source })?;
-        if let Some((renderer, background)) = frames {
-            for (i, g) in self.sentences.iter().enumerate() {
-                let s = &g.sentence;
-                let (w, h) = background.dimensions();
-                let mut sink = crate::video::Sink::create(
-                    &dir.join("frames").join(&s.name),
-                    w,
-                    h,
-                    s.frames.fps(),
-                    None,
-                )?;
-                crate::render::stream(
-                    renderer,
-                    &s.frames,
-                    crate::render::Background::Still(background.clone()),
-                    |f| Ok::<(), SaveError>(sink.write(&f)?),
-                    crate::no_progress,
-                )?;
-                sink.finish()?;
-                progress(crate::Progress {
-                    stage: "rendering",
-                    done: i + 1,
-                    total: self.sentences.len(),
-                });
-            }
-        }
-        Ok(())
-    }
-}
-
-/// What can go wrong writing the demo corpus.
-#[derive(Debug, Error)]
-#[non_exhaustive]
-pub enum SaveError {
-    /// A file could not be written.
-    #[error("{path}: {source}")]
-    Io {
-        /// The file.
-        path: std::path::PathBuf,
-        /// The cause.
-        source: std::io::Error,
-    },
-    /// An array could not be written.
-    #[error(transparent)]
-    Npy(#[from] crate::npy::NpyError),
-    /// A label file could not be written.
-    #[error(transparent)]
-    Phonemes(#[from] PhonemeError),
-    /// Rendering failed.
-    #[error(transparent)]
-    Render(#[from] crate::render::RenderError),
-    /// A frame could not be written.
-    #[error(transparent)]
-    Video(#[from] crate::video::VideoError),
 }

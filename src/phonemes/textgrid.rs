@@ -1,0 +1,230 @@
+//! Praat TextGrid files, long or short text form: one tokeniser serves both.
+
+use std::path::Path;
+
+use super::labels::{RawInterval, finish, read_text};
+use super::{PhoneMap, PhonemeError, Segment};
+
+/// Praat TextGrid, long or short text form (UTF-8 or UTF-16). The tier is `tier` if given,
+/// else the first named `phones` or `phonemes` (any case).
+pub fn read_textgrid(
+    path: &Path,
+    tier: Option<&str>,
+    map: &PhoneMap,
+) -> Result<Vec<Segment>, PhonemeError> {
+    parse_textgrid(&read_text(path)?, path, tier, map)
+}
+
+/// A TextGrid token: the short form is the long form without its `key =` labels, so both
+/// reduce to the same token stream of strings, numbers and `<exists>` flags.
+#[derive(Debug)]
+enum Token {
+    Str(String),
+    Num(f64),
+    Flag,
+}
+
+fn tokenise(text: &str, path: &Path) -> Result<Vec<(Token, usize)>, PhonemeError> {
+    let mut tokens = Vec::new();
+    let mut chars = text.chars().peekable();
+    let mut line = 1;
+    while let Some(c) = chars.next() {
+        match c {
+            '\n' => line += 1,
+            '"' => {
+                let start_line = line;
+                let mut s = String::new();
+                loop {
+                    match chars.next() {
+                        Some('"') if chars.peek() == Some(&'"') => {
+                            chars.next();
+                            s.push('"');
+                        }
+                        Some('"') => break,
+                        Some(ch) => {
+                            if ch == '\n' {
+                                line += 1;
+                            }
+                            s.push(ch);
+                        }
+                        None => {
+                            return Err(PhonemeError::Parse {
+                                path: path.into(),
+                                line: start_line,
+                                reason: "unterminated string".into(),
+                            });
+                        }
+                    }
+                }
+                tokens.push((Token::Str(s), start_line));
+            }
+            '[' => {
+                for ch in chars.by_ref() {
+                    if ch == ']' {
+                        break;
+                    }
+                }
+            }
+            '<' => {
+                for ch in chars.by_ref() {
+                    if ch == '>' {
+                        break;
+                    }
+                }
+                tokens.push((Token::Flag, line));
+            }
+            '!' => {
+                // a comment to the end of the line
+                while chars.peek().is_some_and(|&ch| ch != '\n') {
+                    chars.next();
+                }
+            }
+            c if c.is_ascii_digit() || c == '-' || c == '.' || c == '+' => {
+                let mut s = String::from(c);
+                while chars
+                    .peek()
+                    .is_some_and(|ch| ch.is_ascii_alphanumeric() || matches!(ch, '.' | '-' | '+'))
+                {
+                    s.push(chars.next().unwrap_or_default());
+                }
+                let v = s.parse::<f64>().map_err(|_| PhonemeError::Parse {
+                    path: path.into(),
+                    line,
+                    reason: format!("bad number {s:?}"),
+                })?;
+                tokens.push((Token::Num(v), line));
+            }
+            c if c.is_alphabetic() => {
+                while chars
+                    .peek()
+                    .is_some_and(|ch| ch.is_alphanumeric() || *ch == '_' || *ch == '?')
+                {
+                    chars.next();
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(tokens)
+}
+
+/// Parses TextGrid text (long or short form); `path` names the source in errors.
+pub fn parse_textgrid(
+    text: &str,
+    path: &Path,
+    tier: Option<&str>,
+    map: &PhoneMap,
+) -> Result<Vec<Segment>, PhonemeError> {
+    let tokens = tokenise(text, path)?;
+    let mut it = tokens.into_iter().peekable();
+    let mut last_line = 1;
+    let mut next = |what: &str| -> Result<(Token, usize), PhonemeError> {
+        let t = it.next().ok_or_else(|| PhonemeError::Parse {
+            path: path.into(),
+            line: last_line,
+            reason: format!("file ends where {what} was expected"),
+        })?;
+        last_line = t.1;
+        Ok(t)
+    };
+    let err = |line: usize, reason: String| PhonemeError::Parse {
+        path: path.into(),
+        line,
+        reason,
+    };
+    macro_rules! string {
+        ($what:expr) => {
+            match next($what)? {
+                (Token::Str(s), l) => (s, l),
+                (t, l) => {
+                    return Err(err(
+                        l,
+                        format!("expected {} (a string), found {:?}", $what, t),
+                    ))
+                }
+            }
+        };
+    }
+    macro_rules! number {
+        ($what:expr) => {
+            match next($what)? {
+                (Token::Num(v), l) => (v, l),
+                (t, l) => {
+                    return Err(err(
+                        l,
+                        format!("expected {} (a number), found {:?}", $what, t),
+                    ))
+                }
+            }
+        };
+    }
+    let (file_type, l) = string!("the file type");
+    if file_type != "ooTextFile" {
+        return Err(err(
+            l,
+            format!("not a Praat text file (file type {file_type:?})"),
+        ));
+    }
+    let (class, l) = string!("the object class");
+    if class != "TextGrid" {
+        return Err(err(
+            l,
+            format!("object class {class:?}, expected \"TextGrid\""),
+        ));
+    }
+    number!("xmin");
+    number!("xmax");
+    match next("<exists>")? {
+        (Token::Flag, _) => {}
+        (t, l) => return Err(err(l, format!("expected <exists>, found {t:?}"))),
+    }
+    let (n_tiers, _) = number!("the tier count");
+    let mut names = Vec::new();
+    for _ in 0..n_tiers as usize {
+        let (kind, _) = string!("the tier class");
+        let (name, _) = string!("the tier name");
+        number!("tier xmin");
+        number!("tier xmax");
+        let (n, _) = number!("the interval count");
+        let wanted = match tier {
+            Some(t) => name == t,
+            None => matches!(name.to_ascii_lowercase().as_str(), "phones" | "phonemes"),
+        };
+        let mut raw = Vec::new();
+        for _ in 0..n as usize {
+            if kind == "IntervalTier" {
+                let (start, line) = number!("interval xmin");
+                let (end, _) = number!("interval xmax");
+                let (label, _) = string!("interval text");
+                raw.push(RawInterval {
+                    start,
+                    end,
+                    label,
+                    line,
+                });
+            } else {
+                number!("point time");
+                string!("point mark");
+            }
+        }
+        if wanted {
+            if kind != "IntervalTier" {
+                return Err(err(
+                    last_line,
+                    format!("tier {name:?} is a {kind}, not an IntervalTier"),
+                ));
+            }
+            return finish(path, raw, map);
+        }
+        names.push(name);
+    }
+    let wanted = tier.map_or_else(
+        || "\"phones\" or \"phonemes\"".to_owned(),
+        |t| format!("{t:?}"),
+    );
+    Err(PhonemeError::NoTier {
+        path: path.into(),
+        wanted,
+        found: names,
+    })
+}

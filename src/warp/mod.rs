@@ -1,0 +1,262 @@
+//! Piecewise affine warps between an image and the reference frame, bilinear sampling,
+//! parallel with rayon (DESIGN §2, §10).
+//!
+//! * [`to_reference`]: image at its landmarks → shape-normalised texture. Each mask pixel's
+//!   precomputed triangle and barycentric coordinates give its source point directly.
+//! * [`from_reference_into`]: texture → image at new landmarks. Each destination triangle is
+//!   rasterised and every covered pixel samples the reference frame through the triangle's
+//!   affine map.
+//!
+//! Textures are `n_pixels × 3` interleaved RGB `f32` in grey levels (0–255), in mask order.
+
+use image::RgbImage;
+use rayon::prelude::*;
+use thiserror::Error;
+
+mod draw;
+
+pub use draw::{
+    RENDER_DILATION, from_reference_blend_into, from_reference_into, texture_to_image,
+    texture_to_rgb, to_u8,
+};
+
+use crate::mesh::ReferenceFrame;
+use crate::shape::Point;
+
+/// What can be wrong with a warp's inputs.
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum WarpError {
+    /// Another number of landmarks than the mesh has.
+    #[error("{found} landmarks given, the mesh has {expected}")]
+    LandmarkCount {
+        /// The mesh's count.
+        expected: usize,
+        /// Given.
+        found: usize,
+    },
+    /// A NaN or infinite landmark.
+    #[error("landmark {index} is not finite")]
+    NotFinite {
+        /// The landmark.
+        index: usize,
+    },
+    /// A texture of another length than the reference frame needs.
+    #[error("texture has {found} values, the reference frame needs {expected} (pixels × 3)")]
+    TextureLength {
+        /// Values needed.
+        expected: usize,
+        /// Values given.
+        found: usize,
+    },
+    /// An image without pixels.
+    #[error("image is empty ({width}×{height})")]
+    EmptyImage {
+        /// Its width.
+        width: u32,
+        /// Its height.
+        height: u32,
+    },
+}
+
+/// Bilinear sample of an RGB image at `(x, y)` (pixel centres at integers), clamped to
+/// the border.
+#[inline]
+pub fn sample_bilinear(image: &RgbImage, x: f64, y: f64) -> [f32; 3] {
+    let (w, h) = (image.width() as usize, image.height() as usize);
+    let data = image.as_raw();
+    sample::<u8, 3>(data, w, h, x, y, |v: u8| v as f32)
+}
+
+#[inline(always)]
+fn sample<T: Copy, const C: usize>(
+    data: &[T],
+    w: usize,
+    h: usize,
+    x: f64,
+    y: f64,
+    to_f32: impl Fn(T) -> f32,
+) -> [f32; C] {
+    let xc = x.clamp(0.0, (w - 1) as f64);
+    let yc = y.clamp(0.0, (h - 1) as f64);
+    // Truncation is floor here (both are ≥ 0) and, unlike f64::floor on baseline x86-64,
+    // needs no libm call.
+    let (x0, y0) = (xc as usize, yc as usize);
+    let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
+    let (fx, fy) = ((xc - x0 as f64) as f32, (yc - y0 as f64) as f32);
+    let (i00, i01, i10, i11) = (
+        (y0 * w + x0) * C,
+        (y0 * w + x1) * C,
+        (y1 * w + x0) * C,
+        (y1 * w + x1) * C,
+    );
+    let mut out = [0f32; C];
+    for (c, o) in out.iter_mut().enumerate() {
+        let top = to_f32(data[i00 + c]) * (1.0 - fx) + to_f32(data[i01 + c]) * fx;
+        let bottom = to_f32(data[i10 + c]) * (1.0 - fx) + to_f32(data[i11 + c]) * fx;
+        *o = top * (1.0 - fy) + bottom * fy;
+    }
+    out
+}
+
+/// A single-channel f32 image (grey levels), for fitting on luminance.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GreyImage {
+    /// Width, pixels.
+    pub width: usize,
+    /// Height, pixels.
+    pub height: usize,
+    /// Row-major grey levels.
+    pub data: Vec<f32>,
+}
+
+impl GreyImage {
+    /// The mean of R, G and B: the grey of a texture warped in RGB is the warp of this.
+    pub fn from_rgb(image: &RgbImage) -> Self {
+        let data = image
+            .as_raw()
+            .chunks_exact(3)
+            .map(|c| (c[0] as f32 + c[1] as f32 + c[2] as f32) / 3.0)
+            .collect();
+        GreyImage {
+            width: image.width() as usize,
+            height: image.height() as usize,
+            data,
+        }
+    }
+
+    /// Half size by 2×2 averaging (an odd last row or column is dropped).
+    pub fn half(&self) -> Self {
+        let (w, h) = ((self.width / 2).max(1), (self.height / 2).max(1));
+        let at = |x: usize, y: usize| {
+            self.data[y.min(self.height - 1) * self.width + x.min(self.width - 1)]
+        };
+        let data = (0..h)
+            .flat_map(|y| (0..w).map(move |x| (x, y)))
+            .map(|(x, y)| {
+                (at(2 * x, 2 * y)
+                    + at(2 * x + 1, 2 * y)
+                    + at(2 * x, 2 * y + 1)
+                    + at(2 * x + 1, 2 * y + 1))
+                    / 4.0
+            })
+            .collect();
+        GreyImage {
+            width: w,
+            height: h,
+            data,
+        }
+    }
+}
+
+/// Gathers `C`-channel samples of `data` (`w × h`) at each mask pixel's source point.
+fn gather<T: Copy + Send + Sync, const C: usize>(
+    frame: &ReferenceFrame,
+    data: &[T],
+    (w, h): (usize, usize),
+    landmarks: &[Point],
+    out: &mut [f32],
+    to_f32: impl Fn(T) -> f32 + Sync,
+) {
+    const CHUNK: usize = 2048;
+    out.par_chunks_mut(CHUNK * C)
+        .zip(frame.pixels.par_chunks(CHUNK))
+        .for_each(|(out, pixels)| {
+            for (o, p) in out.chunks_exact_mut(C).zip(pixels) {
+                let [a, b, c] = frame.triangles[p.triangle as usize].map(|v| landmarks[v as usize]);
+                let l = p.bary.map(|v| v as f64);
+                let x = l[0] * a[0] + l[1] * b[0] + l[2] * c[0];
+                let y = l[0] * a[1] + l[1] * b[1] + l[2] * c[1];
+                o.copy_from_slice(&sample::<T, C>(data, w, h, x, y, &to_f32));
+            }
+        });
+}
+
+/// [`to_reference_into`] for a grey image: one value per mask pixel.
+pub fn to_reference_grey_into(
+    frame: &ReferenceFrame,
+    image: &GreyImage,
+    landmarks: &[Point],
+    out: &mut [f32],
+) -> Result<(), WarpError> {
+    check_landmarks(frame, landmarks)?;
+    if image.width == 0 || image.height == 0 {
+        return Err(WarpError::EmptyImage {
+            width: image.width as u32,
+            height: image.height as u32,
+        });
+    }
+    if out.len() != frame.n_pixels() {
+        return Err(WarpError::TextureLength {
+            expected: frame.n_pixels(),
+            found: out.len(),
+        });
+    }
+    gather::<f32, 1>(
+        frame,
+        &image.data,
+        (image.width, image.height),
+        landmarks,
+        out,
+        |v| v,
+    );
+    Ok(())
+}
+
+fn check_landmarks(frame: &ReferenceFrame, landmarks: &[Point]) -> Result<(), WarpError> {
+    if landmarks.len() != frame.landmarks.len() {
+        return Err(WarpError::LandmarkCount {
+            expected: frame.landmarks.len(),
+            found: landmarks.len(),
+        });
+    }
+    match landmarks
+        .iter()
+        .position(|p| !(p[0].is_finite() && p[1].is_finite()))
+    {
+        Some(index) => Err(WarpError::NotFinite { index }),
+        None => Ok(()),
+    }
+}
+
+/// Warps `image`, whose face has `landmarks`, into the reference frame.
+pub fn to_reference(
+    frame: &ReferenceFrame,
+    image: &RgbImage,
+    landmarks: &[Point],
+) -> Result<Vec<f32>, WarpError> {
+    let mut out = vec![0f32; frame.n_pixels() * 3];
+    to_reference_into(frame, image, landmarks, &mut out)?;
+    Ok(out)
+}
+
+/// [`to_reference`] into a caller's buffer of `n_pixels × 3` values.
+pub fn to_reference_into(
+    frame: &ReferenceFrame,
+    image: &RgbImage,
+    landmarks: &[Point],
+    out: &mut [f32],
+) -> Result<(), WarpError> {
+    check_landmarks(frame, landmarks)?;
+    if image.width() == 0 || image.height() == 0 {
+        return Err(WarpError::EmptyImage {
+            width: image.width(),
+            height: image.height(),
+        });
+    }
+    if out.len() != frame.n_pixels() * 3 {
+        return Err(WarpError::TextureLength {
+            expected: frame.n_pixels() * 3,
+            found: out.len(),
+        });
+    }
+    gather::<u8, 3>(
+        frame,
+        image.as_raw(),
+        (image.width() as usize, image.height() as usize),
+        landmarks,
+        out,
+        |v| v as f32,
+    );
+    Ok(())
+}
