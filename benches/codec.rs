@@ -1,7 +1,7 @@
 //! Video through face-space at 720×576: encode (decode MP4 + track + project every frame)
 //! and decode (render every frame + H.264 encode), 100 frames of the FGNet clip scaled ×2.
-//! The input is written once to target/bench-codec/clip720.mp4, so the CLI of another build
-//! can be timed on the same file (BENCHMARKS.md).
+//! The input is written once to target/bench-codec/clip720.mp4 (first-frame landmarks beside
+//! it), so the CLI of another build can be timed on the same file (BENCHMARKS.md).
 //! Run: cargo bench --bench codec
 
 use std::path::{Path, PathBuf};
@@ -45,6 +45,8 @@ fn input() -> (PathBuf, Landmarks) {
             .map(|p| [(p[0] + 0.5) * 2.0 - 0.5, (p[1] + 0.5) * 2.0 - 0.5])
             .collect(),
     };
+    // The same start for the CLI of another build: `encode --init clip720.pts`.
+    facespace::shape::write_pts(&dir.join("clip720.pts"), &init).unwrap();
     (path, init)
 }
 

@@ -12,7 +12,7 @@ use crate::codebook::{Codebook, CodebookError, SimilarityOptions};
 use crate::corpus::demo::{self as generator, CorpusOptions, GenerateError};
 use crate::model::{FaceModel, ModelError, load_training_set};
 use crate::phonemes::{self, PhonemeError};
-use crate::render::{Background, Compositor, DEFAULT_FEATHER};
+use crate::render::{Background, CpuRenderer, DEFAULT_FEATHER};
 use crate::synth::blend::Blend;
 use crate::synth::output::{self, OutputError, OutputOptions, Report};
 use crate::synth::{DEFAULT_SMOOTHING, Smoothing, SynthError, synthesise};
@@ -141,7 +141,7 @@ pub fn run(options: &DemoOptions, progress: impl FnMut(Progress)) -> Result<Demo
         fps,
         Smoothing::Ab(DEFAULT_SMOOTHING),
     )?;
-    let renderer = Compositor::new(&model, DEFAULT_FEATHER);
+    let renderer = CpuRenderer::feathered(&model, DEFAULT_FEATHER);
     let report = output::write(
         o,
         &renderer,

@@ -256,7 +256,6 @@ fn render_dilation_stays_next_to_the_mesh() {
 /// background, and the edge lies between the two.
 #[test]
 fn feathered_compositing_blends_only_the_edge() {
-    use facespace::render::Compositor;
     let model = common::small_model();
     let face = &common::faces()[0];
     let (pose, shape) = model.shape.project(&face.landmarks).unwrap();
@@ -275,10 +274,10 @@ fn feathered_compositing_blends_only_the_edge() {
         canvas
     };
     let hard = draw(&CpuRenderer::new(&model));
-    let none = draw(&Compositor::new(&model, 0.0));
+    let none = draw(&CpuRenderer::feathered(&model, 0.0));
     assert!(hard == none, "feather 0 must equal the plain renderer");
-    let soft = Compositor::new(&model, 6.0);
-    let alpha = soft.alpha();
+    let soft = CpuRenderer::feathered(&model, 6.0);
+    let alpha = soft.alpha().unwrap();
     assert!(alpha.iter().all(|a| (0.0..=1.0).contains(a)));
     assert!(alpha.iter().filter(|&&a| a == 1.0).count() > alpha.len() / 2);
     assert!(alpha.iter().any(|&a| a < 0.2));

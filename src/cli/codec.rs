@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use clap::Args;
 use facespace::codec::{self, Clip, TrackingSummary};
-use facespace::render::{Background, Compositor, CpuRenderer, DEFAULT_FEATHER, Renderer};
+use facespace::render::{Background, CpuRenderer, DEFAULT_FEATHER};
 use facespace::video::{Sink, Source};
 
 use super::{DEMO_MODEL, TrackingArgs, load_model, progress_bar, tracking_line};
@@ -105,17 +105,17 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
     let model = load_model(&a.model)?;
     let clip = Clip::load(&a.clip, &model)
         .with_context(|| format!("loading clip {}", a.clip.display()))?;
-    let (background, renderer): (Background, Box<dyn Renderer>) = match &a.background {
+    let (background, renderer) = match &a.background {
         Some(p) => (
             Background::Video(Box::new(Source::open(p)?)),
-            Box::new(Compositor::new(&model, a.feather)),
+            CpuRenderer::feathered(&model, a.feather),
         ),
         None => (
             Background::Plain {
                 width: clip.width,
                 height: clip.height,
             },
-            Box::new(CpuRenderer::new(&model)),
+            CpuRenderer::new(&model),
         ),
     };
     let audio = clip.audio_path(&a.clip).filter(|_| !a.no_audio);
@@ -129,7 +129,7 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
     }
     let (bar, progress) = progress_bar();
     let clock = std::time::Instant::now();
-    codec::decode(renderer.as_ref(), &clip, background, &mut sink, progress)
+    codec::decode(&renderer, &clip, background, &mut sink, progress)
         .with_context(|| format!("decoding {}", a.clip.display()))?;
     let frames = sink.finish()?;
     bar.finish_and_clear();

@@ -6,7 +6,7 @@ use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use facespace::codebook::Codebook;
 use facespace::phonemes::{self, PhoneMap};
-use facespace::render::{Background, Compositor, DEFAULT_FEATHER};
+use facespace::render::{Background, CpuRenderer, DEFAULT_FEATHER};
 use facespace::synth::blend::Blend;
 use facespace::synth::output::{self, OutputOptions};
 use facespace::synth::{DEFAULT_SMOOTHING, Smoothing, synthesise};
@@ -110,7 +110,7 @@ pub fn run(a: SynthArgs) -> Result<()> {
         Some(p) => Background::Still(video::read_frame(p)?),
         None => Background::plain_for(&model, &utterance.synthesis.frames),
     };
-    let renderer = Compositor::new(&model, DEFAULT_FEATHER);
+    let renderer = CpuRenderer::feathered(&model, DEFAULT_FEATHER);
     let (bar, progress) = progress_bar();
     let report = output::write(
         &a.output,

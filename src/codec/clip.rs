@@ -9,7 +9,7 @@ use ndarray::Array2;
 use serde::{Deserialize, Serialize};
 
 use super::CodecError;
-use crate::facespace::{Frames, Layout};
+use crate::facespace::{Frames, Layout, POSE_DIMS};
 use crate::manifest;
 use crate::model::FaceModel;
 use crate::npy;
@@ -45,7 +45,7 @@ struct ClipMeta {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct FrameTrack {
     /// Similarity `[s·cosθ, s·sinθ, tx, ty]` (also columns 0–3 of the parameters).
-    pub pose: [f64; 4],
+    pub pose: [f64; POSE_DIMS],
     /// Residual RMS of the fit (grey levels).
     pub fit_error: f64,
     /// Whether the frame was re-initialised after a lost fit.

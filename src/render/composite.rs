@@ -2,84 +2,44 @@
 //! from 1 to 0 over the last `feather` reference-frame pixels inside the mesh boundary, so no
 //! seam shows where the model's face meets the real one.
 
-use image::RgbImage;
 use rayon::prelude::*;
 
-use super::{RenderError, Renderer};
-use crate::facespace::FaceParams;
 use crate::model::FaceModel;
-use crate::warp;
 
 /// Default feather width, in reference-frame pixels.
 pub const DEFAULT_FEATHER: f64 = 6.0;
 
-/// Draws faces blended onto their canvas by a per-pixel alpha warped with the texture.
-pub struct Compositor<'m> {
-    model: &'m FaceModel,
-    alpha: Vec<f32>,
-}
-
-impl<'m> Compositor<'m> {
-    /// Alpha = smoothstep of each mask pixel's distance to the mesh boundary over `feather`
-    /// pixels (0: a hard edge, the plain renderer's).
-    pub fn new(model: &'m FaceModel, feather: f64) -> Self {
-        let frame = &model.frame;
-        let mut edges = Vec::new();
-        for (t, hull) in frame.triangles.iter().zip(&frame.hull_edges) {
-            for i in 0..3 {
-                if hull[i] {
-                    let (p, q) = (t[(i + 1) % 3] as usize, t[(i + 2) % 3] as usize);
-                    edges.push((frame.landmarks[p], frame.landmarks[q]));
-                }
+/// Alpha per mask pixel of `model`'s reference frame: the smoothstep of the pixel's distance
+/// to the mesh boundary over `feather` pixels (0: a hard edge, alpha 1 everywhere).
+pub fn feather_alpha(model: &FaceModel, feather: f64) -> Vec<f32> {
+    let frame = &model.frame;
+    let mut edges = Vec::new();
+    for (t, hull) in frame.triangles.iter().zip(&frame.hull_edges) {
+        for i in 0..3 {
+            if hull[i] {
+                let (p, q) = (t[(i + 1) % 3] as usize, t[(i + 2) % 3] as usize);
+                edges.push((frame.landmarks[p], frame.landmarks[q]));
             }
         }
-        let alpha = frame
-            .pixels
-            .par_iter()
-            .map(|px| {
-                let c = [px.x as f64, px.y as f64];
-                let d = edges
-                    .iter()
-                    .map(|&(p, q)| point_segment_distance(c, p, q))
-                    .fold(f64::INFINITY, f64::min);
-                // Smoothstep of the distance: no visible kink where the ramp ends.
-                let t = if feather > 0.0 {
-                    (d / feather).min(1.0)
-                } else {
-                    1.0
-                };
-                (t * t * (3.0 - 2.0 * t)) as f32
-            })
-            .collect();
-        Compositor { model, alpha }
     }
-
-    /// Alpha per mask pixel.
-    pub fn alpha(&self) -> &[f32] {
-        &self.alpha
-    }
-}
-
-impl Renderer for Compositor<'_> {
-    fn model(&self) -> &FaceModel {
-        self.model
-    }
-
-    fn render_into(
-        &self,
-        params: FaceParams<'_>,
-        canvas: &mut RgbImage,
-    ) -> Result<(), RenderError> {
-        let r = self.model.reconstruct(params)?;
-        warp::from_reference_blend_into(
-            &self.model.frame,
-            &r.texture,
-            &self.alpha,
-            &r.landmarks.points,
-            canvas,
-        )?;
-        Ok(())
-    }
+    frame
+        .pixels
+        .par_iter()
+        .map(|px| {
+            let c = [px.x as f64, px.y as f64];
+            let d = edges
+                .iter()
+                .map(|&(p, q)| point_segment_distance(c, p, q))
+                .fold(f64::INFINITY, f64::min);
+            // Smoothstep of the distance: no visible kink where the ramp ends.
+            let t = if feather > 0.0 {
+                (d / feather).min(1.0)
+            } else {
+                1.0
+            };
+            (t * t * (3.0 - 2.0 * t)) as f32
+        })
+        .collect()
 }
 
 fn point_segment_distance(c: [f64; 2], p: [f64; 2], q: [f64; 2]) -> f64 {

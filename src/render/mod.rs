@@ -1,9 +1,9 @@
 //! Renderers: face-space points → images (DESIGN §10).
 //!
 //! A [`Renderer`] draws one frame's face onto a caller's canvas (which holds the background);
-//! [`CpuRenderer`] is the reference (the piecewise affine warp of [`crate::warp`]) and
-//! [`Compositor`] blends the face in with a feathered edge; a GPU renderer implements the same
-//! trait. [`stream`] renders a whole sequence batch by batch over a [`Background`] while the
+//! [`CpuRenderer`] is the reference (the piecewise affine warp of [`crate::warp`]), drawing the
+//! face with a hard edge or blending it in with a feathered one; a GPU renderer implements the
+//! same trait. [`stream`] renders a whole sequence batch by batch over a [`Background`] while the
 //! caller consumes the frames in order, so memory does not grow with the sequence.
 
 mod composite;
@@ -16,7 +16,7 @@ use image::{Rgb, RgbImage};
 use rayon::prelude::*;
 use thiserror::Error;
 
-pub use composite::{Compositor, DEFAULT_FEATHER};
+pub use composite::{DEFAULT_FEATHER, feather_alpha};
 
 use crate::Progress;
 use crate::facespace::{FaceParams, Frames};
@@ -94,16 +94,33 @@ pub trait Renderer: Sync {
     }
 }
 
-/// The reference renderer on the CPU: the face drawn with a hard edge.
-#[derive(Clone, Copy, Debug)]
+/// The reference renderer on the CPU: the face drawn with a hard edge, or blended onto the
+/// canvas by a feathered alpha warped with the texture (DESIGN §10 compositing).
+#[derive(Clone, Debug)]
 pub struct CpuRenderer<'m> {
     model: &'m FaceModel,
+    /// Per mask pixel, for a feathered edge.
+    alpha: Option<Vec<f32>>,
 }
 
 impl<'m> CpuRenderer<'m> {
-    /// A renderer of `model`'s faces.
+    /// A renderer of `model`'s faces with a hard edge.
     pub fn new(model: &'m FaceModel) -> Self {
-        CpuRenderer { model }
+        CpuRenderer { model, alpha: None }
+    }
+
+    /// A renderer whose faces fade into the canvas over the last `feather` reference-frame
+    /// pixels inside the mesh boundary ([`feather_alpha`]), so no seam shows.
+    pub fn feathered(model: &'m FaceModel, feather: f64) -> Self {
+        CpuRenderer {
+            model,
+            alpha: Some(feather_alpha(model, feather)),
+        }
+    }
+
+    /// The feathered alpha per mask pixel, if any.
+    pub fn alpha(&self) -> Option<&[f32]> {
+        self.alpha.as_deref()
     }
 }
 
@@ -118,7 +135,13 @@ impl Renderer for CpuRenderer<'_> {
         canvas: &mut RgbImage,
     ) -> Result<(), RenderError> {
         let r = self.model.reconstruct(params)?;
-        warp::from_reference_into(&self.model.frame, &r.texture, &r.landmarks.points, canvas)?;
+        let (frame, points) = (&self.model.frame, &r.landmarks.points);
+        match &self.alpha {
+            Some(alpha) => {
+                warp::from_reference_blend_into(frame, &r.texture, alpha, points, canvas)?
+            }
+            None => warp::from_reference_into(frame, &r.texture, points, canvas)?,
+        }
         Ok(())
     }
 }
