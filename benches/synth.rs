@@ -14,9 +14,9 @@ fn bench(c: &mut Criterion) {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     let model = FaceModel::load(&root.join("models/demo/model")).unwrap();
     let frames = load_training_set(&root.join("models/demo/training"), None).unwrap();
-    let (train, _) = demo::generate(&model, &frames, &CorpusOptions::default())
+    let train = demo::generate(&model, &frames, &CorpusOptions::default())
         .unwrap()
-        .split();
+        .part(demo::Split::Train);
     let build = |train| {
         Codebook::build(
             train,

@@ -9,7 +9,7 @@ use thiserror::Error;
 
 use crate::Progress;
 use crate::codebook::{Codebook, CodebookError, SimilarityOptions};
-use crate::corpus::demo::{self as generator, CorpusOptions, GenerateError};
+use crate::corpus::demo::{self as generator, CorpusOptions, GenerateError, Split};
 use crate::model::{FaceModel, ModelError, load_training_set};
 use crate::phonemes::{self, PhonemeError};
 use crate::render::{Background, CpuRenderer, DEFAULT_FEATHER};
@@ -120,7 +120,7 @@ pub fn run(options: &DemoOptions, progress: impl FnMut(Progress)) -> Result<Demo
     let frames = load_training_set(&options.training, None)?;
     let generated = generator::generate(&model, &frames, &CorpusOptions::default())?;
     let background = frames[generated.still_frame].image.clone();
-    let (train, _) = generated.split();
+    let train = generated.part(Split::Train);
     let sentences = train.len();
     let fps = CorpusOptions::default().fps;
     let cb = Codebook::build(

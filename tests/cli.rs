@@ -158,7 +158,7 @@ fn corpus_then_codebook() {
         cb.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", text(&o));
-    assert!(text(&o).contains("sentences   54"), "{}", text(&o));
+    assert!(text(&o).contains("sentences   48"), "{}", text(&o));
     let o = facespace(&["codebook", "info", cb.to_str().unwrap()]);
     assert!(
         o.status.success() && text(&o).contains("most similar"),

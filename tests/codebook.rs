@@ -93,7 +93,8 @@ fn similarity_matches_the_formula_on_constant_trajectories() {
     assert_eq!(cb.present(), vec![ph("aa"), ph("m"), ph("p")]);
 }
 
-/// M (eq. 5 of [unitsel]) by hand: appearance means (1, 2) and (3, −1), γ_k = exp(0.1 |k − 12|).
+/// M (eq. 5 of [unitsel]) by hand: appearance means (1, 2) and (3, −1), K = min(12, 2) = 2,
+/// γ_k = exp(0.1 |k − K|).
 #[test]
 fn distance_matches_equation_5() {
     let sentences = vec![
@@ -109,7 +110,7 @@ fn distance_matches_equation_5() {
         &mut facespace::no_progress,
     )
     .unwrap();
-    let (g1, g2) = ((0.1f64 * 11.0).exp(), (0.1f64 * 10.0).exp());
+    let (g1, g2) = ((0.1f64 * 1.0).exp(), 1.0);
     let expected = ((g1 * 4.0 + g2 * 9.0) / (g1 + g2)).sqrt();
     assert!(
         (cb.distance(ph("m"), ph("aa")) - expected).abs() < 1e-6,
@@ -117,6 +118,91 @@ fn distance_matches_equation_5() {
         cb.distance(ph("m"), ph("aa"))
     );
     assert_eq!(cb.distance(ph("m"), ph("m")), 0.0);
+}
+
+/// With more appearance components than K = 12, M uses the first K only, the leading ones
+/// weighted most: phones differing only beyond K are at distance 0, and a difference in
+/// component 1 weighs e^{1.1} times one in component 12.
+#[test]
+fn distance_uses_the_first_k_components_leading_first() {
+    let layout = Layout::new(1, 15);
+    let sentence = |phone: &str, k: Option<usize>| {
+        let mut row = vec![1.0f32, 0.0, 0.0, 0.0, 0.0];
+        row.extend((0..15).map(|j| if Some(j) == k { 1.0 } else { 0.0 }));
+        Sentence {
+            name: phone.into(),
+            source: "test".into(),
+            frames: Frames::from_rows(layout, 25.0, row.repeat(10)).unwrap(),
+            segments: vec![Segment {
+                start: 0.0,
+                end: 0.4,
+                phone: ph(phone),
+            }],
+        }
+    };
+    let cb = Codebook::build(
+        vec![
+            sentence("aa", None),
+            sentence("ae", Some(0)),
+            sentence("ah", Some(11)),
+            sentence("ao", Some(12)),
+            sentence("aw", Some(14)),
+        ],
+        25.0,
+        layout,
+        None,
+        SimilarityOptions::default(),
+        &mut facespace::no_progress,
+    )
+    .unwrap();
+    let m = |a: &str, b: &str| cb.distance(ph(a), ph(b));
+    let gsum: f64 = (1..=12).map(|k| (0.1 * (12.0 - k as f64)).exp()).sum();
+    assert!((m("aa", "ae") - ((0.1f64 * 11.0).exp() / gsum).sqrt()).abs() < 1e-9);
+    assert!((m("aa", "ah") - (1.0 / gsum).sqrt()).abs() < 1e-9);
+    assert_eq!(m("aa", "ao"), 0.0, "component 13 is beyond K");
+    assert_eq!(m("aa", "aw"), 0.0, "component 15 is beyond K");
+}
+
+/// S weighs shape and appearance as equals, each in its own units (DESIGN §7): two phones
+/// that differ only in shape are as dissimilar as two that differ only in appearance by the
+/// same fraction of their model's spread, though appearance values are 10⁵ times larger —
+/// and the nearest phone changes when the shape is removed.
+#[test]
+fn similarity_counts_shape_in_its_own_units() {
+    let build = |shape: [f32; 4]| {
+        let app = [0.0, 0.0, 1000.0, 1000.0];
+        let sentences = ["aa", "ae", "ah", "ao"]
+            .iter()
+            .enumerate()
+            .map(|(i, p)| constant_sentence(p, [shape[i], app[i], 0.0]))
+            .collect();
+        Codebook::build(
+            sentences,
+            25.0,
+            LAYOUT,
+            None,
+            SimilarityOptions::default(),
+            &mut facespace::no_progress,
+        )
+        .unwrap()
+    };
+    let cb = build([0.0, 0.01, 0.0, 0.01]);
+    let s = |a: &str, b: &str| cb.similarity(ph(a), ph(b));
+    assert!(
+        s("aa", "ae") < 0.9,
+        "shape alone separates aa and ae: {}",
+        s("aa", "ae")
+    );
+    assert!(
+        (s("aa", "ae") - s("aa", "ah")).abs() < 1e-9,
+        "a shape-only and an appearance-only difference of equal spread weigh alike: {} vs {}",
+        s("aa", "ae"),
+        s("aa", "ah")
+    );
+    let with_shape = build([0.0, 0.02, 0.0, 0.01]);
+    let without = build([0.0; 4]);
+    assert_eq!(with_shape.nearest(ph("aa"), 1)[0].0, ph("ah"));
+    assert_eq!(without.nearest(ph("aa"), 1)[0].0, ph("ae"));
 }
 
 /// A coarticulated corpus in which /p b m/ share a lip-closure target and /f v/, /t d/

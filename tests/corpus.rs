@@ -2,7 +2,9 @@
 mod common;
 
 use facespace::codebook::{Codebook, SimilarityOptions};
-use facespace::corpus::demo::{self as corpus, CorpusOptions, HELD_OUT, SENTENCES};
+use facespace::corpus::demo::{
+    self as corpus, CorpusOptions, HELD_OUT, SENTENCES, Split, VALIDATION,
+};
 use facespace::model::{FaceModel, load_training_set};
 use facespace::phonemes::Phone;
 
@@ -38,8 +40,14 @@ fn generation_is_deterministic_and_split() {
         "another seed, another corpus"
     );
     assert_eq!(a.len(), SENTENCES.len());
-    assert_eq!(a.iter().filter(|s| s.held_out).count(), HELD_OUT);
-    assert!(a[..SENTENCES.len() - HELD_OUT].iter().all(|s| !s.held_out));
+    let count = |split| a.iter().filter(|s| s.split == split).count();
+    assert_eq!(count(Split::Test), HELD_OUT);
+    assert_eq!(count(Split::Validation), VALIDATION);
+    assert!(
+        a[SENTENCES.len() - HELD_OUT..]
+            .iter()
+            .all(|s| s.split == Split::Test)
+    );
     for g in &a {
         let s = &g.sentence;
         assert_eq!(s.frames.layout(), model.layout());
@@ -58,20 +66,18 @@ fn generation_is_deterministic_and_split() {
     }
 }
 
-/// The source paper's sanity facts on S, checked on the demo corpus. Ranks seen with the
-/// default seed (2009), most similar first:
-///   p: m 0.995, b 0.990 · b: m 0.996, p 0.990 · m: b 0.996, p 0.995
-///   f: v 0.957 (first)  · t: n 0.977, d 0.948 (d second: t, d and n share one viseme
-///   target in the generator, and n shares t's durations and word-final contexts)
+/// S recovers the generator's own phone geometry: on the generated corpus every phone has its
+/// own target (phones of a viseme class close, not identical), blurred by coarticulation;
+/// for most phones S's nearest phone must be among the three whose targets are nearest (in
+/// S's own metric). The source's facts (/p b m/, /f v/, /t d/ nearest each other) are
+/// printed, not asserted: here they hold only as far as the generator's targets put them so.
 #[test]
-fn similarity_on_the_demo_corpus_ranks_viseme_partners() {
+fn similarity_recovers_the_generators_phone_geometry() {
     let model = FaceModel::load(&common::root().join("models/demo/model")).unwrap();
     let frames = load_training_set(&common::root().join("models/demo/training"), None).unwrap();
-    let (sentences, _) = corpus::generate(&model, &frames, &CorpusOptions::default())
-        .unwrap()
-        .split();
+    let generated = corpus::generate(&model, &frames, &CorpusOptions::default()).unwrap();
     let cb = Codebook::build(
-        sentences,
+        generated.part(Split::Train),
         25.0,
         model.layout(),
         Some(model.hash()),
@@ -79,23 +85,45 @@ fn similarity_on_the_demo_corpus_ranks_viseme_partners() {
         &mut facespace::no_progress,
     )
     .unwrap();
-    let ph = |s: &str| Phone::parse(s).unwrap();
-    let top = |p: &str, k: usize| -> Vec<&'static str> {
-        cb.nearest(ph(p), k).iter().map(|(q, _)| q.name()).collect()
-    };
-    for p in ["p", "b", "m"] {
-        let t = top(p, 2);
-        eprintln!("{p}: {:?}", cb.nearest(ph(p), 3));
-        assert!(
-            ["p", "b", "m"]
-                .iter()
-                .filter(|q| **q != p)
-                .all(|q| t.contains(q)),
-            "{p}: {t:?}"
+    let w = facespace::codebook::parameter_weights(&cb);
+    let range = model.layout().params_range();
+    let target_distance = |a: Phone, b: Phone| -> f64 {
+        let (ta, tb) = (
+            &generated.phone_targets[a.index()],
+            &generated.phone_targets[b.index()],
         );
+        range
+            .clone()
+            .zip(&w)
+            .map(|(k, wk)| wk * f64::from(ta[k] - tb[k]).powi(2))
+            .sum()
+    };
+    let present: Vec<Phone> = cb
+        .present()
+        .into_iter()
+        .filter(|&p| p != Phone::SIL)
+        .collect();
+    let mut hits = 0;
+    for &p in &present {
+        let mut by_target: Vec<Phone> = present.iter().copied().filter(|&q| q != p).collect();
+        by_target.sort_by(|&a, &b| target_distance(p, a).total_cmp(&target_distance(p, b)));
+        let nearest_s = cb.nearest(p, 1)[0].0;
+        let hit = by_target[..3].contains(&nearest_s);
+        hits += hit as usize;
+        if !hit {
+            eprintln!("{p}: S says {nearest_s}, targets say {:?}", &by_target[..3]);
+        }
     }
-    eprintln!("f: {:?}", cb.nearest(ph("f"), 3));
-    assert_eq!(top("f", 1), ["v"]);
-    eprintln!("t: {:?}", cb.nearest(ph("t"), 3));
-    assert!(top("t", 2).contains(&"d"), "t: {:?}", top("t", 3));
+    eprintln!(
+        "{hits} of {} phones: S's nearest is among the 3 nearest targets",
+        present.len()
+    );
+    for p in ["p", "b", "m", "f", "v", "t", "d"] {
+        eprintln!("{p}: {:?}", cb.nearest(Phone::parse(p).unwrap(), 3));
+    }
+    assert!(
+        hits as f64 >= 0.8 * present.len() as f64,
+        "{hits} of {}",
+        present.len()
+    );
 }

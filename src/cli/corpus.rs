@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
-use facespace::corpus::demo::{self, CorpusOptions};
+use facespace::corpus::demo::{self, CorpusOptions, Split};
 use facespace::model::load_training_set;
 use facespace::render::CpuRenderer;
 
@@ -68,16 +68,18 @@ fn generate(a: DemoArgs) -> Result<()> {
         )
         .with_context(|| format!("writing {}", a.output.display()))?;
     bar.finish_and_clear();
-    let held = corpus.sentences.iter().filter(|s| s.held_out).count();
+    let count = |split| corpus.sentences.iter().filter(|s| s.split == split).count();
     let total: usize = corpus
         .sentences
         .iter()
         .map(|s| s.sentence.frames.len())
         .sum();
     println!(
-        "generated {} sentences ({} train, {held} held out), {total} frames at {} fps, in {:.2} s → {}",
+        "generated {} sentences ({} train, {} validation, {} test in heldout/), {total} frames at {} fps, in {:.2} s → {}",
         corpus.sentences.len(),
-        corpus.sentences.len() - held,
+        count(Split::Train),
+        count(Split::Validation),
+        count(Split::Test),
         options.fps,
         start.elapsed().as_secs_f64(),
         a.output.display()

@@ -1,11 +1,12 @@
-//! `facespace eval`: synthesis scored against held-out sentences, with baselines.
+//! `facespace eval`: synthesis scored against held-out sentences, with fair baselines.
 
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::Args;
 use facespace::codebook::Codebook;
-use facespace::eval::{System, evaluate, systems::real_mouth_sd};
+use facespace::eval::systems::{LAMBDA_GRID, choose_smoothing, real_mouth_sd};
+use facespace::eval::{System, evaluate};
 use facespace::phonemes::PhoneMap;
 use facespace::synth::DEFAULT_SMOOTHING;
 use facespace::synth::blend::Blend;
@@ -19,15 +20,17 @@ pub struct EvalArgs {
     model: PathBuf,
     #[arg(long)]
     codebook: PathBuf,
-    /// Held-out sentences: NAME.npy (real trajectory) with NAME.lab.
+    /// Test sentences, reported: NAME.npy (real trajectory) with NAME.lab.
     #[arg(long)]
     heldout: PathBuf,
+    /// Validation sentences (disjoint from the test ones, never reported): λ is chosen on
+    /// them over a grid. Without them, --smoothing is used as given.
+    #[arg(long)]
+    validation: Option<PathBuf>,
+    /// Smoothing weight λ when no validation split is given.
     #[arg(long, default_value_t = DEFAULT_SMOOTHING)]
     smoothing: f64,
-    /// Also report blend + smoothing over a grid of λ.
-    #[arg(long)]
-    lambda_grid: bool,
-    /// Write the table as JSON here.
+    /// Write the table (and the λ choice) as JSON here.
     #[arg(short, long)]
     output: Option<PathBuf>,
 }
@@ -37,29 +40,50 @@ pub fn run(a: EvalArgs) -> Result<()> {
     let cb = Codebook::load(&a.codebook)
         .with_context(|| format!("loading codebook {}", a.codebook.display()))?;
     cb.check_model(&model)?;
-    let heldout = corpus::load(&a.heldout, cb.fps, cb.layout, None, &PhoneMap::default())
-        .with_context(|| format!("reading held-out sentences {}", a.heldout.display()))?;
-    let mut systems = System::standard(a.smoothing);
-    if a.lambda_grid {
-        for l in [1e-6, 1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 1e-2] {
-            systems.push(System::new(Blend::default(), Some(l)));
+    let load = |dir: &PathBuf| {
+        corpus::load(dir, cb.fps, cb.layout, None, &PhoneMap::default())
+            .with_context(|| format!("reading sentences {}", dir.display()))
+    };
+    let heldout = load(&a.heldout)?;
+    let choice = match &a.validation {
+        Some(dir) => {
+            let validation = load(dir)?;
+            let choice =
+                choose_smoothing(&model, &cb, &validation, Blend::default(), &LAMBDA_GRID)?;
+            println!(
+                "λ chosen on {} validation sentences (blend C=1 N=3, lowest mean DTW):",
+                validation.len()
+            );
+            for (l, s) in &choice.grid {
+                println!("  λ={l:e}: r_pca {:.3}, DTW {:.1}", s.r_pca, s.dtw);
+            }
+            println!("  → λ = {:e}", choice.lambda);
+            Some(choice)
         }
-    }
-    let table = evaluate(&model, &cb, &heldout, &systems)?;
-    println!("{} held-out sentences; mean over sentences", heldout.len());
+        None => {
+            println!(
+                "λ = {:e} as given (no validation split: not tuned here)",
+                a.smoothing
+            );
+            None
+        }
+    };
+    let lambda = choice.as_ref().map_or(a.smoothing, |c| c.lambda);
+    let table = evaluate(&model, &cb, &heldout, &System::comparison(lambda))?;
+    println!("{} test sentences; mean over sentences", heldout.len());
     println!(
-        "{:<40} {:>7} {:>7} {:>9} {:>8} {:>12}",
+        "{:<42} {:>7} {:>7} {:>9} {:>8} {:>12}",
         "system", "r_pca", "r_h", "RMSE px", "DTW", "mouth sd px"
     );
     for row in &table {
         let m = row.mean;
         println!(
-            "{:<40} {:>7.3} {:>7.3} {:>9.3} {:>8.3} {:>12.3}",
+            "{:<42} {:>7.3} {:>7.3} {:>9.3} {:>8.1} {:>12.3}",
             row.system, m.r_pca, m.r_h, m.rmse_px, m.dtw, m.mouth_sd_px
         );
     }
     println!(
-        "{:<40} {:>7} {:>7} {:>9} {:>8} {:>12.3}",
+        "{:<42} {:>7} {:>7} {:>9} {:>8} {:>12.3}",
         "real (reference)",
         "",
         "",
@@ -68,7 +92,8 @@ pub fn run(a: EvalArgs) -> Result<()> {
         real_mouth_sd(&model, &heldout)
     );
     if let Some(out) = &a.output {
-        atomic::write_file(out, serde_json::to_string_pretty(&table)?.as_bytes())
+        let json = serde_json::json!({ "smoothing": choice, "lambda": lambda, "table": table });
+        atomic::write_file(out, serde_json::to_string_pretty(&json)?.as_bytes())
             .with_context(|| format!("writing {}", out.display()))?;
     }
     Ok(())

@@ -10,7 +10,7 @@ use ndarray::Array2;
 use thiserror::Error;
 
 pub use io::CODEBOOK_VERSION;
-pub use similarity::SimilarityOptions;
+pub use similarity::{SimilarityOptions, parameter_weights};
 
 use crate::Progress;
 use crate::corpus::Sentence;

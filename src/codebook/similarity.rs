@@ -19,7 +19,8 @@ pub struct SimilarityOptions {
     pub context_weights: bool,
     /// β₂ of M's weights `γ_k = exp(β₂ |k − K|)`, k counting appearance parameters from 1.
     pub beta2: f64,
-    /// K of M's weights.
+    /// K of M: the leading appearance parameters M uses (at most; fewer if the model has
+    /// fewer), and the centre of its weights.
     pub k_centre: usize,
 }
 
@@ -36,10 +37,16 @@ impl Default for SimilarityOptions {
     }
 }
 
-/// Parameter weights `w_k` (variance of each shape/appearance parameter over all frames,
-/// normalised to sum 1), indexed over `layout.params_range()`.
-fn parameter_weights(cb: &Codebook) -> Vec<f64> {
-    let range = cb.layout.params_range();
+/// Per-parameter weights on squared raw differences, indexed over `layout.params_range()`
+/// (DESIGN §7, our reading of \[blend\]'s `w_k`): each parameter is standardised by its
+/// s.d. over the codebook's frames and weighted by its share of its own model's variance,
+/// shape and appearance each summing to ½. On raw values that is `½ / V_model` for every
+/// parameter of a model of total variance `V_model` — so shape counts as much as appearance,
+/// whose values are orders of magnitude larger. `variance_weights: false`: uniform `1/d` on
+/// raw values (the naive reading, kept for comparison).
+pub fn parameter_weights(cb: &Codebook) -> Vec<f64> {
+    let layout = cb.layout;
+    let range = layout.params_range();
     let d = range.len();
     if !cb.options.variance_weights {
         return vec![1.0 / d as f64; d];
@@ -57,12 +64,16 @@ fn parameter_weights(cb: &Codebook) -> Vec<f64> {
     let var: Vec<f64> = (0..d)
         .map(|k| (sq[k] / n - (sum[k] / n).powi(2)).max(0.0))
         .collect();
-    let total: f64 = var.iter().sum();
-    if total > 0.0 {
-        var.iter().map(|v| v / total).collect()
-    } else {
-        vec![1.0 / d as f64; d]
+    let blocks = [0..layout.shape, layout.shape..d];
+    let totals: Vec<f64> = blocks.iter().map(|b| var[b.clone()].iter().sum()).collect();
+    let share = 1.0 / totals.iter().filter(|&&t| t > 0.0).count().max(1) as f64;
+    let mut w = vec![0.0; d];
+    for (block, &total) in blocks.iter().zip(&totals) {
+        if total > 0.0 {
+            w[block.clone()].iter_mut().for_each(|x| *x = share / total);
+        }
     }
+    w
 }
 
 /// An occurrence sampled at `samples` equidistant points over its duration, shape and
@@ -156,11 +167,14 @@ pub(super) fn similarity_matrix(cb: &Codebook) -> Array2<f64> {
     s
 }
 
-/// M (\[unitsel\] eq. 5): `M(i,j) = sqrt(Σ_k γ_k (A_i,k − A_j,k)² / Σ_k γ_k)` over the mean
-/// appearance parameters `A_i` of the frames labelled i, `γ_k = exp(β₂ |k − K|)`.
+/// M (\[unitsel\] eq. 5): `M(i,j) = sqrt(Σ_{k=1..K} γ_k (A_i,k − A_j,k)² / Σ_k γ_k)` over the
+/// first K mean appearance parameters `A_i` of the frames labelled i, `K = min(k_centre,
+/// appearance parameters)` (the reduced dimension; 12 by default), `γ_k = exp(β₂ |k − K|)`:
+/// the leading, most reliable components weigh most and the noisy tail is left out.
 pub(super) fn distance_matrix(cb: &Codebook) -> Array2<f64> {
     let range = cb.layout.appearance_range();
-    let na = range.len();
+    let na = range.len().min(cb.options.k_centre);
+    let range = range.start..range.start + na;
     let mut sums = vec![vec![0.0; na]; N];
     let mut counts = vec![0usize; N];
     for (s, t) in cb.sentences.iter().zip(&cb.trajectories) {
@@ -177,7 +191,7 @@ pub(super) fn distance_matrix(cb: &Codebook) -> Array2<f64> {
         }
     }
     let gk: Vec<f64> = (1..=na)
-        .map(|k| (cb.options.beta2 * (k as f64 - cb.options.k_centre as f64).abs()).exp())
+        .map(|k| (cb.options.beta2 * (k as f64 - na as f64).abs()).exp())
         .collect();
     let gsum: f64 = gk.iter().sum();
     let mut m = Array2::<f64>::zeros((N, N));

@@ -1,5 +1,6 @@
-//! The systems a held-out evaluation compares (DESIGN §9): a synthesiser with or without
-//! the smoothing spline, scored sentence by sentence against the real trajectories.
+//! The systems a held-out evaluation compares (DESIGN §9, \[blend\] §6): the blend with N = 1,
+//! 3 and 5 examples, the per-phoneme mean and random lips, each smoothed and unsmoothed — the
+//! same smoothing for every row, its λ chosen on a validation split that is never reported.
 
 use serde::Serialize;
 
@@ -8,7 +9,11 @@ use crate::codebook::Codebook;
 use crate::corpus::Sentence;
 use crate::model::FaceModel;
 use crate::synth::blend::Blend;
+use crate::synth::random::RandomLips;
 use crate::synth::{Smoothing, SynthError, Synthesiser, synthesise};
+
+/// The smoothing weights tried on the validation split.
+pub const LAMBDA_GRID: [f64; 7] = [1e-6, 3e-6, 1e-5, 3e-5, 1e-4, 3e-4, 1e-3];
 
 /// One row of an evaluation: a synthesiser and its smoothing.
 pub struct System {
@@ -34,21 +39,24 @@ impl System {
         }
     }
 
-    /// The default comparison: the blend (C = 1, N = 3) smoothed at `lambda` and unsmoothed,
-    /// N = 1 unsmoothed, and the per-phoneme mean.
-    pub fn standard(lambda: f64) -> Vec<System> {
-        vec![
-            System::new(Blend::default(), Some(lambda)),
-            System::new(Blend::default(), None),
-            System::new(
-                Blend {
-                    top_n: 1,
-                    ..Blend::default()
-                },
-                None,
-            ),
-            System::new(Blend::PHONE_MEAN, None),
-        ]
+    /// The comparison of \[blend\] §6 with fair baselines: blend C = 1 with N = 1, 3, 5, the
+    /// per-phoneme mean and random lips, each smoothed at `lambda` and unsmoothed.
+    pub fn comparison(lambda: f64) -> Vec<System> {
+        let mut rows = Vec::new();
+        for smoothing in [Some(lambda), None] {
+            for n in [1, 3, 5] {
+                rows.push(System::new(
+                    Blend {
+                        top_n: n,
+                        ..Blend::default()
+                    },
+                    smoothing,
+                ));
+            }
+            rows.push(System::new(Blend::PHONE_MEAN, smoothing));
+            rows.push(System::new(RandomLips { seed: 7 }, smoothing));
+        }
+        rows
     }
 }
 
@@ -95,6 +103,42 @@ pub fn evaluate(
             })
         })
         .collect()
+}
+
+/// The smoothing weight chosen on a validation split, with the scores of every weight tried.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SmoothingChoice {
+    /// The λ with the lowest mean DTW.
+    pub lambda: f64,
+    /// Every λ tried, with its mean scores on the validation sentences.
+    pub grid: Vec<(f64, Scores)>,
+}
+
+/// Chooses λ for `synthesiser` on `validation` (sentences never reported): the grid value
+/// with the lowest mean DTW to the real trajectories (DTW weighs the whole trajectory, shape
+/// and appearance, where r_pca sees one parameter).
+pub fn choose_smoothing(
+    model: &FaceModel,
+    codebook: &Codebook,
+    validation: &[Sentence],
+    synthesiser: impl Synthesiser + Sync + Clone + 'static,
+    grid: &[f64],
+) -> Result<SmoothingChoice, SynthError> {
+    let systems: Vec<System> = grid
+        .iter()
+        .map(|&l| System::new(synthesiser.clone(), Some(l)))
+        .collect();
+    let scores = evaluate(model, codebook, validation, &systems)?;
+    let grid: Vec<(f64, Scores)> = grid
+        .iter()
+        .zip(&scores)
+        .map(|(&l, s)| (l, s.mean))
+        .collect();
+    let lambda = grid
+        .iter()
+        .min_by(|a, b| a.1.dtw.total_cmp(&b.1.dtw))
+        .map_or(crate::synth::DEFAULT_SMOOTHING, |g| g.0);
+    Ok(SmoothingChoice { lambda, grid })
 }
 
 /// Mean over sentences of the real trajectories' mouth-height standard deviation (the

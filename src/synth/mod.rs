@@ -6,6 +6,7 @@
 
 pub mod blend;
 pub mod output;
+pub mod random;
 pub mod smooth;
 
 use serde::Serialize;

@@ -7,10 +7,12 @@
 //!   durations come from the built-in table, scaled by a per-sentence speaking rate (±10%)
 //!   and a per-phone jitter (±20%).
 //! * **Targets**: every viseme class (DESIGN §6) has a target mouth shape, given as quantiles
-//!   of lip opening and mouth width over the real training frames; its candidates are the
-//!   three training frames nearest that shape, and their face-space points (the frames
-//!   projected through the model) are the raw material. Each phone mixes its class's
-//!   candidates with its own fixed weights; each occurrence perturbs those weights, so no
+//!   of lip opening and mouth width over the real training frames. Each *phone* gets its own
+//!   target near its class's (shifted by up to ±0.1 in each quantile, seeded), so phones of a
+//!   class are close but not identical and S has to find the resemblance in the data; its
+//!   candidates are the three training frames nearest its target, and their face-space
+//!   points (the frames projected through the model) are the raw material. Each phone mixes
+//!   its candidates with its own fixed weights; each occurrence perturbs those weights, so no
 //!   two occurrences are identical.
 //! * **Coarticulation**: dominance functions (after Cohen & Massaro 1993): segment s pulls the
 //!   trajectory towards its target with weight `α_s exp(−max(0, |t − c_s| − d_s/4) / τ)`,
@@ -59,8 +61,8 @@ pub enum GenerateError {
     TooFewFrames(usize),
 }
 
-/// The demo sentences: short original English sentences covering the phone set. The last
-/// [`HELD_OUT`] are held out for evaluation.
+/// The demo sentences: short original English sentences covering the phone set; the last
+/// ones form the validation and test splits ([`split_of`]).
 pub const SENTENCES: [&str; 60] = [
     "Bob bought a big blue boat.",
     "My mother made muffins in the morning.",
@@ -124,8 +126,23 @@ pub const SENTENCES: [&str; 60] = [
     "Few volcanoes move every five years.",
 ];
 
-/// How many of [`SENTENCES`] (the last ones) are held out for evaluation.
+/// How many of [`SENTENCES`] (the last ones) are the test split.
 pub const HELD_OUT: usize = 6;
+/// How many of [`SENTENCES`] (the ones before the test split) are the validation split.
+pub const VALIDATION: usize = 6;
+
+/// The split of sentence `index`: the last [`HELD_OUT`] test, the [`VALIDATION`] before them
+/// validation, the rest training.
+pub fn split_of(index: usize) -> Split {
+    let n = SENTENCES.len();
+    if index >= n - HELD_OUT {
+        Split::Test
+    } else if index >= n - HELD_OUT - VALIDATION {
+        Split::Validation
+    } else {
+        Split::Train
+    }
+}
 
 /// Target mouth shape per viseme class: (lip-opening quantile, mouth-width quantile) over the
 /// training frames, 0 = least, 1 = most; and the dominance strength α.
@@ -178,6 +195,29 @@ impl Default for CorpusOptions {
     }
 }
 
+/// The part of the corpus a sentence belongs to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Split {
+    /// The codebook's sentences.
+    Train,
+    /// For choosing constants (λ, weights): never reported.
+    Validation,
+    /// Reported: never used to choose anything.
+    Test,
+}
+
+impl Split {
+    /// The corpus sub-folder of this split.
+    pub fn folder(self) -> &'static str {
+        match self {
+            Split::Train => "train",
+            Split::Validation => "validation",
+            Split::Test => "heldout",
+        }
+    }
+}
+
 /// One generated sentence.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GeneratedSentence {
@@ -185,8 +225,8 @@ pub struct GeneratedSentence {
     pub sentence: Sentence,
     /// Its text.
     pub text: String,
-    /// Whether it belongs to the held-out split.
-    pub held_out: bool,
+    /// Its split.
+    pub split: Split,
 }
 
 /// Lip opening (mean inner-lip gap) and mouth width, over the inter-ocular distance, of
@@ -214,19 +254,19 @@ pub struct Corpus {
     pub sentences: Vec<GeneratedSentence>,
     /// Index into the training frames.
     pub still_frame: usize,
+    /// Each phone's own target face-space point (indexed like [`Phone::index`]): the
+    /// generator's ground truth, against which S's ranking can be checked.
+    pub phone_targets: Vec<Vec<f32>>,
 }
 
 impl Corpus {
-    /// The training and held-out sentences.
-    pub fn split(&self) -> (Vec<Sentence>, Vec<Sentence>) {
-        let part = |held: bool| {
-            self.sentences
-                .iter()
-                .filter(|s| s.held_out == held)
-                .map(|s| s.sentence.clone())
-                .collect()
-        };
-        (part(false), part(true))
+    /// The sentences of one split.
+    pub fn part(&self, split: Split) -> Vec<Sentence> {
+        self.sentences
+            .iter()
+            .filter(|s| s.split == split)
+            .map(|s| s.sentence.clone())
+            .collect()
     }
 }
 
@@ -285,9 +325,13 @@ pub fn generate(
         rank(shapes.iter().map(|s| s.0).collect()),
         rank(shapes.iter().map(|s| s.1).collect()),
     );
-    let candidates: Vec<Vec<usize>> = VISEME_TARGETS
-        .iter()
-        .map(|&(o, w, _)| {
+    let mut rng = Rng::new(options.seed);
+    // Each phone's own target near its class's, its nearest training frames, and its own mix
+    // of them.
+    let candidates: Vec<Vec<usize>> = Phone::all()
+        .map(|p| {
+            let (o, w, _) = VISEME_TARGETS[p.viseme() as usize];
+            let (o, w) = (o + rng.range(-0.1, 0.1), w + rng.range(-0.1, 0.1));
             let mut order: Vec<usize> = (0..frames.len()).collect();
             let dist = |i: usize| (open[i] - o).powi(2) + (wide[i] - w).powi(2);
             order.sort_by(|&a, &b| dist(a).total_cmp(&dist(b)).then(a.cmp(&b)));
@@ -295,15 +339,9 @@ pub fn generate(
             order
         })
         .collect();
-    let mut rng = Rng::new(options.seed);
-    // Each phone's own mix of its class's candidates.
-    let phone_weights: Vec<Vec<f64>> = Phone::all()
-        .map(|p| {
-            candidates[p.viseme() as usize]
-                .iter()
-                .map(|_| rng.range(0.8, 1.0))
-                .collect()
-        })
+    let phone_weights: Vec<Vec<f64>> = candidates
+        .iter()
+        .map(|c| c.iter().map(|_| rng.range(0.8, 1.0)).collect())
         .collect();
     let mut out = Vec::with_capacity(SENTENCES.len());
     for (index, text) in SENTENCES.iter().enumerate() {
@@ -328,7 +366,7 @@ pub fn generate(
         let targets: Vec<Vec<f64>> = segments
             .iter()
             .map(|s| {
-                let cands = &candidates[s.phone.viseme() as usize];
+                let cands = &candidates[s.phone.index()];
                 let w: Vec<f64> = phone_weights[s.phone.index()]
                     .iter()
                     .map(|w| w * rng.range(0.85, 1.15))
@@ -375,11 +413,28 @@ pub fn generate(
                 segments,
             },
             text: text.to_string(),
-            held_out: index >= SENTENCES.len() - HELD_OUT,
+            split: split_of(index),
         });
     }
+    let phone_targets = candidates
+        .iter()
+        .zip(&phone_weights)
+        .map(|(cands, w)| {
+            let total: f64 = w.iter().sum();
+            (0..dims)
+                .map(|k| {
+                    cands
+                        .iter()
+                        .zip(w)
+                        .map(|(&c, wi)| points[c][k] as f64 * wi / total)
+                        .sum::<f64>() as f32
+                })
+                .collect()
+        })
+        .collect();
     Ok(Corpus {
         sentences: out,
         still_frame: still,
+        phone_targets,
     })
 }

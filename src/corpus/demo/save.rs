@@ -2,13 +2,13 @@
 
 use thiserror::Error;
 
-use super::{Corpus, CorpusOptions};
+use super::{Corpus, CorpusOptions, Split};
 use crate::model::FaceModel;
 use crate::phonemes::{self, PhonemeError};
 
 impl Corpus {
-    /// Writes the corpus folder: `train/` and `heldout/` with `NAME.npy`, `NAME.lab` and
-    /// `NAME.txt`, and `corpus.json` describing how it was made. With a renderer, every
+    /// Writes the corpus folder: `train/`, `validation/` and `heldout/` (the test split) with
+    /// `NAME.npy`, `NAME.lab` and `NAME.txt`, and `corpus.json` describing how it was made. With a renderer, every
     /// frame is also drawn over `background` into `frames/NAME/`.
     pub fn save(
         &self,
@@ -21,17 +21,17 @@ impl Corpus {
     ) -> Result<(), SaveError> {
         for g in &self.sentences {
             let s = &g.sentence;
-            let part = dir.join(if g.held_out { "heldout" } else { "train" });
+            let part = dir.join(g.split.folder());
             crate::npy::write(&part.join(format!("{}.npy", s.name)), s.frames.values())?;
             phonemes::write_labels(&part.join(format!("{}.lab", s.name)), &s.segments)?;
             let txt = part.join(format!("{}.txt", s.name));
             crate::atomic::write_file(&txt, format!("{}\n", g.text).as_bytes())
                 .map_err(|source| SaveError::Io { path: txt, source })?;
         }
-        let names = |held: bool| -> Vec<&str> {
+        let names = |split: Split| -> Vec<&str> {
             self.sentences
                 .iter()
-                .filter(|g| g.held_out == held)
+                .filter(|g| g.split == split)
                 .map(|g| g.sentence.name.as_str())
                 .collect()
         };
@@ -42,8 +42,9 @@ impl Corpus {
             "model_hash": model.hash(),
             "still_frame": still_frame_name,
             "fps": options.fps,
-            "train": names(false),
-            "heldout": names(true),
+            "train": names(Split::Train),
+            "validation": names(Split::Validation),
+            "heldout": names(Split::Test),
             "texts": self.sentences.iter().map(|g| (&g.sentence.name, &g.text)).collect::<std::collections::BTreeMap<_, _>>(),
         });
         let path = dir.join("corpus.json");
