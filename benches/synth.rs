@@ -8,7 +8,7 @@ use facespace::corpus::demo::{self, CorpusOptions};
 use facespace::model::{FaceModel, load_training_set};
 use facespace::phonemes::{self, Segment};
 use facespace::synth::blend::Blend;
-use facespace::synth::{DEFAULT_SMOOTHING, Smoothing, synthesise};
+use facespace::synth::{DEFAULT_SMOOTHING, Request, Smoothing, synthesise};
 
 fn bench(c: &mut Criterion) {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -42,7 +42,10 @@ fn bench(c: &mut Criterion) {
         ("blend + smooth", Smoothing::On(DEFAULT_SMOOTHING)),
     ] {
         c.bench_function(&format!("{name} {seconds:.1} s (C=1, N=3)"), |b| {
-            b.iter(|| synthesise(&Blend::default(), &cb, target.clone(), 25.0, smoothing).unwrap())
+            b.iter(|| {
+                let request = Request::new(target.clone(), 25.0, smoothing);
+                synthesise(&Blend::default(), &cb, request).unwrap()
+            })
         });
     }
 }

@@ -36,7 +36,7 @@ fn setup() -> (RgbImage, Vec<[f64; 2]>, ReferenceFrame) {
         .map(|p| [(p[0] - c[0]) / norm, (p[1] - c[1]) / norm])
         .collect();
     let (reference, _) =
-        ReferenceFrame::fit_mean(&mean, mesh::delaunay(&mean).unwrap(), 40_000).unwrap();
+        ReferenceFrame::fit_mean(&mean, mesh::delaunay(&mean).unwrap(), 40_000, 0.0).unwrap();
     (canvas, landmarks, reference)
 }
 

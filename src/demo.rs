@@ -15,7 +15,7 @@ use crate::phonemes::{self, PhonemeError};
 use crate::render::{Background, CpuRenderer, DEFAULT_FEATHER};
 use crate::synth::blend::Blend;
 use crate::synth::output::{self, OutputError, OutputOptions, Report};
-use crate::synth::{DEFAULT_SMOOTHING, Smoothing, SynthError, synthesise};
+use crate::synth::{DEFAULT_SMOOTHING, Request, Smoothing, SynthError, synthesise};
 
 /// The demo utterance; it must not be one of the corpus sentences.
 pub const DEMO_TEXT: &str = "A brave pilot found the hidden map.";
@@ -137,9 +137,7 @@ pub fn run(options: &DemoOptions, progress: impl FnMut(Progress)) -> Result<Demo
     let utterance = synthesise(
         &Blend::default(),
         &cb,
-        target,
-        fps,
-        Smoothing::Ab(DEFAULT_SMOOTHING),
+        Request::new(target, fps, Smoothing::Ab(DEFAULT_SMOOTHING)),
     )?;
     let renderer = CpuRenderer::feathered(&model, DEFAULT_FEATHER);
     let report = output::write(

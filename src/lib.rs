@@ -73,7 +73,8 @@
 //!
 //! // Synthesise the same phones from the codebook, smoothed.
 //! let smoothing = Smoothing::On(synth::DEFAULT_SMOOTHING);
-//! let utterance = synth::synthesise(&Blend::default(), &codebook, phones, fps, smoothing)?;
+//! let request = synth::Request::new(phones, fps, smoothing);
+//! let utterance = synth::synthesise(&Blend::default(), &codebook, request)?;
 //! let frames = &utterance.variants()[0].1;
 //!
 //! // Render every frame over a plain background.

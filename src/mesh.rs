@@ -87,6 +87,55 @@ pub fn delaunay(points: &[Point]) -> Result<Vec<Triangle>, MeshError> {
     Ok(triangles)
 }
 
+/// A face region (\[blend\] §3: separate models per region): the landmarks whose mesh the
+/// region's appearance model covers. Synthesis drives the region and the rest of the face
+/// comes from the background.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Region {
+    /// iBUG-68's lower face: the jaw line (0–16), the base of the nose (31–35) and the lips
+    /// (48–67) — the articulators and the cheeks between them, not the eyes or brows.
+    LowerFace,
+    /// These landmarks (indices into the landmark list).
+    Landmarks(Vec<u32>),
+}
+
+impl Region {
+    /// The region's landmark indices, checked against a landmark count.
+    pub fn landmarks(&self, count: usize) -> Result<Vec<u32>, MeshError> {
+        let list: Vec<u32> = match self {
+            Region::LowerFace => {
+                if count != 68 {
+                    return Err(MeshError::Degenerate(format!(
+                        "the lower-face region is defined on iBUG's 68 landmarks, the model has {count}"
+                    )));
+                }
+                (0..17).chain(31..36).chain(48..68).collect()
+            }
+            Region::Landmarks(l) => l.clone(),
+        };
+        if let Some(&vertex) = list.iter().find(|&&v| v as usize >= count) {
+            return Err(MeshError::IndexOutOfRange {
+                index: 0,
+                vertex,
+                count,
+            });
+        }
+        Ok(list)
+    }
+
+    /// The Delaunay triangulation of the region's landmarks of `points`, as triangles over the
+    /// whole landmark list.
+    pub fn triangulate(&self, points: &[Point]) -> Result<Vec<Triangle>, MeshError> {
+        let list = self.landmarks(points.len())?;
+        let sub: Vec<Point> = list.iter().map(|&v| points[v as usize]).collect();
+        Ok(delaunay(&sub)?
+            .into_iter()
+            .map(|t| t.map(|v| list[v as usize]))
+            .collect())
+    }
+}
+
 /// Twice the signed area of a triangle.
 pub fn signed_area(a: Point, b: Point, c: Point) -> f64 {
     (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1])
@@ -142,13 +191,19 @@ pub struct MaskPixel {
     pub bary: [f32; 3],
 }
 
-/// How a reference frame was placed: `pixel = scale · x̄ + offset` for the mean shape `x̄`.
+/// How a reference frame was placed: `pixel = scale · x̄ + offset` for the mean shape `x̄`,
+/// and how wide a rim inside the mesh boundary the mask leaves out.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Placement {
     /// Pixels per unit of the (unit-norm) mean shape.
     pub scale: f64,
     /// Where the mean shape's origin lies, pixels.
     pub offset: Point,
+    /// Reference-frame pixels next to the mesh boundary left out of the mask (the appearance
+    /// model): hand-marked outlines let background in there, and a model that learned it
+    /// would draw a streak of it on the face. Rendering fills the rim from the background.
+    #[serde(default)]
+    pub margin: f64,
 }
 
 /// The shape-normalised image domain: the mesh at the mean shape, its mask and the
@@ -171,17 +226,21 @@ pub struct ReferenceFrame {
     /// Per triangle, whether the edge opposite each vertex lies on the mesh boundary
     /// (belongs to no other triangle). Rendering dilates across these edges only.
     pub hull_edges: Vec<[bool; 3]>,
+    /// The rim left out of the mask ([`Placement::margin`]), pixels.
+    pub margin: f64,
 }
 
 /// Margin in pixels kept around the mesh inside the reference frame.
 const MARGIN: f64 = 2.0;
 
 impl ReferenceFrame {
-    /// Scales the (normalised) mean shape so the mesh covers about `target_pixels` pixels.
+    /// Scales the (normalised) mean shape so the mesh covers about `target_pixels` pixels,
+    /// leaving a rim of `margin` pixels inside the boundary out of the mask.
     pub fn fit_mean(
         mean: &[Point],
         triangles: Vec<Triangle>,
         target_pixels: usize,
+        margin: f64,
     ) -> Result<(Self, Placement), MeshError> {
         if target_pixels < 100 {
             return Err(MeshError::TooFewPixels(target_pixels));
@@ -205,6 +264,7 @@ impl ReferenceFrame {
         let placement = Placement {
             scale,
             offset: [MARGIN - scale * min[0], MARGIN - scale * min[1]],
+            margin,
         };
         Ok((Self::place(mean, triangles, placement)?, placement))
     }
@@ -237,7 +297,13 @@ impl ReferenceFrame {
                 height: h,
             });
         }
-        Self::from_landmarks(landmarks, triangles, w as usize, h as usize)
+        Self::with_margin(
+            landmarks,
+            triangles,
+            w as usize,
+            h as usize,
+            placement.margin,
+        )
     }
 
     /// A frame from explicit vertex positions and size (for warps onto any target shape).
@@ -247,8 +313,25 @@ impl ReferenceFrame {
         width: usize,
         height: usize,
     ) -> Result<Self, MeshError> {
+        Self::with_margin(landmarks, triangles, width, height, 0.0)
+    }
+
+    fn with_margin(
+        landmarks: Vec<Point>,
+        triangles: Vec<Triangle>,
+        width: usize,
+        height: usize,
+        margin: f64,
+    ) -> Result<Self, MeshError> {
         validate(&landmarks, &triangles)?;
+        if !(margin.is_finite() && margin >= 0.0) {
+            return Err(MeshError::Degenerate(format!(
+                "a rim margin of {margin} pixels"
+            )));
+        }
         let (owner, bary) = cover(&landmarks, &triangles, width, height);
+        let hull_edges = hull_edges(&triangles);
+        let rim = rim_segments(&landmarks, &triangles, &hull_edges);
         let pixels: Vec<MaskPixel> = (0..width * height)
             .filter(|&i| owner[i] != u32::MAX)
             .map(|i| MaskPixel {
@@ -257,9 +340,9 @@ impl ReferenceFrame {
                 triangle: owner[i],
                 bary: bary[i],
             })
+            .filter(|p| margin == 0.0 || rim_distance(&rim, [p.x as f64, p.y as f64]) >= margin)
             .collect();
-        let padding = padding_rings(width, height, &pixels, 2);
-        let hull_edges = hull_edges(&triangles);
+        let padding = padding_rings(width, height, &pixels, 2 + margin.ceil() as usize);
         Ok(ReferenceFrame {
             width,
             height,
@@ -268,7 +351,17 @@ impl ReferenceFrame {
             pixels,
             padding,
             hull_edges,
+            margin,
         })
+    }
+
+    /// Each mask pixel's distance (pixels) to the mesh boundary.
+    pub fn rim_distances(&self) -> Vec<f64> {
+        let rim = rim_segments(&self.landmarks, &self.triangles, &self.hull_edges);
+        self.pixels
+            .iter()
+            .map(|p| rim_distance(&rim, [p.x as f64, p.y as f64]))
+            .collect()
     }
 
     /// Number of mask pixels.
@@ -360,6 +453,42 @@ impl BarycentricMap {
         let l2 = self.inv[1][0] * dx + self.inv[1][1] * dy;
         [1.0 - l1 - l2, l1, l2]
     }
+}
+
+/// The mesh boundary as segments (the hull edges of every triangle).
+fn rim_segments(
+    landmarks: &[Point],
+    triangles: &[Triangle],
+    hull_edges: &[[bool; 3]],
+) -> Vec<(Point, Point)> {
+    let mut edges = Vec::new();
+    for (t, hull) in triangles.iter().zip(hull_edges) {
+        for i in 0..3 {
+            if hull[i] {
+                let (p, q) = (t[(i + 1) % 3] as usize, t[(i + 2) % 3] as usize);
+                edges.push((landmarks[p], landmarks[q]));
+            }
+        }
+    }
+    edges
+}
+
+/// Distance from `c` to the nearest boundary segment.
+fn rim_distance(rim: &[(Point, Point)], c: Point) -> f64 {
+    rim.iter()
+        .map(|&(p, q)| point_segment_distance(c, p, q))
+        .fold(f64::INFINITY, f64::min)
+}
+
+fn point_segment_distance(c: Point, p: Point, q: Point) -> f64 {
+    let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
+    let len2 = dx * dx + dy * dy;
+    let t = if len2 > 0.0 {
+        (((c[0] - p[0]) * dx + (c[1] - p[1]) * dy) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (c[0] - p[0] - t * dx).hypot(c[1] - p[1] - t * dy)
 }
 
 /// For each triangle, which of its edges (opposite vertex 0, 1, 2) no other triangle shares.

@@ -164,7 +164,7 @@ fn degenerate_meshes_are_errors() {
         Err(MeshError::IndexOutOfRange { vertex: 9, .. })
     ));
     assert!(matches!(
-        ReferenceFrame::fit_mean(&pts, vec![[0, 1, 2]], 10),
+        ReferenceFrame::fit_mean(&pts, vec![[0, 1, 2]], 10, 0.0),
         Err(MeshError::TooFewPixels(10))
     ));
 }

@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
-use facespace::mesh::Triangle;
+use facespace::mesh::{Region, Triangle};
 use facespace::model::{BuildOptions, FaceModel, load_training_set};
 use facespace::pca::Components;
 use facespace::shape::read_pts;
@@ -48,6 +48,14 @@ pub struct BuildArgs {
     /// JSON file with a fixed triangle list `[[i, j, k], …]` instead of Delaunay.
     #[arg(long)]
     triangles: Option<PathBuf>,
+    /// Reference-frame pixels next to the mesh boundary left out of the appearance model
+    /// (background that outlines let in; rendering fills the rim from the background).
+    #[arg(long, default_value_t = facespace::model::DEFAULT_MARGIN)]
+    margin: f64,
+    /// Model only a face region's appearance: `lower-face` (iBUG-68 jaw, nose base, lips) or
+    /// a JSON file listing landmark indices `[i, j, …]`.
+    #[arg(long)]
+    region: Option<String>,
     /// Output model folder.
     #[arg(short, long)]
     output: PathBuf,
@@ -88,6 +96,19 @@ fn build(a: BuildArgs) -> Result<()> {
         }
         None => None,
     };
+    let region = match a.region.as_deref() {
+        None => None,
+        Some("lower-face") => Some(Region::LowerFace),
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("reading region file {path}"))?;
+            Some(Region::Landmarks(
+                serde_json::from_str(&text).with_context(|| {
+                    format!("{path}: expected `lower-face` or a JSON list of landmark indices")
+                })?,
+            ))
+        }
+    };
     let options = BuildOptions {
         pixels: a.pixels,
         shape: Components::Variance {
@@ -99,6 +120,8 @@ fn build(a: BuildArgs) -> Result<()> {
             max: Some(a.appearance_max),
         },
         triangles,
+        region,
+        margin: a.margin,
     };
     let examples = load_training_set(&a.images, a.landmarks.as_deref())
         .with_context(|| format!("loading training images from {}", a.images.display()))?;

@@ -5,12 +5,23 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use facespace::codebook::Codebook;
+use facespace::codec::EncodeOptions;
 use facespace::phonemes::{self, PhoneMap};
 use facespace::render::{Background, CpuRenderer, DEFAULT_FEATHER};
+use facespace::synth::backdrop::{Backdrop, PoseMode};
 use facespace::synth::blend::Blend;
 use facespace::synth::output::{self, OutputOptions};
-use facespace::synth::{DEFAULT_SMOOTHING, Smoothing, synthesise};
+use facespace::synth::{self, DEFAULT_SMOOTHING, Pose, Request, Smoothing, synthesise};
 use facespace::{corpus, video};
+
+/// Whether a background path is a single image (else a video or frame folder).
+fn is_image(path: &std::path::Path) -> bool {
+    path.is_file()
+        && path
+            .extension()
+            .and_then(|e| e.to_str())
+            .is_some_and(|e| video::IMAGE_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
+}
 
 use super::{DEMO_MODEL, load_model, progress_bar};
 
@@ -20,6 +31,12 @@ pub enum Smooth {
     Off,
     /// Both, plus a blind side-by-side and a comparison plot.
     Ab,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum PoseArg {
+    Hold,
+    Replay,
 }
 
 #[derive(Args)]
@@ -51,9 +68,19 @@ pub struct SynthArgs {
     smoothing: f64,
     #[arg(long, default_value_t = 25.0)]
     fps: f64,
-    /// Background frame to draw the face on (default: plain grey).
+    /// Background to draw the face on: an image, or a video (any format `track` reads) whose
+    /// frames play under the face (default: plain grey at the codebook's median pose).
     #[arg(long)]
     background: Option<PathBuf>,
+    /// Where the pose comes from with a background video: replay its tracked poses frame by
+    /// frame (looping forwards and backwards), or hold its first frame still. A background
+    /// image always lends its own pose.
+    #[arg(long, value_enum, default_value_t = PoseArg::Replay)]
+    pose: PoseArg,
+    /// The model that finds and tracks the face in the background (default: --model; give
+    /// the full-face model when --model is a region model).
+    #[arg(long)]
+    track_model: Option<PathBuf>,
     /// A real trajectory (.npy) of the same utterance, plotted against the synthesis.
     #[arg(long)]
     real: Option<PathBuf>,
@@ -103,11 +130,43 @@ pub fn run(a: SynthArgs) -> Result<()> {
         context: a.context,
         top_n: a.top_n,
     };
+    let frames = synth::frame_count(&target, a.fps);
+    let tracker = match &a.track_model {
+        Some(p) => Some(load_model(p)?),
+        None => None,
+    };
+    let tracker = tracker.as_ref().unwrap_or(&model);
+    let backdrop = match &a.background {
+        Some(p) if is_image(p) => Some(Backdrop::still(tracker, video::read_frame(p)?)?),
+        Some(p) => {
+            let mode = match a.pose {
+                PoseArg::Hold => PoseMode::Hold,
+                PoseArg::Replay => PoseMode::Replay,
+            };
+            let (bar, progress) = progress_bar();
+            let b = Backdrop::video(
+                tracker,
+                p,
+                mode,
+                frames,
+                &EncodeOptions::default(),
+                progress,
+            )
+            .with_context(|| format!("background {}", p.display()))?;
+            bar.finish_and_clear();
+            Some(b)
+        }
+        None => None,
+    };
+    let request = Request {
+        pose: backdrop.as_ref().map_or(Pose::Codebook, |b| b.pose.clone()),
+        ..Request::new(target, a.fps, smoothing)
+    };
     let clock = std::time::Instant::now();
-    let utterance = synthesise(&blend, &cb, target, a.fps, smoothing)?;
+    let utterance = synthesise(&blend, &cb, request)?;
     let synth_ms = clock.elapsed().as_secs_f64() * 1e3;
-    let background = match &a.background {
-        Some(p) => Background::Still(video::read_frame(p)?),
+    let background = match backdrop {
+        Some(b) => b.background,
         None => Background::plain_for(&model, &utterance.synthesis.frames),
     };
     let renderer = CpuRenderer::feathered(&model, DEFAULT_FEATHER);
@@ -128,11 +187,12 @@ pub fn run(a: SynthArgs) -> Result<()> {
     .with_context(|| format!("writing {}", a.output.display()))?;
     bar.finish_and_clear();
     println!(
-        "synthesised {} phones, {} frames at {} fps in {synth_ms:.1} ms ({}) → {}",
+        "synthesised {} phones, {} frames at {} fps in {synth_ms:.1} ms ({}; pose {}) → {}",
         utterance.target.len(),
         report.frames,
         a.fps,
         report.method,
+        report.pose,
         a.output.display()
     );
     for w in &report.warnings {

@@ -252,6 +252,20 @@ impl Codebook {
         Ok(())
     }
 
+    /// The median of each pose value over every frame: a neutral still pose.
+    pub fn median_pose(&self) -> crate::shape::Similarity {
+        let median = |k: usize| {
+            let mut v: Vec<f32> = self
+                .sentences
+                .iter()
+                .flat_map(|s| s.frames.column(k).to_vec())
+                .collect();
+            v.sort_by(f32::total_cmp);
+            v.get(v.len() / 2).map_or(0.0, |&x| f64::from(x))
+        };
+        crate::shape::Similarity::from_array(std::array::from_fn(median))
+    }
+
     /// Values per frame.
     pub fn dims(&self) -> usize {
         self.layout.dims()

@@ -10,7 +10,7 @@ use crate::corpus::Sentence;
 use crate::model::FaceModel;
 use crate::synth::blend::Blend;
 use crate::synth::random::RandomLips;
-use crate::synth::{Smoothing, SynthError, Synthesiser, synthesise};
+use crate::synth::{Pose, Request, Smoothing, SynthError, Synthesiser, synthesise};
 
 /// The smoothing weights tried on the validation split.
 pub const LAMBDA_GRID: [f64; 7] = [1e-6, 3e-6, 1e-5, 3e-5, 1e-4, 3e-4, 1e-3];
@@ -86,13 +86,12 @@ pub fn evaluate(
             let per_sentence = heldout
                 .iter()
                 .map(|s| {
-                    let u = synthesise(
-                        system.synthesiser.as_ref(),
-                        codebook,
-                        s.segments.clone(),
-                        codebook.fps,
-                        smoothing,
-                    )?;
+                    // The real sentence's own poses: the measures compare shape and appearance.
+                    let request = Request {
+                        pose: Pose::Replay(s.frames.iter().map(|p| p.pose).collect()),
+                        ..Request::new(s.segments.clone(), codebook.fps, smoothing)
+                    };
+                    let u = synthesise(system.synthesiser.as_ref(), codebook, request)?;
                     Ok(score(model, u.variants()[0].1, &s.frames))
                 })
                 .collect::<Result<Vec<_>, SynthError>>()?;

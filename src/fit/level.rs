@@ -150,6 +150,7 @@ impl Level {
                     (model.placement.offset[0] + 0.5) * s - 0.5,
                     (model.placement.offset[1] + 0.5) * s - 0.5,
                 ],
+                margin: model.placement.margin * s,
             };
             ReferenceFrame::place(&model.shape.mean(), full.triangles.clone(), placement)
                 .map_err(ModelError::from)?

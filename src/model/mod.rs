@@ -18,7 +18,7 @@ use crate::Progress;
 use crate::appearance::AppearanceModel;
 use crate::facespace::{FaceParams, FacespaceError, Layout};
 use crate::manifest::ManifestError;
-use crate::mesh::{self, MeshError, Placement, ReferenceFrame, Triangle};
+use crate::mesh::{self, MeshError, Placement, ReferenceFrame, Region, Triangle};
 use crate::options::{self, InvalidOption};
 use crate::pca::{Components, PcaError};
 use crate::shape::{self, Landmarks, ShapeError, ShapeModel};
@@ -135,6 +135,9 @@ pub enum ModelError {
 /// Reference frames may cover at most this many pixels (a model of a face 1000 px across).
 pub const MAX_PIXELS: usize = 1_000_000;
 
+/// Default rim left out of the appearance model, reference-frame pixels.
+pub const DEFAULT_MARGIN: f64 = 3.0;
+
 /// Options for [`FaceModel::build`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct BuildOptions {
@@ -146,6 +149,13 @@ pub struct BuildOptions {
     pub appearance: Components,
     /// A fixed triangle list; `None` triangulates the mean shape (Delaunay).
     pub triangles: Option<Vec<Triangle>>,
+    /// A face region: the appearance model covers only the triangulation of its landmarks
+    /// (the shape model keeps every landmark).
+    pub region: Option<Region>,
+    /// Reference-frame pixels next to the mesh boundary left out of the appearance model
+    /// (default 3: enough to keep the background that hand-marked outlines let in off the
+    /// face; see [`crate::mesh::Placement::margin`]).
+    pub margin: f64,
 }
 
 impl Default for BuildOptions {
@@ -161,6 +171,8 @@ impl Default for BuildOptions {
                 max: Some(80),
             },
             triangles: None,
+            region: None,
+            margin: DEFAULT_MARGIN,
         }
     }
 }
@@ -214,11 +226,14 @@ impl FaceModel {
         let shape = ShapeModel::build(&shapes, options.shape)?;
         // The frame is placed from the f32 mean as stored, so loading rebuilds it exactly.
         let mean = shape.mean();
-        let triangles = match &options.triangles {
-            Some(t) => t.clone(),
-            None => mesh::delaunay(&mean)?,
+        let triangles = match (&options.triangles, &options.region) {
+            (Some(t), _) => t.clone(),
+            (None, Some(region)) => region.triangulate(&mean)?,
+            (None, None) => mesh::delaunay(&mean)?,
         };
-        let (frame, placement) = ReferenceFrame::fit_mean(&mean, triangles, options.pixels)?;
+        options::in_range("margin", options.margin, 0.0, 100.0)?;
+        let (frame, placement) =
+            ReferenceFrame::fit_mean(&mean, triangles, options.pixels, options.margin)?;
         progress(Progress {
             stage: "warping",
             done: 1,
@@ -267,6 +282,10 @@ impl FaceModel {
             t.iter().for_each(|v| eat(&v.to_le_bytes()));
         }
         eat(&self.placement.scale.to_le_bytes());
+        // Models without a rim keep the hashes they were saved with.
+        if self.placement.margin != 0.0 {
+            eat(&self.placement.margin.to_le_bytes());
+        }
         self.placement
             .offset
             .iter()

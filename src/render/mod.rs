@@ -159,6 +159,14 @@ pub enum Background {
     Still(RgbImage),
     /// The frames of a video, one per rendered frame.
     Video(Box<Source>),
+    /// Frames held in memory, played forwards then backwards
+    /// ([`crate::synth::ping_pong`]) for as long as there are frames to render.
+    Loop {
+        /// The frames (at least one).
+        frames: Vec<RgbImage>,
+        /// Rendered frames handed out so far.
+        next: usize,
+    },
 }
 
 impl Background {
@@ -186,6 +194,7 @@ impl Background {
             Background::Plain { width, height } => (*width, *height),
             Background::Still(image) => image.dimensions(),
             Background::Video(source) => (source.info().width, source.info().height),
+            Background::Loop { frames, .. } => frames.first().map_or((0, 0), |f| f.dimensions()),
         }
     }
 
@@ -211,6 +220,13 @@ impl Background {
                         })
                 })
                 .collect::<Result<_, _>>()?,
+            Background::Loop { frames, next } => {
+                let out = (*next..*next + n)
+                    .map(|t| frames[crate::synth::ping_pong(t, frames.len())].clone())
+                    .collect();
+                *next += n;
+                out
+            }
         })
     }
 }

@@ -4,6 +4,7 @@
 //! blending); [`synthesise`] runs one and applies the smoothing spline ([`smooth`]) as asked,
 //! keeping both variants for an A/B comparison; [`output`] renders and writes the result.
 
+pub mod backdrop;
 pub mod blend;
 pub mod output;
 pub mod random;
@@ -16,6 +17,7 @@ use crate::codebook::Codebook;
 use crate::facespace::{FacespaceError, Frames};
 use crate::options::{self, InvalidOption};
 use crate::phonemes::{Phone, Segment};
+use crate::shape::Similarity;
 use smooth::{SmoothError, SmoothingSpline};
 
 /// Default smoothing weight λ of the cubic smoothing spline (seconds³ per parameter unit²),
@@ -98,7 +100,8 @@ pub struct Synthesis {
     pub warnings: Vec<String>,
 }
 
-/// Turns target phones into face-space frames.
+/// Turns target phones into face-space frames: shape and appearance. The pose columns are
+/// not the synthesiser's to choose — [`synthesise`] sets them as the [`Request`] asks.
 pub trait Synthesiser {
     /// A short description for reports and evaluation tables, e.g. `blend C=1 N=3`.
     fn name(&self) -> String;
@@ -147,6 +150,15 @@ pub fn validate_request(target: &[Segment], fps: f64) -> Result<(), SynthError> 
     Ok(())
 }
 
+/// Output frames for `target` at `fps` (every whole frame from the first phone's start to the
+/// last phone's end).
+pub fn frame_count(target: &[Segment], fps: f64) -> usize {
+    match (target.first(), target.last()) {
+        (Some(a), Some(b)) => crate::trajectory::frame_times(b.end - a.start, fps).len(),
+        _ => 0,
+    }
+}
+
 /// The phone whose examples stand in for `p`: itself if present, else the most frequent
 /// present phone of its viseme class (S has no row for a phone the corpus never shows).
 pub fn stand_in(codebook: &Codebook, p: Phone) -> Option<Phone> {
@@ -160,14 +172,21 @@ pub fn stand_in(codebook: &Codebook, p: Phone) -> Option<Phone> {
         .max_by_key(|q| (codebook.occurrences[q.index()].len(), std::cmp::Reverse(*q)))
 }
 
-/// Smooths every column of `frames` with the cubic smoothing spline of weight `lambda` over
-/// the frame times (fewer than 3 frames are returned as they are).
+/// Smooths the shape and appearance columns of `frames` with the cubic smoothing spline of
+/// weight `lambda` over the frame times (fewer than 3 frames are returned as they are). The
+/// pose columns are left alone: the pose is never synthesised, so never smoothed.
 pub fn smoothed(frames: &Frames, lambda: f64) -> Result<Frames, SynthError> {
     let mut out = frames.clone();
     if frames.len() >= 3 {
         let spline = SmoothingSpline::new(&frames.times(), None, lambda)?;
         let mut column = vec![0.0; frames.len()];
-        for mut col in out.values_mut().columns_mut() {
+        let params = frames.layout().params_range();
+        for mut col in out
+            .values_mut()
+            .columns_mut()
+            .into_iter()
+            .skip(params.start)
+        {
             column
                 .iter_mut()
                 .zip(col.iter())
@@ -192,6 +211,66 @@ pub enum Smoothing {
     Ab(f64),
 }
 
+/// Where each output frame's pose comes from (DESIGN §7: the pose is never blended).
+#[derive(Clone, Debug, PartialEq)]
+pub enum Pose {
+    /// The codebook's median pose, still.
+    Codebook,
+    /// One pose throughout (a background frame's).
+    Hold(Similarity),
+    /// Frame by frame from a recorded sequence (a tracked background video), forwards then
+    /// backwards ([`ping_pong`]) when the utterance is longer.
+    Replay(Vec<Similarity>),
+}
+
+impl Pose {
+    /// A short description for reports.
+    pub fn describe(&self) -> String {
+        match self {
+            Pose::Codebook => "held at the codebook's median pose".into(),
+            Pose::Hold(_) => "held at the background frame's pose".into(),
+            Pose::Replay(p) => format!("replayed from {} background frames", p.len()),
+        }
+    }
+}
+
+/// Index of frame `t` in a sequence of `n` played forwards, then backwards, and so on
+/// (`0, 1, …, n−1, n−2, …, 1, 0, 1, …`), so a loop never jumps.
+pub fn ping_pong(t: usize, n: usize) -> usize {
+    if n <= 1 {
+        return 0;
+    }
+    let period = 2 * n - 2;
+    let i = t % period;
+    if i < n { i } else { period - i }
+}
+
+/// What to synthesise: the phones with their timings, the frame rate, the smoothing and where
+/// the pose comes from.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Request {
+    /// The phones spoken.
+    pub target: Vec<Segment>,
+    /// Output frames per second.
+    pub fps: f64,
+    /// Smoothing of the shape and appearance.
+    pub smoothing: Smoothing,
+    /// The pose of every frame.
+    pub pose: Pose,
+}
+
+impl Request {
+    /// `target` at `fps`, smoothed as `smoothing` asks, at the codebook's median pose.
+    pub fn new(target: Vec<Segment>, fps: f64, smoothing: Smoothing) -> Self {
+        Request {
+            target,
+            fps,
+            smoothing,
+            pose: Pose::Codebook,
+        }
+    }
+}
+
 /// An utterance: its target, the synthesis, and the variants its smoothing asks for.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Utterance {
@@ -205,6 +284,8 @@ pub struct Utterance {
     pub smoothed: Option<Frames>,
     /// The smoothing asked for.
     pub smoothing: Smoothing,
+    /// Where the pose came from.
+    pub pose: String,
 }
 
 impl Utterance {
@@ -219,17 +300,42 @@ impl Utterance {
     }
 }
 
-/// Synthesises `target` at `fps` and smooths as `smoothing` asks: "synthesise, then smooth"
-/// in one place for the CLI, the demo, evaluation and benchmarks.
+/// Synthesises as `request` asks — "synthesise, set the pose, then smooth" in one place for
+/// the CLI, the demo, evaluation and benchmarks.
 pub fn synthesise(
     synthesiser: &dyn Synthesiser,
     codebook: &Codebook,
-    target: Vec<Segment>,
-    fps: f64,
-    smoothing: Smoothing,
+    request: Request,
 ) -> Result<Utterance, SynthError> {
+    let Request {
+        target,
+        fps,
+        smoothing,
+        pose,
+    } = request;
     validate_request(&target, fps)?;
-    let synthesis = synthesiser.synthesise(codebook, &target, fps)?;
+    if let Pose::Replay(p) = &pose
+        && p.is_empty()
+    {
+        return Err(SynthError::Option(InvalidOption::new(
+            "replayed poses",
+            0,
+            "at least one",
+        )));
+    }
+    let mut synthesis = synthesiser.synthesise(codebook, &target, fps)?;
+    let still = match &pose {
+        Pose::Codebook => codebook.median_pose(),
+        Pose::Hold(p) => *p,
+        Pose::Replay(_) => Similarity::IDENTITY,
+    };
+    for t in 0..synthesis.frames.len() {
+        let p = match &pose {
+            Pose::Replay(poses) => poses[ping_pong(t, poses.len())],
+            _ => still,
+        };
+        synthesis.frames.set_pose(t, p);
+    }
     let smoothed = match smoothing {
         Smoothing::Off => None,
         Smoothing::On(l) | Smoothing::Ab(l) => {
@@ -243,5 +349,6 @@ pub fn synthesise(
         synthesis,
         smoothed,
         smoothing,
+        pose: pose.describe(),
     })
 }

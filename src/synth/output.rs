@@ -80,6 +80,8 @@ pub struct Report {
     pub method: String,
     /// The smoothing.
     pub smoothing: Smoothing,
+    /// Where the pose came from.
+    pub pose: String,
     /// Frames per second.
     pub fps: f64,
     /// Frames written per variant.
@@ -235,6 +237,7 @@ pub fn write(
         text: options.text.map(str::to_owned),
         method: utterance.method.clone(),
         smoothing: utterance.smoothing,
+        pose: utterance.pose.clone(),
         fps,
         frames: total,
         renderer: renderer.describe(),
