@@ -124,7 +124,7 @@ impl Backdrop {
             PoseMode::Replay => {
                 let source = Source::open(path)?;
                 let (w, h) = (source.info().width, source.info().height);
-                let mib = poses.len() * (w * h * 3) as usize >> 20;
+                let mib = (poses.len() * (w * h * 3) as usize) >> 20;
                 if mib > MAX_LOOP_MIB {
                     return Err(BackdropError::TooLarge {
                         path: path.into(),
