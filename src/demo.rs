@@ -1,7 +1,9 @@
-//! The whole pipeline on the committed demo model (`facespace demo`, the README's first
-//! command): generate the demo corpus from the model's real training frames, build the
-//! codebook, synthesise a sentence that is not in the corpus, and write it smoothed and
-//! unsmoothed with a blind side-by-side, over one of the talker's real frames.
+//! The whole pipeline on the committed demo data (`facespace demo`, the README's first
+//! command): build a lower-face region model from the talker's training frames, generate the
+//! demo corpus from its real face-space points, build the codebook, synthesise a sentence
+//! that is not in the corpus, and write it smoothed and unsmoothed with a blind side-by-side —
+//! the lower face synthesised, the rest of the face (eyes, brows, blinks, head motion) from a
+//! real stretch of the talker's video, whose tracked pose the synthesis replays.
 
 use std::path::{Path, PathBuf};
 
@@ -9,10 +11,13 @@ use thiserror::Error;
 
 use crate::Progress;
 use crate::codebook::{Codebook, CodebookError, SimilarityOptions};
+use crate::codec::EncodeOptions;
 use crate::corpus::demo::{self as generator, CorpusOptions, GenerateError, Split};
-use crate::model::{FaceModel, ModelError, load_training_set};
+use crate::mesh::Region;
+use crate::model::{BuildOptions, FaceModel, ModelError, load_training_set};
 use crate::phonemes::{self, PhonemeError};
-use crate::render::{Background, CpuRenderer, DEFAULT_FEATHER};
+use crate::render::{CpuRenderer, DEFAULT_FEATHER};
+use crate::synth::backdrop::{Backdrop, BackdropError, PoseMode};
 use crate::synth::blend::Blend;
 use crate::synth::output::{self, OutputError, OutputOptions, Report};
 use crate::synth::{DEFAULT_SMOOTHING, Request, Smoothing, SynthError, synthesise};
@@ -28,6 +33,12 @@ pub fn default_model() -> PathBuf {
 /// The demo model's training frames with their landmarks.
 pub fn default_training() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("models/demo/training")
+}
+
+/// 100 frames of the talker's video (frames 1500–1599 of the FGNet sequence), the demo's
+/// background.
+pub fn default_background() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("models/demo/background.mp4")
 }
 
 /// What can go wrong in the demo.
@@ -52,6 +63,9 @@ pub enum DemoError {
     /// Synthesis failed.
     #[error(transparent)]
     Synth(#[from] SynthError),
+    /// The background video could not be tracked.
+    #[error(transparent)]
+    Backdrop(#[from] BackdropError),
     /// Writing the outputs failed.
     #[error(transparent)]
     Output(#[from] OutputError),
@@ -68,6 +82,8 @@ pub struct DemoOptions {
     pub model: PathBuf,
     /// Its training frames with `.pts` landmarks.
     pub training: PathBuf,
+    /// A video of the talker to draw the synthesised lower face over.
+    pub background: PathBuf,
 }
 
 impl Default for DemoOptions {
@@ -77,6 +93,7 @@ impl Default for DemoOptions {
             text: DEMO_TEXT.into(),
             model: default_model(),
             training: default_training(),
+            background: default_background(),
         }
     }
 }
@@ -90,6 +107,8 @@ pub struct DemoReport {
     pub appearance_params: usize,
     /// Real training frames the corpus draws on.
     pub training_frames: usize,
+    /// Appearance parameters of the lower-face region model.
+    pub region_appearance_params: usize,
     /// Generated training sentences in the codebook.
     pub sentences: usize,
     /// Phones of the utterance.
@@ -118,33 +137,56 @@ pub fn run(options: &DemoOptions, progress: impl FnMut(Progress)) -> Result<Demo
     }
     let model = FaceModel::load(&options.model)?;
     let frames = load_training_set(&options.training, None)?;
-    let generated = generator::generate(&model, &frames, &CorpusOptions::default())?;
-    let background = frames[generated.still_frame].image.clone();
+    let o = &options.output;
+    // The lower face from the same frames: the rest of the face comes from the background.
+    let region = FaceModel::build(
+        &frames,
+        &BuildOptions {
+            pixels: model.frame.n_pixels(),
+            region: Some(Region::LowerFace),
+            ..BuildOptions::default()
+        },
+        &mut crate::no_progress,
+    )?;
+    region.save(&o.join("model"))?;
+    let generated = generator::generate(&region, &frames, &CorpusOptions::default())?;
     let train = generated.part(Split::Train);
     let sentences = train.len();
-    let fps = CorpusOptions::default().fps;
     let cb = Codebook::build(
         train,
-        fps,
-        model.layout(),
-        Some(model.hash()),
+        CorpusOptions::default().fps,
+        region.layout(),
+        Some(region.hash()),
         SimilarityOptions::default(),
         &mut crate::no_progress,
     )?;
-    let o = &options.output;
     cb.save(&o.join("codebook"))?;
     let target = phonemes::text_to_segments(&options.text, &cb.mean_durations())?;
-    let utterance = synthesise(
-        &Blend::default(),
-        &cb,
-        Request::new(target, fps, Smoothing::Ab(DEFAULT_SMOOTHING)),
+    // Frames at the background's own rate, so its motion plays at the recorded speed.
+    let fps = crate::video::Source::open(&options.background)
+        .map_err(BackdropError::from)?
+        .info()
+        .fps;
+    let backdrop = Backdrop::video(
+        &model,
+        &options.background,
+        PoseMode::Replay,
+        crate::synth::frame_count(&target, fps),
+        &EncodeOptions::default(),
+        crate::no_progress,
     )?;
-    let renderer = CpuRenderer::feathered(&model, DEFAULT_FEATHER);
+    let request = Request {
+        pose: backdrop.pose.clone(),
+        ..Request::new(target, fps, Smoothing::Ab(DEFAULT_SMOOTHING))
+    };
+    let mut utterance = synthesise(&Blend::default(), &cb, request)?;
+    backdrop.anchor_region(&region, &mut utterance)?;
+    let renderer = CpuRenderer::feathered(&region, DEFAULT_FEATHER);
     let report = output::write(
         o,
         &renderer,
         &utterance,
-        Background::Still(background),
+        backdrop.background,
         &OutputOptions {
             seed: 1,
             text: Some(&options.text),
@@ -157,6 +199,7 @@ pub fn run(options: &DemoOptions, progress: impl FnMut(Progress)) -> Result<Demo
         shape_params: model.shape.n_params(),
         appearance_params: model.appearance.n_params(),
         training_frames: frames.len(),
+        region_appearance_params: region.appearance.n_params(),
         sentences,
         phones: utterance.target.len(),
         frames: utterance.synthesis.frames.len(),
@@ -171,6 +214,7 @@ pub fn run(options: &DemoOptions, progress: impl FnMut(Progress)) -> Result<Demo
             ),
             ("trajectory plot", o.join("plot.png")),
             ("phone timings", o.join("utterance.lab")),
+            ("lower-face model", o.join("model")),
             ("codebook", o.join("codebook")),
         ],
     })

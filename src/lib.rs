@@ -84,7 +84,10 @@
 //!     &CpuRenderer::new(&model),
 //!     frames,
 //!     background,
-//!     |image| Ok::<_, RenderError>(images.push(image)),
+//!     |image| {
+//!         images.push(image);
+//!         Ok::<_, RenderError>(())
+//!     },
 //!     no_progress,
 //! )?;
 //! assert_eq!(images.len(), frames.len());

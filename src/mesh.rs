@@ -124,6 +124,16 @@ impl Region {
         Ok(list)
     }
 
+    /// The landmarks synthesis moves within the region — for the lower face the lips and the
+    /// chin (jaw 5–11) — while the others stay where the background's face has them
+    /// (`None`: no such split is known for a custom region).
+    pub fn articulators(&self) -> Option<Vec<u32>> {
+        match self {
+            Region::LowerFace => Some((5..12).chain(48..68).collect()),
+            Region::Landmarks(_) => None,
+        }
+    }
+
     /// The Delaunay triangulation of the region's landmarks of `points`, as triangles over the
     /// whole landmark list.
     pub fn triangulate(&self, points: &[Point]) -> Result<Vec<Triangle>, MeshError> {

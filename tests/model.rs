@@ -44,7 +44,7 @@ fn build_reports_sensible_counts() {
         model.shape.n_params()
     );
     assert_eq!(model.appearance.n_params(), 3);
-    // The mesh covers about the pixels asked for; the mask leaves out a rim of 3 pixels.
+    // The mesh covers about the pixels asked for; the mask leaves out a rim.
     let f = &model.frame;
     let (owner, _) = facespace::mesh::cover(&f.landmarks, &f.triangles, f.width, f.height);
     let mesh = owner.iter().filter(|&&o| o != u32::MAX).count() as f64;
@@ -54,7 +54,10 @@ fn build_reports_sensible_counts() {
     );
     let rim = mesh - f.n_pixels() as f64;
     assert!(
-        rim > 0.05 * mesh && f.rim_distances().iter().all(|&d| d >= 3.0),
+        rim > 0.05 * mesh
+            && f.rim_distances()
+                .iter()
+                .all(|&d| d >= facespace::model::DEFAULT_MARGIN),
         "{rim} rim pixels of {mesh}"
     );
     assert!(

@@ -20,6 +20,9 @@ pub struct DemoArgs {
     model: PathBuf,
     #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/models/demo/training"))]
     training: PathBuf,
+    /// A video of the talker to draw the synthesised lower face over.
+    #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/models/demo/background.mp4"))]
+    background: PathBuf,
 }
 
 pub fn run(a: DemoArgs) -> Result<()> {
@@ -30,23 +33,31 @@ pub fn run(a: DemoArgs) -> Result<()> {
         text: a.text,
         model: a.model,
         training: a.training,
+        background: a.background,
     };
     let r = demo::run(&options, progress)?;
     bar.finish_and_clear();
     println!(
-        "model {} ({} shape + {} appearance parameters, from {} real frames)",
+        "model {} ({} shape + {} appearance parameters, from {} real frames); its lower-face region model: {} appearance parameters",
         options.model.display(),
         r.shape_params,
         r.appearance_params,
-        r.training_frames
+        r.training_frames,
+        r.region_appearance_params
     );
     println!(
         "demo corpus: {} generated sentences (trajectories generated over real face-space points, not recorded)",
         r.sentences
     );
     println!(
-        "synthesised {:?}: {} phones, {} frames at {} fps ({})",
-        options.text, r.phones, r.frames, r.report.fps, r.report.renderer
+        "synthesised {:?}: {} phones, {} frames at {} fps ({}), over {} (pose {})",
+        options.text,
+        r.phones,
+        r.frames,
+        r.report.fps,
+        r.report.renderer,
+        options.background.display(),
+        r.report.pose
     );
     println!("wrote to {}:", options.output.display());
     for (what, path) in &r.files {

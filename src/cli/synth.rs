@@ -163,7 +163,10 @@ pub fn run(a: SynthArgs) -> Result<()> {
         ..Request::new(target, a.fps, smoothing)
     };
     let clock = std::time::Instant::now();
-    let utterance = synthesise(&blend, &cb, request)?;
+    let mut utterance = synthesise(&blend, &cb, request)?;
+    if let Some(b) = &backdrop {
+        b.anchor_region(&model, &mut utterance)?;
+    }
     let synth_ms = clock.elapsed().as_secs_f64() * 1e3;
     let background = match backdrop {
         Some(b) => b.background,

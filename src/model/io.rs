@@ -11,7 +11,7 @@ use super::{FaceModel, MAX_PIXELS, ModelError};
 use crate::appearance::AppearanceModel;
 use crate::atomic;
 use crate::manifest::{self, ManifestError};
-use crate::mesh::{Placement, ReferenceFrame, Triangle};
+use crate::mesh::{Placement, ReferenceFrame, Region, Triangle};
 use crate::npy;
 use crate::pca::PcaModel;
 use crate::shape::ShapeModel;
@@ -43,6 +43,9 @@ struct Manifest {
     appearance: PcaInfo,
     source: Vec<String>,
     arrays: BTreeMap<String, String>,
+    /// The face region the appearance model covers, if not the whole face.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    region: Option<Region>,
 }
 
 #[derive(Debug, Serialize, Deserialize)]
@@ -95,6 +98,7 @@ impl FaceModel {
             shape: PcaInfo::of(&self.shape.pca),
             appearance: PcaInfo::of(&self.appearance.pca),
             source: self.source.clone(),
+            region: self.region.clone(),
             arrays: ARRAYS
                 .iter()
                 .map(|n| (n.to_string(), format!("{n}.npy")))
@@ -209,6 +213,7 @@ impl FaceModel {
             frame,
             placement: m.reference.placement,
             source: m.source,
+            region: m.region,
         })
     }
 }

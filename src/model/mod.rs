@@ -136,7 +136,7 @@ pub enum ModelError {
 pub const MAX_PIXELS: usize = 1_000_000;
 
 /// Default rim left out of the appearance model, reference-frame pixels.
-pub const DEFAULT_MARGIN: f64 = 3.0;
+pub const DEFAULT_MARGIN: f64 = 4.0;
 
 /// Options for [`FaceModel::build`].
 #[derive(Clone, Debug, PartialEq)]
@@ -153,7 +153,7 @@ pub struct BuildOptions {
     /// (the shape model keeps every landmark).
     pub region: Option<Region>,
     /// Reference-frame pixels next to the mesh boundary left out of the appearance model
-    /// (default 3: enough to keep the background that hand-marked outlines let in off the
+    /// (default 4: enough to keep the background that hand-marked outlines let in off the
     /// face; see [`crate::mesh::Placement::margin`]).
     pub margin: f64,
 }
@@ -199,6 +199,8 @@ pub struct FaceModel {
     pub placement: Placement,
     /// The training examples' names.
     pub source: Vec<String>,
+    /// The face region the appearance model covers (`None`: the whole face).
+    pub region: Option<Region>,
 }
 
 impl FaceModel {
@@ -266,6 +268,7 @@ impl FaceModel {
             frame,
             placement,
             source: examples.iter().map(|e| e.name.clone()).collect(),
+            region: options.region.clone(),
         })
     }
 

@@ -207,10 +207,21 @@ impl ShapeModel {
             .ok_or(ShapeError::Degenerate {
                 what: "landmarks".into(),
             })?;
+        Ok((pose, self.project_at(&pose, landmarks)?))
+    }
+
+    /// The shape parameters of landmarks at a given pose (not their own least-squares pose):
+    /// `b_s = P_sᵀ (pose⁻¹(x) − x̄)`.
+    pub fn project_at(
+        &self,
+        pose: &Similarity,
+        landmarks: &Landmarks,
+    ) -> Result<Vec<f32>, ShapeError> {
+        landmarks.validate(Some(self.n_landmarks()), "landmarks")?;
         let aligned = Landmarks {
             points: pose.invert().apply_all(&landmarks.points),
         };
-        Ok((pose, self.pca.project(&aligned.to_flat())))
+        Ok(self.pca.project(&aligned.to_flat()))
     }
 
     /// Landmarks of `pose(x̄ + P_s b_s)`.

@@ -72,6 +72,32 @@ pub struct Backdrop {
 }
 
 impl Backdrop {
+    /// For a region model (one that knows its articulators), re-fits every variant of
+    /// `utterance` so the region's seam lies on this background's face ([`anchor`]); returns
+    /// whether it did.
+    pub fn anchor_region(
+        &self,
+        model: &FaceModel,
+        utterance: &mut super::Utterance,
+    ) -> Result<bool, crate::model::ModelError> {
+        let Some(articulators) = model.region.as_ref().and_then(|r| r.articulators()) else {
+            return Ok(false);
+        };
+        anchor(
+            model,
+            &mut utterance.synthesis.frames,
+            &self.landmarks,
+            &articulators,
+        )?;
+        if let Some(smoothed) = &mut utterance.smoothed {
+            anchor(model, smoothed, &self.landmarks, &articulators)?;
+        }
+        utterance
+            .pose
+            .push_str("; region anchored to the background's face");
+        Ok(true)
+    }
+
     /// One image: the face found in it (grid search, then the AAM fit) gives the pose.
     pub fn still(tracker: &FaceModel, image: RgbImage) -> Result<Backdrop, BackdropError> {
         let fitter = Fitter::new(tracker, FitOptions::default(), 2)?;
@@ -149,4 +175,53 @@ impl Backdrop {
             }
         })
     }
+}
+
+/// Region synthesis over a background face (DESIGN §7, \[blend\] §3): every frame's shape is
+/// re-fitted, at its (background) pose, to landmarks that take the `articulators` — lips and
+/// chin — from the synthesis and every other landmark from the background frame
+/// (`background[t]`, the last one repeated), the synthesised articulators first moved by the
+/// similarity that best lays the synthesis's other landmarks onto the background's. So the
+/// seam of the region sits where the background's face is, and head motion the synthesis
+/// carried in its shape does not slide the face against the background.
+pub fn anchor(
+    model: &FaceModel,
+    frames: &mut crate::facespace::Frames,
+    background: &[Landmarks],
+    articulators: &[u32],
+) -> Result<(), crate::model::ModelError> {
+    let n = model.shape.n_landmarks();
+    let moving: Vec<bool> = (0..n as u32).map(|i| articulators.contains(&i)).collect();
+    let fixed: Vec<usize> = (0..n).filter(|&i| !moving[i]).collect();
+    let layout = frames.layout();
+    for t in 0..frames.len() {
+        let Some(bg) = background.get(t).or(background.last()) else {
+            return Ok(());
+        };
+        bg.validate(Some(n), "background landmarks")?;
+        let params = frames.params(t);
+        let pose = params.pose;
+        let synthesised = model.landmarks(params)?.points;
+        let from: Vec<_> = fixed.iter().map(|&i| synthesised[i]).collect();
+        let to: Vec<_> = fixed.iter().map(|&i| bg.points[i]).collect();
+        let onto = crate::shape::align(&from, &to).unwrap_or(crate::shape::Similarity::IDENTITY);
+        let composite = Landmarks {
+            points: (0..n)
+                .map(|i| {
+                    if moving[i] {
+                        onto.apply(synthesised[i])
+                    } else {
+                        bg.points[i]
+                    }
+                })
+                .collect(),
+        };
+        let b = model.shape.project_at(&pose, &composite)?;
+        let mut row = frames.values_mut();
+        let mut row = row.row_mut(t);
+        for (k, v) in layout.shape_range().zip(b) {
+            row[k] = v;
+        }
+    }
+    Ok(())
 }
