@@ -161,7 +161,9 @@ fn corpus_then_codebook() {
     assert!(text(&o).contains("sentences   48"), "{}", text(&o));
     let o = facespace(&["codebook", "info", cb.to_str().unwrap()]);
     assert!(
-        o.status.success() && text(&o).contains("most similar"),
+        o.status.success()
+            && text(&o).contains("most similar")
+            && text(&o).contains("without shape"),
         "{}",
         text(&o)
     );

@@ -124,20 +124,38 @@ fn info(cb: &Codebook) {
     if !absent.is_empty() {
         println!("  absent      {}", absent.join(" "));
     }
-    println!("  phone  count  mean ms  most similar (S)");
+    // S without the shape parameters, to show what shape changes.
+    let without = Codebook {
+        similarity: cb.similarity_with(&SimilarityOptions {
+            use_shape: false,
+            ..cb.options.clone()
+        }),
+        ..cb.clone()
+    };
+    println!(
+        "  phone  count  mean ms  {:<34} {}",
+        "most similar (S)", "without shape"
+    );
     let durations = cb.mean_durations();
-    for p in cb.present() {
-        let near: Vec<String> = cb
-            .nearest(p, 3)
+    let near = |cb: &Codebook, p| -> String {
+        cb.nearest(p, 3)
             .iter()
             .map(|(q, s)| format!("{q} {s:.3}"))
-            .collect();
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    for p in cb.present() {
+        let (with, alone) = (near(cb, p), near(&without, p));
         println!(
-            "  {:<5} {:>6} {:>8.0}  {}",
+            "  {:<5} {:>6} {:>8.0}  {with:<34} {}",
             p.name(),
             cb.occurrences[p.index()].len(),
             1000.0 * durations[p.index()],
-            near.join(", ")
+            if alone == with {
+                "(same)".into()
+            } else {
+                alone
+            }
         );
     }
 }

@@ -283,6 +283,15 @@ impl Codebook {
             .collect()
     }
 
+    /// S recomputed with other options (the same trajectories), e.g. without the shape.
+    pub fn similarity_with(&self, options: &SimilarityOptions) -> Array2<f64> {
+        let other = Codebook {
+            options: options.clone(),
+            ..self.clone()
+        };
+        similarity::similarity_matrix(&other)
+    }
+
     /// S between two phones.
     pub fn similarity(&self, a: Phone, b: Phone) -> f64 {
         self.similarity[[a.index(), b.index()]]

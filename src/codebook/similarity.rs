@@ -17,6 +17,10 @@ pub struct SimilarityOptions {
     pub variance_weights: bool,
     /// Scale distances by each phone's context variability (`v_i`); else `v = 1`.
     pub context_weights: bool,
+    /// Let the shape parameters count in S (`false`: appearance alone, to see what shape
+    /// changes).
+    #[serde(default = "yes")]
+    pub use_shape: bool,
     /// β₂ of M's weights `γ_k = exp(β₂ |k − K|)`, k counting appearance parameters from 1.
     pub beta2: f64,
     /// K of M: the leading appearance parameters M uses (at most; fewer if the model has
@@ -31,10 +35,15 @@ impl Default for SimilarityOptions {
             gamma: None,
             variance_weights: true,
             context_weights: true,
+            use_shape: true,
             beta2: 0.1,
             k_centre: 12,
         }
     }
+}
+
+fn yes() -> bool {
+    true
 }
 
 /// Per-parameter weights on squared raw differences, indexed over `layout.params_range()`
@@ -49,7 +58,20 @@ pub fn parameter_weights(cb: &Codebook) -> Vec<f64> {
     let range = layout.params_range();
     let d = range.len();
     if !cb.options.variance_weights {
-        return vec![1.0 / d as f64; d];
+        let from = if cb.options.use_shape {
+            0
+        } else {
+            layout.shape
+        };
+        return (0..d)
+            .map(|k| {
+                if k >= from {
+                    1.0 / (d - from) as f64
+                } else {
+                    0.0
+                }
+            })
+            .collect();
     }
     let (mut sum, mut sq, mut n) = (vec![0.0; d], vec![0.0; d], 0.0);
     for t in &cb.trajectories {
@@ -65,7 +87,17 @@ pub fn parameter_weights(cb: &Codebook) -> Vec<f64> {
         .map(|k| (sq[k] / n - (sum[k] / n).powi(2)).max(0.0))
         .collect();
     let blocks = [0..layout.shape, layout.shape..d];
-    let totals: Vec<f64> = blocks.iter().map(|b| var[b.clone()].iter().sum()).collect();
+    let totals: Vec<f64> = blocks
+        .iter()
+        .enumerate()
+        .map(|(i, b)| {
+            if i == 0 && !cb.options.use_shape {
+                0.0
+            } else {
+                var[b.clone()].iter().sum()
+            }
+        })
+        .collect();
     let share = 1.0 / totals.iter().filter(|&&t| t > 0.0).count().max(1) as f64;
     let mut w = vec![0.0; d];
     for (block, &total) in blocks.iter().zip(&totals) {
