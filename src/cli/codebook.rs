@@ -133,8 +133,8 @@ fn info(cb: &Codebook) {
         ..cb.clone()
     };
     println!(
-        "  phone  count  mean ms  {:<34} {}",
-        "most similar (S)", "without shape"
+        "  phone  count  mean ms  {:<34} without shape",
+        "most similar (S)"
     );
     let durations = cb.mean_durations();
     let near = |cb: &Codebook, p| -> String {
