@@ -105,7 +105,14 @@ fn region_synthesis_over_a_real_clip_keeps_the_background() {
         &mut facespace::no_progress,
     )
     .unwrap();
-    let n = synth::frame_count(&phones, 25.0);
+    // Half a second of silence more than the clip: the background loops back.
+    let mut target = phones.clone();
+    target.push(facespace::phonemes::Segment {
+        start: 2.0,
+        end: 2.5,
+        phone: facespace::phonemes::Phone::SIL,
+    });
+    let n = synth::frame_count(&target, 25.0);
     let backdrop = Backdrop::video(
         &model,
         &clip,
@@ -121,7 +128,7 @@ fn region_synthesis_over_a_real_clip_keeps_the_background() {
     };
     let request = Request {
         pose: backdrop.pose.clone(),
-        ..Request::new(phones, 25.0, Smoothing::On(synth::DEFAULT_SMOOTHING))
+        ..Request::new(target, 25.0, Smoothing::On(synth::DEFAULT_SMOOTHING))
     };
     let mut utterance = synthesise(&Blend::default(), &cb, request).unwrap();
     assert!(backdrop.anchor_region(&region, &mut utterance).unwrap());

@@ -9,7 +9,6 @@ use crate::codebook::{Codebook, Occurrence};
 use crate::facespace::Frames;
 use crate::options;
 use crate::phonemes::{Phone, Segment};
-use crate::trajectory::frame_times;
 
 use super::{Chosen, PhoneReport, SynthError, Synthesis, Synthesiser, stand_in, validate_request};
 
@@ -162,8 +161,8 @@ impl Synthesiser for Blend {
             });
             mixes.push(mix);
         }
-        let (start, end) = (target[0].start, target[target.len() - 1].end);
-        let times = frame_times(end - start, fps);
+        let start = target[0].start;
+        let times = super::frame_times(target, fps);
         let mut rows = vec![0f32; times.len() * dims];
         let mut acc = vec![0.0; dims];
         let mut value = vec![0.0; dims];

@@ -151,13 +151,18 @@ pub fn validate_request(target: &[Segment], fps: f64) -> Result<(), SynthError> 
     Ok(())
 }
 
-/// Output frames for `target` at `fps` (every whole frame from the first phone's start to the
-/// last phone's end).
+/// Output frames for `target` at `fps`: the frames `i / fps` that start within the utterance,
+/// so a sentence labelled over `[0, N / fps]` has its N frames (at least one).
 pub fn frame_count(target: &[Segment], fps: f64) -> usize {
     match (target.first(), target.last()) {
-        (Some(a), Some(b)) => crate::trajectory::frame_times(b.end - a.start, fps).len(),
+        (Some(a), Some(b)) => (((b.end - a.start) * fps - 1e-6).ceil() as usize).max(1),
         _ => 0,
     }
+}
+
+/// The output frame times for `target` at `fps`, from 0 (the first phone's start).
+pub fn frame_times(target: &[Segment], fps: f64) -> Vec<f64> {
+    (0..frame_count(target, fps)).map(|i| i as f64 / fps).collect()
 }
 
 /// The phone whose examples stand in for `p`: itself if present, else the most frequent

@@ -7,7 +7,6 @@ use crate::codebook::Codebook;
 use crate::facespace::Frames;
 use crate::phonemes::Segment;
 use crate::rng::Rng;
-use crate::trajectory::frame_times;
 
 /// A random codebook sentence, time-warped to the target.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
@@ -45,7 +44,7 @@ impl Synthesiser for RandomLips {
         let span = (end - start).max(1e-9);
         let rate = (trajectory.end() - trajectory.start()) / span;
         let dims = codebook.dims();
-        let times = frame_times(end - start, fps);
+        let times = super::frame_times(target, fps);
         let mut rows = Vec::with_capacity(times.len() * dims);
         let mut value = vec![0.0; dims];
         for t in times {
