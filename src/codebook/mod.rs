@@ -111,6 +111,9 @@ pub struct Codebook {
     pub trajectories: Vec<Trajectory>,
     /// Occurrences of each phone, indexed by [`Phone::index`] (zero-length segments left out).
     pub occurrences: Vec<Vec<Occurrence>>,
+    /// Per sentence, the phone of every frame (the segment holding the frame's time; the
+    /// last segment's phone past the labels' end).
+    pub frame_phones: Vec<Vec<Phone>>,
     /// S, `Phone::COUNT²`; 1 on the diagonal, 0 to and from absent phones.
     pub similarity: Array2<f64>,
     /// M, `Phone::COUNT²`; 0 to and from absent phones.
@@ -121,6 +124,15 @@ const N: usize = Phone::COUNT;
 
 /// Equidistant samples per occurrence allowed (S's `samples`).
 pub const MAX_SAMPLES: usize = 1000;
+
+/// The phone of the segment holding time `t` (the nearest segment outside them).
+pub fn phone_at(segments: &[Segment], t: f64) -> Phone {
+    let i = segments.partition_point(|g| g.end <= t);
+    segments
+        .get(i)
+        .or(segments.last())
+        .map_or(Phone::SIL, |g| g.phone)
+}
 
 impl Codebook {
     /// Builds trajectories, the occurrence index, S and M from sentences of one layout and
@@ -194,6 +206,14 @@ impl Codebook {
                 }
             }
         }
+        let frame_phones = sentences
+            .iter()
+            .map(|s| {
+                (0..s.frames.len())
+                    .map(|i| phone_at(&s.segments, i as f64 / fps))
+                    .collect()
+            })
+            .collect();
         let mut cb = Codebook {
             fps,
             layout,
@@ -202,6 +222,7 @@ impl Codebook {
             sentences,
             trajectories,
             occurrences,
+            frame_phones,
             similarity: Array2::zeros((N, N)),
             distance: Array2::zeros((N, N)),
         };

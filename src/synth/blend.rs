@@ -190,6 +190,7 @@ impl Synthesiser for Blend {
             frames: Frames::from_rows(codebook.layout, fps, rows)?,
             phones,
             warnings,
+            selection: None,
         })
     }
 }

@@ -9,6 +9,8 @@ pub mod blend;
 pub mod output;
 pub mod random;
 pub mod smooth;
+pub mod unit;
+pub mod viterbi;
 
 use serde::Serialize;
 use thiserror::Error;
@@ -99,6 +101,8 @@ pub struct Synthesis {
     pub phones: Vec<PhoneReport>,
     /// Human-readable notes: fallbacks, skipped zero-length phones.
     pub warnings: Vec<String>,
+    /// For a synthesiser that picks codebook frames: how the selection fared.
+    pub selection: Option<unit::SelectionStats>,
 }
 
 /// Turns target phones into face-space frames: shape and appearance. The pose columns are
@@ -162,7 +166,9 @@ pub fn frame_count(target: &[Segment], fps: f64) -> usize {
 
 /// The output frame times for `target` at `fps`, from 0 (the first phone's start).
 pub fn frame_times(target: &[Segment], fps: f64) -> Vec<f64> {
-    (0..frame_count(target, fps)).map(|i| i as f64 / fps).collect()
+    (0..frame_count(target, fps))
+        .map(|i| i as f64 / fps)
+        .collect()
 }
 
 /// The phone whose examples stand in for `p`: itself if present, else the most frequent

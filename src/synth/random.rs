@@ -72,6 +72,7 @@ impl Synthesiser for RandomLips {
             warnings: vec![format!(
                 "random lips: the whole of sentence {name}, time-warped"
             )],
+            selection: None,
         })
     }
 }
