@@ -18,10 +18,10 @@ pub fn cheapest_path(
     let mut cost: Vec<f64> = (0..sizes[0]).map(|c| unary(0, c)).collect();
     let mut back: Vec<Vec<u32>> = Vec::with_capacity(sizes.len());
     back.push(Vec::new());
-    for step in 1..sizes.len() {
-        let mut next = Vec::with_capacity(sizes[step]);
-        let mut from = Vec::with_capacity(sizes[step]);
-        for c in 0..sizes[step] {
+    for (step, &size) in sizes.iter().enumerate().skip(1) {
+        let mut next = Vec::with_capacity(size);
+        let mut from = Vec::with_capacity(size);
+        for c in 0..size {
             let (mut best, mut arg) = (f64::INFINITY, 0u32);
             for (p, &pc) in cost.iter().enumerate() {
                 if pc == f64::INFINITY {
