@@ -113,3 +113,153 @@ fn unit_selection_bad_input_is_a_clear_error() {
         s.warnings
     );
 }
+
+/// The graph likewise: a codebook sentence's own units chain with probability 1, and scaled
+/// onto their own phone centres they give back the sentence's frames.
+#[test]
+fn graph_returns_a_codebook_sentence_as_itself() {
+    let cb = demo_codebook();
+    let graph = facespace::synth::graph::Graph::default();
+    for k in [0, 17, 40] {
+        let sentence = &cb.sentences[k];
+        let s = graph.synthesise(&cb, &sentence.segments, cb.fps).unwrap();
+        let stats = s.selection.as_ref().unwrap();
+        assert_eq!(
+            s.frames.as_slice(),
+            sentence.frames.as_slice(),
+            "{}",
+            sentence.name
+        );
+        assert_eq!(stats.segments.len(), 1, "{:?}", stats.segments);
+        assert_eq!(stats.path_cost, 0.0);
+    }
+}
+
+/// Unit selection's path is the cheapest of all paths: on small random codebooks (every
+/// candidate kept, no beam), every choice of frames of the target phones' viseme classes is
+/// enumerated and costed with the same formula.
+#[test]
+fn unit_selection_finds_the_cheapest_of_every_path() {
+    use facespace::corpus::Sentence;
+    use facespace::facespace::{Frames, Layout};
+    use facespace::synth::unit::{CodebookFrame, UnitConstants};
+    let layout = Layout::new(1, 2);
+    let ph = |s: &str| Phone::parse(s).unwrap();
+    for seed in 0..12u64 {
+        let mut rng = common::Rng::new(seed);
+        let inventory = ["aa", "m", "iy", "s"];
+        let sentences: Vec<Sentence> = (0..2)
+            .map(|k| {
+                let phones: Vec<&str> = (0..3)
+                    .map(|_| inventory[(rng.uniform() * 4.0) as usize])
+                    .collect();
+                let segments: Vec<Segment> = phones
+                    .iter()
+                    .enumerate()
+                    .map(|(i, p)| Segment {
+                        start: 0.08 * i as f64,
+                        end: 0.08 * (i + 1) as f64,
+                        phone: ph(p),
+                    })
+                    .collect();
+                let rows: Vec<f32> = (0..6)
+                    .flat_map(|_| {
+                        let mut r = vec![1.0, 0.0, 0.0, 0.0];
+                        r.extend((0..3).map(|_| rng.range(-1.0, 1.0) as f32));
+                        r
+                    })
+                    .collect();
+                Sentence {
+                    name: format!("s{k}"),
+                    source: "random".into(),
+                    frames: Frames::from_rows(layout, 25.0, rows).unwrap(),
+                    segments,
+                }
+            })
+            .collect();
+        let cb = Codebook::build(
+            sentences,
+            25.0,
+            layout,
+            None,
+            SimilarityOptions::default(),
+            &mut facespace::no_progress,
+        )
+        .unwrap();
+        let target: Vec<Segment> = (0..2)
+            .map(|i| Segment {
+                start: 0.08 * i as f64,
+                end: 0.08 * (i + 1) as f64,
+                phone: ph(inventory[(rng.uniform() * 4.0) as usize]),
+            })
+            .collect();
+        let unit = UnitSelection {
+            constants: UnitConstants {
+                beam: 0,
+                ..UnitConstants::default()
+            },
+            weights: UnitWeights {
+                w_tc: rng.range(0.1, 3.0),
+                w_cc: rng.range(0.1, 3.0),
+                w_ccf: rng.range(0.1, 3.0),
+                w_ccg: rng.range(0.1, 3.0),
+            },
+        };
+        let (path, stats, _) = unit.select(&cb, &target, 25.0).unwrap();
+        // Every frame of a matching viseme class (or every frame, when none matches).
+        let frames: Vec<CodebookFrame> = (0..2u32)
+            .flat_map(|s| {
+                (0..6u32).map(move |f| CodebookFrame {
+                    sentence: s,
+                    frame: f,
+                })
+            })
+            .collect();
+        let pools: Vec<Vec<CodebookFrame>> = (0..path.len())
+            .map(|i| {
+                let p = facespace::codebook::phone_at(&target, i as f64 / 25.0);
+                let same: Vec<_> = frames
+                    .iter()
+                    .copied()
+                    .filter(|u| {
+                        cb.frame_phones[u.sentence as usize][u.frame as usize].viseme()
+                            == p.viseme()
+                    })
+                    .collect();
+                if same.is_empty() {
+                    frames.clone()
+                } else {
+                    same
+                }
+            })
+            .collect();
+        let mut best = f64::INFINITY;
+        let mut choice = vec![0usize; pools.len()];
+        'all: loop {
+            let p: Vec<CodebookFrame> = choice
+                .iter()
+                .enumerate()
+                .map(|(i, &c)| pools[i][c])
+                .collect();
+            best = best.min(unit.path_cost(&cb, &target, 25.0, &p));
+            for i in 0..choice.len() {
+                choice[i] += 1;
+                if choice[i] < pools[i].len() {
+                    continue 'all;
+                }
+                choice[i] = 0;
+            }
+            break;
+        }
+        let own = unit.path_cost(&cb, &target, 25.0, &path);
+        assert!(
+            (own - stats.path_cost).abs() < 1e-9,
+            "seed {seed}: {own} vs {}",
+            stats.path_cost
+        );
+        assert!(
+            (own - best).abs() < 1e-9,
+            "seed {seed}: found {own}, cheapest {best}"
+        );
+    }
+}

@@ -6,6 +6,7 @@
 
 pub mod backdrop;
 pub mod blend;
+pub mod graph;
 pub mod output;
 pub mod random;
 pub mod smooth;

@@ -210,14 +210,9 @@ impl UnitSelection {
         }
         self.weights.w_ccf * visual(cb, k, a, b) + self.weights.w_ccg * self.skip(a, b)
     }
-
-    /// Context frames either side at `fps`.
-    fn context(&self, fps: f64) -> isize {
-        (self.constants.context_at_25fps as f64 * fps / 25.0).round() as isize
-    }
 }
 
-/// The target phone of every output frame, and the targets themselves, for frames at `fps`.
+/// The target phone of every output frame at `fps`.
 fn frame_targets(target: &[Segment], fps: f64) -> Vec<Phone> {
     let start = target[0].start;
     super::frame_times(target, fps)
@@ -296,6 +291,30 @@ impl Synthesiser for UnitSelection {
 }
 
 impl UnitSelection {
+    /// The path cost `w_tc·Σ TC + w_cc·Σ CC` of any choice of codebook frames for `target`
+    /// at `fps` (one per output frame): what [`UnitSelection::select`] minimises.
+    pub fn path_cost(
+        &self,
+        codebook: &Codebook,
+        target: &[Segment],
+        fps: f64,
+        path: &[CodebookFrame],
+    ) -> f64 {
+        let tc = TargetCost::for_target(codebook, &self.constants, target, fps);
+        let k = visual_weights(codebook);
+        let w = self.weights;
+        (0..path.len())
+            .map(|i| {
+                let join = if i > 0 {
+                    self.concatenation(codebook, &k, path[i - 1], path[i])
+                } else {
+                    0.0
+                };
+                w.w_tc * tc.at(i, path[i]) + w.w_cc * join
+            })
+            .sum()
+    }
+
     /// The selected codebook frame of every output frame, the selection's statistics and
     /// warnings (phones whose viseme class has no frame in the codebook).
     pub fn select(
@@ -305,7 +324,7 @@ impl UnitSelection {
         fps: f64,
     ) -> Result<(Vec<CodebookFrame>, SelectionStats, Vec<String>), SynthError> {
         let targets = frame_targets(target, fps);
-        let n = self.context(fps);
+        let tc = TargetCost::new(codebook, &self.constants, targets.clone(), fps);
         // Codebook frames by viseme class.
         let mut by_viseme: Vec<Vec<CodebookFrame>> = vec![Vec::new(); crate::phonemes::N_VISEMES];
         for (s, phones) in codebook.frame_phones.iter().enumerate() {
@@ -321,33 +340,7 @@ impl UnitSelection {
             return Err(SynthError::Empty);
         }
         let mut warnings = Vec::new();
-        let v: Vec<f64> = (-n..=n)
-            .map(|t| (self.constants.beta1 * t.unsigned_abs() as f64).exp())
-            .collect();
-        let v_sum: f64 = v.iter().sum();
-        let target_at = |i: isize| -> Phone {
-            if i < 0 || i as usize >= targets.len() {
-                Phone::SIL
-            } else {
-                targets[i as usize]
-            }
-        };
-        let codebook_at = |u: CodebookFrame, t: isize| -> Phone {
-            let phones = &codebook.frame_phones[u.sentence as usize];
-            let f = u.frame as isize + t;
-            if f < 0 || f as usize >= phones.len() {
-                Phone::SIL
-            } else {
-                phones[f as usize]
-            }
-        };
-        let target_cost = |i: usize, u: CodebookFrame| -> f64 {
-            (-n..=n)
-                .zip(&v)
-                .map(|(t, vt)| vt * codebook.distance(target_at(i as isize + t), codebook_at(u, t)))
-                .sum::<f64>()
-                / v_sum
-        };
+        let target_cost = |i: usize, u: CodebookFrame| tc.at(i, u);
         // Candidates per output frame, pruned to the beam by target cost.
         use rayon::prelude::*;
         let lists: Vec<Vec<(CodebookFrame, f64)>> = targets
@@ -394,6 +387,79 @@ impl UnitSelection {
             .collect();
         let stats = selection_stats(codebook, &k, &selection, |i| lists[i][path[i]].1, cost);
         Ok((selection, stats, warnings))
+    }
+}
+
+/// The target cost (eq. 1) of codebook frames for the output frames of one target.
+pub struct TargetCost<'a> {
+    codebook: &'a Codebook,
+    targets: Vec<Phone>,
+    /// Context frames either side.
+    n: isize,
+    /// `v_t` for t = −n..=n, and their sum.
+    v: Vec<f64>,
+    v_sum: f64,
+}
+
+impl<'a> TargetCost<'a> {
+    /// For output frames whose target phones are `targets`, at `fps`.
+    pub fn new(
+        codebook: &'a Codebook,
+        constants: &UnitConstants,
+        targets: Vec<Phone>,
+        fps: f64,
+    ) -> Self {
+        let n = (constants.context_at_25fps as f64 * fps / 25.0).round() as isize;
+        let v: Vec<f64> = (-n..=n)
+            .map(|t| (constants.beta1 * t.unsigned_abs() as f64).exp())
+            .collect();
+        let v_sum = v.iter().sum();
+        TargetCost {
+            codebook,
+            targets,
+            n,
+            v,
+            v_sum,
+        }
+    }
+
+    /// The target phones of the output frames of `target` at `fps`.
+    pub fn for_target(
+        codebook: &'a Codebook,
+        constants: &UnitConstants,
+        target: &[Segment],
+        fps: f64,
+    ) -> Self {
+        Self::new(codebook, constants, frame_targets(target, fps), fps)
+    }
+
+    /// `TC(i, u)`.
+    pub fn at(&self, i: usize, u: CodebookFrame) -> f64 {
+        let target_at = |i: isize| -> Phone {
+            if i < 0 || i as usize >= self.targets.len() {
+                Phone::SIL
+            } else {
+                self.targets[i as usize]
+            }
+        };
+        let phones = &self.codebook.frame_phones[u.sentence as usize];
+        let codebook_at = |t: isize| -> Phone {
+            let f = u.frame as isize + t;
+            if f < 0 || f as usize >= phones.len() {
+                Phone::SIL
+            } else {
+                phones[f as usize]
+            }
+        };
+        (-self.n..=self.n)
+            .zip(&self.v)
+            .map(|(t, vt)| {
+                vt * self
+                    .codebook
+                    .distance(target_at(i as isize + t), codebook_at(t))
+            })
+            .sum::<f64>()
+            / self.v_sum
     }
 }
 
