@@ -186,7 +186,7 @@ pub fn run(options: &DemoOptions, progress: impl FnMut(Progress)) -> Result<Demo
         o,
         &renderer,
         &utterance,
-        backdrop.background,
+        backdrop.background()?,
         &OutputOptions {
             seed: 1,
             text: Some(&options.text),

@@ -145,7 +145,7 @@ fn region_synthesis_over_a_real_clip_keeps_the_background() {
     render::stream(
         &CpuRenderer::feathered(&region, DEFAULT_FEATHER),
         frames,
-        backdrop.background,
+        backdrop.background().unwrap(),
         |image| {
             out.push(image);
             Ok::<_, RenderError>(())

@@ -169,7 +169,7 @@ pub fn run(a: SynthArgs) -> Result<()> {
     }
     let synth_ms = clock.elapsed().as_secs_f64() * 1e3;
     let background = match backdrop {
-        Some(b) => b.background,
+        Some(b) => b.background()?,
         None => Background::plain_for(&model, &utterance.synthesis.frames),
     };
     let renderer = CpuRenderer::feathered(&model, DEFAULT_FEATHER);

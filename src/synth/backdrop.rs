@@ -63,15 +63,34 @@ pub enum PoseMode {
 
 /// A background with the pose (and landmarks) of the face in it.
 pub struct Backdrop {
-    /// What the faces are drawn over.
-    pub background: Background,
     /// The pose of every output frame.
     pub pose: Pose,
     /// The tracked landmarks of the background frames, in the order they are shown.
     pub landmarks: Vec<Landmarks>,
+    frames: Frames,
+}
+
+/// Where a backdrop's frames come from.
+enum Frames {
+    Still(RgbImage),
+    Video(std::path::PathBuf),
+    Loop(Vec<RgbImage>),
 }
 
 impl Backdrop {
+    /// A fresh [`Background`] of these frames, from the first (a video is opened again), so
+    /// one backdrop can be rendered under several utterances.
+    pub fn background(&self) -> Result<Background, BackdropError> {
+        Ok(match &self.frames {
+            Frames::Still(image) => Background::Still(image.clone()),
+            Frames::Video(path) => Background::Video(Box::new(Source::open(path)?)),
+            Frames::Loop(frames) => Background::Loop {
+                frames: frames.clone(),
+                next: 0,
+            },
+        })
+    }
+
     /// For a region model (one that knows its articulators), re-fits every variant of
     /// `utterance` so the region's seam lies on this background's face ([`anchor`]); returns
     /// whether it did.
@@ -108,7 +127,7 @@ impl Backdrop {
             .project(&fit.landmarks)
             .map_err(|e| FitError::Model(e.into()))?;
         Ok(Backdrop {
-            background: Background::Still(image),
+            frames: Frames::Still(image),
             pose: Pose::Hold(pose),
             landmarks: vec![fit.landmarks],
         })
@@ -138,12 +157,12 @@ impl Backdrop {
         };
         Ok(match mode {
             PoseMode::Hold => Backdrop {
-                background: Background::Still(first()?),
+                frames: Frames::Still(first()?),
                 pose: Pose::Hold(poses[0]),
                 landmarks: vec![landmarks[0].clone()],
             },
             PoseMode::Replay if poses.len() >= frames => Backdrop {
-                background: Background::Video(Box::new(Source::open(path)?)),
+                frames: Frames::Video(path.into()),
                 pose: Pose::Replay(poses[..frames].to_vec()),
                 landmarks: landmarks[..frames].to_vec(),
             },
@@ -165,10 +184,7 @@ impl Backdrop {
                     .map(|t| landmarks[super::ping_pong(t, landmarks.len())].clone())
                     .collect();
                 Backdrop {
-                    background: Background::Loop {
-                        frames: images,
-                        next: 0,
-                    },
+                    frames: Frames::Loop(images),
                     pose: Pose::Replay(poses),
                     landmarks: shown,
                 }

@@ -203,12 +203,19 @@ impl UnitSelection {
         }
     }
 
-    /// Concatenation cost `w_ccf·f + w_ccg·g` (0 for the next frame of the same sentence).
-    fn concatenation(&self, cb: &Codebook, k: &[f64], a: CodebookFrame, b: CodebookFrame) -> f64 {
+    /// The visual and skip costs `(f, g)` of joining `a` to `b` (both 0 for the next frame
+    /// of the same sentence).
+    fn join_costs(&self, cb: &Codebook, k: &[f64], a: CodebookFrame, b: CodebookFrame) -> (f64, f64) {
         if a.sentence == b.sentence && b.frame == a.frame + 1 {
-            return 0.0;
+            return (0.0, 0.0);
         }
-        self.weights.w_ccf * visual(cb, k, a, b) + self.weights.w_ccg * self.skip(a, b)
+        (visual(cb, k, a, b), self.skip(a, b))
+    }
+
+    /// Concatenation cost `w_ccf·f + w_ccg·g`.
+    fn concatenation(&self, cb: &Codebook, k: &[f64], a: CodebookFrame, b: CodebookFrame) -> f64 {
+        let (f, g) = self.join_costs(cb, k, a, b);
+        self.weights.w_ccf * f + self.weights.w_ccg * g
     }
 }
 
@@ -323,6 +330,22 @@ impl UnitSelection {
         target: &[Segment],
         fps: f64,
     ) -> Result<(Vec<CodebookFrame>, SelectionStats, Vec<String>), SynthError> {
+        let prepared = self.prepare(codebook, target, fps)?;
+        let (selection, stats) = self.solve(codebook, &prepared)?;
+        Ok((selection, stats, prepared.warnings))
+    }
+
+    /// Everything of the search that does not depend on the weights: the candidate lists
+    /// with their target costs, and (where the lists are short enough) the visual and skip
+    /// costs of every join — so weight training can re-solve it cheaply.
+    pub fn prepare(
+        &self,
+        codebook: &Codebook,
+        target: &[Segment],
+        fps: f64,
+    ) -> Result<Prepared, SynthError> {
+        self.constants.validate()?;
+        validate_request(target, fps)?;
         let targets = frame_targets(target, fps);
         let tc = TargetCost::new(codebook, &self.constants, targets.clone(), fps);
         // Codebook frames by viseme class.
@@ -372,22 +395,69 @@ impl UnitSelection {
             }
         }
         let k = visual_weights(codebook);
+        let joins = (1..lists.len())
+            .map(|i| {
+                let (a, b) = (&lists[i - 1], &lists[i]);
+                (a.len() * b.len() <= MAX_CACHED_JOINS).then(|| {
+                    a.iter()
+                        .flat_map(|&(u, _)| {
+                            let k = &k;
+                            b.iter().map(move |&(w, _)| self.join_costs(codebook, k, u, w))
+                        })
+                        .collect()
+                })
+            })
+            .collect();
+        Ok(Prepared {
+            lists,
+            joins,
+            k,
+            warnings,
+        })
+    }
+
+    /// The cheapest path through a prepared lattice under these weights.
+    pub fn solve(
+        &self,
+        codebook: &Codebook,
+        prepared: &Prepared,
+    ) -> Result<(Vec<CodebookFrame>, SelectionStats), SynthError> {
+        self.weights.validate()?;
+        let Prepared { lists, joins, k, .. } = prepared;
         let w = self.weights;
         let sizes: Vec<usize> = lists.iter().map(Vec::len).collect();
         let (path, cost) = cheapest_path(
             &sizes,
             |i, c| w.w_tc * lists[i][c].1,
-            |i, p, c| w.w_cc * self.concatenation(codebook, &k, lists[i - 1][p].0, lists[i][c].0),
+            |i, p, c| {
+                let (f, g) = match &joins[i - 1] {
+                    Some(j) => j[p * sizes[i] + c],
+                    None => self.join_costs(codebook, k, lists[i - 1][p].0, lists[i][c].0),
+                };
+                w.w_cc * (w.w_ccf * f + w.w_ccg * g)
+            },
         )
         .ok_or(SynthError::Empty)?;
-        let selection: Vec<CodebookFrame> = path
-            .iter()
-            .enumerate()
-            .map(|(i, &c)| lists[i][c].0)
-            .collect();
-        let stats = selection_stats(codebook, &k, &selection, |i| lists[i][path[i]].1, cost);
-        Ok((selection, stats, warnings))
+        let selection: Vec<CodebookFrame> =
+            path.iter().enumerate().map(|(i, &c)| lists[i][c].0).collect();
+        let stats = selection_stats(codebook, k, &selection, |i| lists[i][path[i]].1, cost);
+        Ok((selection, stats))
     }
+}
+
+/// Joins cached per step at most (candidates of one frame × the next's).
+const MAX_CACHED_JOINS: usize = 16_384;
+
+/// A unit-selection lattice ready to be solved under any weights ([`UnitSelection::prepare`]).
+pub struct Prepared {
+    /// Per output frame, the candidates kept and their target costs.
+    lists: Vec<Vec<(CodebookFrame, f64)>>,
+    /// Per join (output frames i−1 → i), the (visual, skip) costs of every candidate pair,
+    /// row-major, where cached.
+    joins: Vec<Option<Vec<(f64, f64)>>>,
+    k: Vec<f64>,
+    /// Phones whose viseme class has no codebook frame.
+    pub warnings: Vec<String>,
 }
 
 /// The target cost (eq. 1) of codebook frames for the output frames of one target.
