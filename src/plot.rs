@@ -7,7 +7,8 @@ use std::sync::OnceLock;
 use ab_glyph::FontRef;
 use image::{Rgb, RgbImage};
 use imageproc::drawing::{
-    draw_antialiased_line_segment_mut, draw_filled_rect_mut, draw_text_mut, text_size,
+    draw_antialiased_line_segment_mut, draw_filled_circle_mut, draw_filled_rect_mut, draw_text_mut,
+    text_size,
 };
 use imageproc::pixelops::interpolate;
 use imageproc::rect::Rect;
@@ -172,6 +173,126 @@ pub fn nice_ticks(lo: f64, hi: f64) -> (Vec<f64>, usize) {
     (ticks, decimals)
 }
 
+/// A plot's data area: where values land in pixels, with room for ticks and labels.
+struct Axes {
+    left: f32,
+    top: f32,
+    pw: f32,
+    ph: f32,
+    height: f32,
+    x_min: f64,
+    x_span: f64,
+    y_min: f64,
+    y_max: f64,
+}
+
+impl Axes {
+    /// Axes over the points' range (y padded by 5%) on a `width × height` image, `bottom`
+    /// pixels kept below the data area.
+    fn new(
+        (width, height): (u32, u32),
+        xs: impl Iterator<Item = f64>,
+        ys: impl Iterator<Item = f64>,
+        bottom: f32,
+    ) -> Self {
+        let (left, right, top) = (60.0f32, 16.0f32, 28.0f32);
+        let range = |v: &mut dyn Iterator<Item = f64>| {
+            v.filter(|x| x.is_finite())
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                    (a.min(v), b.max(v))
+                })
+        };
+        let (x_min, x_max) = range(&mut { xs });
+        let (mut y_min, mut y_max) = range(&mut { ys });
+        if y_max <= y_min || !y_max.is_finite() || !y_min.is_finite() {
+            y_min = if y_min.is_finite() { y_min - 1.0 } else { 0.0 };
+            y_max = y_min + 2.0;
+        }
+        let pad = 0.05 * (y_max - y_min);
+        Axes {
+            left,
+            top,
+            pw: width as f32 - left - right,
+            ph: height as f32 - top - bottom,
+            height: height as f32,
+            x_min: if x_min.is_finite() { x_min } else { 0.0 },
+            x_span: if x_max > x_min { x_max - x_min } else { 1.0 },
+            y_min: y_min - pad,
+            y_max: y_max + pad,
+        }
+    }
+
+    fn px(&self, x: f64) -> f32 {
+        self.left + ((x - self.x_min) / self.x_span) as f32 * self.pw
+    }
+
+    fn py(&self, y: f64) -> f32 {
+        self.top + ((self.y_max - y) / (self.y_max - self.y_min)) as f32 * self.ph
+    }
+
+    /// Title, axes, ticks at 1-2-5 steps, and the axis labels.
+    fn draw(&self, img: &mut RgbImage, title: &str, x_label: &str, y_label: &str) {
+        let (left, top, pw, ph) = (self.left, self.top, self.pw, self.ph);
+        text(img, left, 6.0, 14.0, title, BLACK);
+        line(img, (left, top + ph), (left + pw, top + ph), BLACK);
+        line(img, (left, top), (left, top + ph), BLACK);
+        let (y_ticks, y_decimals) = nice_ticks(self.y_min, self.y_max);
+        for y in y_ticks {
+            let label = format!("{y:.y_decimals$}");
+            let py = self.py(y);
+            text(
+                img,
+                left - text_width(10.0, &label) - 4.0,
+                py - 6.0,
+                10.0,
+                &label,
+                BLACK,
+            );
+            line(img, (left - 3.0, py), (left, py), BLACK);
+        }
+        let (x_ticks, x_decimals) = nice_ticks(self.x_min, self.x_min + self.x_span);
+        for x in x_ticks {
+            let label = format!("{x:.x_decimals$}");
+            let px = self.px(x);
+            text(
+                img,
+                px - 0.5 * text_width(10.0, &label),
+                top + ph + 4.0,
+                10.0,
+                &label,
+                BLACK,
+            );
+            line(img, (px, top + ph), (px, top + ph + 3.0), BLACK);
+        }
+        text(
+            img,
+            left + pw - text_width(10.0, x_label),
+            self.height - 14.0,
+            10.0,
+            x_label,
+            BLACK,
+        );
+        text(img, left + 4.0, top + 2.0, 10.0, y_label, BLACK);
+    }
+
+    /// Legend entries in the top right corner, each drawn by `mark` at its left.
+    fn legend<T>(
+        &self,
+        img: &mut RgbImage,
+        entries: &[T],
+        label: impl Fn(&T) -> &str,
+        mut mark: impl FnMut(&mut RgbImage, &T, (f32, f32)),
+    ) {
+        let mut ly = self.top + 4.0;
+        for e in entries {
+            let lx = self.left + self.pw - text_width(10.0, label(e)) - 30.0;
+            mark(img, e, (lx, ly + 6.0));
+            text(img, lx + 24.0, ly, 10.0, label(e), BLACK);
+            ly += 14.0;
+        }
+    }
+}
+
 /// A line plot with axes, ticks, a legend and optional shaded spans (`(x0, x1, label)`,
 /// e.g. phone segments) along the bottom.
 pub fn line_plot(
@@ -183,113 +304,96 @@ pub fn line_plot(
     height: u32,
 ) -> RgbImage {
     let mut img = RgbImage::from_pixel(width, height, Rgb([255, 255, 255]));
-    let (left, right, top, bottom) = (
-        60.0f32,
-        16.0f32,
-        28.0f32,
-        if spans.is_empty() { 36.0f32 } else { 56.0f32 },
+    let axes = Axes::new(
+        (width, height),
+        series
+            .iter()
+            .flat_map(|s| s.x.iter().copied())
+            .chain(spans.iter().flat_map(|s| [s.0, s.1])),
+        series.iter().flat_map(|s| s.y.iter().copied()),
+        if spans.is_empty() { 36.0 } else { 56.0 },
     );
-    let (pw, ph) = (width as f32 - left - right, height as f32 - top - bottom);
-    let xs = series
-        .iter()
-        .flat_map(|s| s.x.iter().copied())
-        .chain(spans.iter().flat_map(|s| [s.0, s.1]));
-    let (x_min, x_max) = xs.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-        (a.min(v), b.max(v))
-    });
-    let ys = series.iter().flat_map(|s| s.y.iter().copied());
-    let (mut y_min, mut y_max) = ys.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-        (a.min(v), b.max(v))
-    });
-    if y_max <= y_min || !y_max.is_finite() || !y_min.is_finite() {
-        y_min -= 1.0;
-        y_max += 1.0;
-    }
-    let pad = 0.05 * (y_max - y_min);
-    let (y_min, y_max) = (y_min - pad, y_max + pad);
-    let x_span = if x_max > x_min { x_max - x_min } else { 1.0 };
-    let px = |x: f64| left + ((x - x_min) / x_span) as f32 * pw;
-    let py = |y: f64| top + ((y_max - y) / (y_max - y_min)) as f32 * ph;
-    text(&mut img, left, 6.0, 14.0, title, BLACK);
     // Spans as alternating bands with labels.
     for (k, (a, b, label)) in spans.iter().enumerate() {
-        let (xa, xb) = (px(*a), px(*b));
+        let (xa, xb) = (axes.px(*a), axes.px(*b));
         if k % 2 == 0 {
             fill_rect(
                 &mut img,
                 xa as u32,
-                top as u32,
+                axes.top as u32,
                 (xb - xa).max(1.0) as u32,
-                ph as u32,
+                axes.ph as u32,
                 Rgb([242, 242, 242]),
             );
         }
         let w = text_width(10.0, label);
         if w < xb - xa + 6.0 {
-            text(
-                &mut img,
-                0.5 * (xa + xb) - 0.5 * w,
-                top + ph + 20.0,
-                10.0,
-                label,
-                BLACK,
-            );
+            let y = axes.top + axes.ph + 20.0;
+            text(&mut img, 0.5 * (xa + xb) - 0.5 * w, y, 10.0, label, BLACK);
         }
     }
-    // Axes and ticks.
-    line(&mut img, (left, top + ph), (left + pw, top + ph), BLACK);
-    line(&mut img, (left, top), (left, top + ph), BLACK);
-    let (y_ticks, y_decimals) = nice_ticks(y_min, y_max);
-    for y in y_ticks {
-        let label = format!("{y:.y_decimals$}");
-        text(
-            &mut img,
-            left - text_width(10.0, &label) - 4.0,
-            py(y) - 6.0,
-            10.0,
-            &label,
-            BLACK,
-        );
-        line(&mut img, (left - 3.0, py(y)), (left, py(y)), BLACK);
-    }
-    let (x_ticks, x_decimals) = nice_ticks(x_min, x_min + x_span);
-    for x in x_ticks {
-        let label = format!("{x:.x_decimals$}");
-        text(
-            &mut img,
-            px(x) - 0.5 * text_width(10.0, &label),
-            top + ph + 4.0,
-            10.0,
-            &label,
-            BLACK,
-        );
-        line(&mut img, (px(x), top + ph), (px(x), top + ph + 3.0), BLACK);
-    }
-    text(
-        &mut img,
-        left + pw - text_width(10.0, x_label),
-        height as f32 - 14.0,
-        10.0,
-        x_label,
-        BLACK,
-    );
+    axes.draw(&mut img, title, x_label, "");
     for s in series {
         for k in 1..s.x.len().min(s.y.len()) {
             line(
                 &mut img,
-                (px(s.x[k - 1]), py(s.y[k - 1])),
-                (px(s.x[k]), py(s.y[k])),
+                (axes.px(s.x[k - 1]), axes.py(s.y[k - 1])),
+                (axes.px(s.x[k]), axes.py(s.y[k])),
                 s.color,
             );
         }
     }
-    let mut ly = top + 4.0;
-    for s in series {
-        let lx = left + pw - text_width(10.0, s.label) - 30.0;
-        line(&mut img, (lx, ly + 6.0), (lx + 20.0, ly + 6.0), s.color);
-        text(&mut img, lx + 24.0, ly, 10.0, s.label, BLACK);
-        ly += 14.0;
+    axes.legend(
+        &mut img,
+        series,
+        |s| s.label,
+        |img, s, (x, y)| line(img, (x, y), (x + 20.0, y), s.color),
+    );
+    img
+}
+
+/// One group of points of a scatter plot.
+pub struct ScatterGroup<'a> {
+    /// Legend text.
+    pub label: &'a str,
+    /// The points `(x, y)`.
+    pub points: Vec<(f64, f64)>,
+    /// Their colour.
+    pub color: Rgb<u8>,
+    /// Their radius, pixels.
+    pub radius: i32,
+}
+
+/// A scatter plot with axes, ticks and a legend; later groups are drawn over earlier ones.
+pub fn scatter(
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    groups: &[ScatterGroup],
+    width: u32,
+    height: u32,
+) -> RgbImage {
+    let mut img = RgbImage::from_pixel(width, height, Rgb([255, 255, 255]));
+    let all = || groups.iter().flat_map(|g| g.points.iter().copied());
+    let axes = Axes::new(
+        (width, height),
+        all().map(|p| p.0),
+        all().map(|p| p.1),
+        36.0,
+    );
+    axes.draw(&mut img, title, x_label, y_label);
+    for g in groups {
+        for &(x, y) in &g.points {
+            let c = (axes.px(x).round() as i32, axes.py(y).round() as i32);
+            draw_filled_circle_mut(&mut img, c, g.radius, g.color);
+        }
     }
+    axes.legend(
+        &mut img,
+        groups,
+        |g| g.label,
+        |img, g, (x, y)| draw_filled_circle_mut(img, (x as i32 + 10, y as i32), g.radius, g.color),
+    );
     img
 }
 

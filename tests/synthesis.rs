@@ -32,7 +32,13 @@ fn blend_beats_fair_baselines_on_the_test_split() {
     );
     let choice =
         choose_smoothing(&model, &cb, &validation, Blend::default(), &LAMBDA_GRID).unwrap();
-    let table = evaluate(&model, &cb, &test, &System::comparison(choice.lambda)).unwrap();
+    let table = evaluate(
+        &model,
+        &cb,
+        &test,
+        &System::comparison(choice.lambda, Default::default()),
+    )
+    .unwrap();
     for row in &table {
         let m = row.mean;
         eprintln!(

@@ -10,6 +10,7 @@ use facespace::eval::{System, evaluate};
 use facespace::phonemes::PhoneMap;
 use facespace::synth::DEFAULT_SMOOTHING;
 use facespace::synth::blend::Blend;
+use facespace::synth::unit::{UnitSelection, WeightsFile};
 use facespace::{atomic, corpus};
 
 use super::{DEMO_MODEL, load_model};
@@ -30,6 +31,9 @@ pub struct EvalArgs {
     /// Smoothing weight λ when no validation split is given.
     #[arg(long, default_value_t = DEFAULT_SMOOTHING)]
     smoothing: f64,
+    /// Unit-selection weights and constants (a `train-weights` file; default: all weights 1).
+    #[arg(long)]
+    weights: Option<PathBuf>,
     /// Write the table (and the λ choice) as JSON here.
     #[arg(short, long)]
     output: Option<PathBuf>,
@@ -69,21 +73,29 @@ pub fn run(a: EvalArgs) -> Result<()> {
         }
     };
     let lambda = choice.as_ref().map_or(a.smoothing, |c| c.lambda);
-    let table = evaluate(&model, &cb, &heldout, &System::comparison(lambda))?;
+    let unit = match &a.weights {
+        Some(p) => WeightsFile::read(p)?.unit_selection(),
+        None => UnitSelection::default(),
+    };
+    let table = evaluate(&model, &cb, &heldout, &System::comparison(lambda, unit))?;
     println!("{} test sentences; mean over sentences", heldout.len());
     println!(
-        "{:<42} {:>7} {:>7} {:>9} {:>8} {:>12}",
-        "system", "r_pca", "r_h", "RMSE px", "DTW", "mouth sd px"
+        "{:<46} {:>6} {:>6} {:>8} {:>7} {:>8} {:>7} {:>6} {:>7}",
+        "system", "r_pca", "r_h", "RMSE px", "DTW", "mouth sd", "TC_avg", "SL_avg", "VC_avg"
     );
     for row in &table {
         let m = row.mean;
+        let sel = row.selection.map_or_else(
+            || format!("{:>7} {:>6} {:>7}", "—", "—", "—"),
+            |s| format!("{:>7.4} {:>6.1} {:>7.4}", s.tc_avg, s.sl_avg, s.vc_avg),
+        );
         println!(
-            "{:<42} {:>7.3} {:>7.3} {:>9.3} {:>8.1} {:>12.3}",
+            "{:<46} {:>6.3} {:>6.3} {:>8.3} {:>7.1} {:>8.3} {sel}",
             row.system, m.r_pca, m.r_h, m.rmse_px, m.dtw, m.mouth_sd_px
         );
     }
     println!(
-        "{:<42} {:>7} {:>7} {:>9} {:>8} {:>12.3}",
+        "{:<46} {:>6} {:>6} {:>8} {:>7} {:>8.3}",
         "real (reference)",
         "",
         "",

@@ -9,6 +9,7 @@ mod eval;
 mod model;
 mod synth;
 mod track;
+mod weights;
 
 use std::path::PathBuf;
 
@@ -53,8 +54,11 @@ enum Command {
     Decode(codec::DecodeArgs),
     /// PSNR / SSIM inside the face mask and bytes per frame of a clip against its input.
     CodecReport(codec::ReportArgs),
-    /// Synthesise a face-space trajectory and video from phonemes or text (top-N blending).
+    /// Synthesise a face-space trajectory and video from phonemes or text (top-N blending, unit selection or the phoneme graph).
     Synth(synth::SynthArgs),
+    /// Train the unit-selection weights on validation sentences (Pareto front of lip sync,
+    /// segment length and smoothness) → a weights file for `synth --weights`.
+    TrainWeights(weights::TrainWeightsArgs),
     /// Score synthesis against held-out sentences (r_pca, r_h, RMSE, DTW) with baselines.
     Eval(eval::EvalArgs),
     /// The whole pipeline on the demo model: generated corpus → codebook → an unseen
@@ -72,6 +76,7 @@ pub fn run() -> Result<()> {
         Command::Decode(a) => codec::decode(a),
         Command::CodecReport(a) => codec::report(a),
         Command::Synth(a) => synth::run(a),
+        Command::TrainWeights(a) => weights::run(a),
         Command::Eval(a) => eval::run(a),
         Command::Demo(a) => demo::run(a),
     }

@@ -8,9 +8,12 @@ use facespace::codebook::Codebook;
 use facespace::codec::EncodeOptions;
 use facespace::phonemes::{self, PhoneMap};
 use facespace::render::{Background, CpuRenderer, DEFAULT_FEATHER};
+use facespace::synth::Synthesiser;
 use facespace::synth::backdrop::{Backdrop, PoseMode};
 use facespace::synth::blend::Blend;
+use facespace::synth::graph::Graph;
 use facespace::synth::output::{self, OutputOptions};
+use facespace::synth::unit::{UnitSelection, WeightsFile};
 use facespace::synth::{self, DEFAULT_SMOOTHING, Pose, Request, Smoothing, synthesise};
 use facespace::{corpus, video};
 
@@ -31,6 +34,16 @@ pub enum Smooth {
     Off,
     /// Both, plus a blind side-by-side and a comparison plot.
     Ab,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Mode {
+    /// Top-N context blending.
+    Blend,
+    /// Frame-level unit selection (Viterbi over codebook frames).
+    Unit,
+    /// The dynamic-phoneme graph.
+    Graph,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -55,6 +68,13 @@ pub struct SynthArgs {
     tier: Option<String>,
     #[arg(long)]
     phone_map: Option<PathBuf>,
+    /// How to synthesise.
+    #[arg(long, value_enum, default_value_t = Mode::Blend)]
+    mode: Mode,
+    /// Unit-selection weights and constants (a `train-weights` file; default: all weights 1,
+    /// [unitsel]'s constants).
+    #[arg(long)]
+    weights: Option<PathBuf>,
     /// Context width C.
     #[arg(long, default_value_t = 1)]
     context: usize,
@@ -126,9 +146,16 @@ pub fn run(a: SynthArgs) -> Result<()> {
         Smooth::Off => Smoothing::Off,
         Smooth::Ab => Smoothing::Ab(a.smoothing),
     };
-    let blend = Blend {
-        context: a.context,
-        top_n: a.top_n,
+    let synthesiser: Box<dyn Synthesiser> = match a.mode {
+        Mode::Blend => Box::new(Blend {
+            context: a.context,
+            top_n: a.top_n,
+        }),
+        Mode::Unit => Box::new(match &a.weights {
+            Some(p) => WeightsFile::read(p)?.unit_selection(),
+            None => UnitSelection::default(),
+        }),
+        Mode::Graph => Box::new(Graph::default()),
     };
     let frames = synth::frame_count(&target, a.fps);
     let tracker = match &a.track_model {
@@ -163,7 +190,7 @@ pub fn run(a: SynthArgs) -> Result<()> {
         ..Request::new(target, a.fps, smoothing)
     };
     let clock = std::time::Instant::now();
-    let mut utterance = synthesise(&blend, &cb, request)?;
+    let mut utterance = synthesise(synthesiser.as_ref(), &cb, request)?;
     if let Some(b) = &backdrop {
         b.anchor_region(&model, &mut utterance)?;
     }

@@ -9,7 +9,9 @@ use crate::codebook::Codebook;
 use crate::corpus::Sentence;
 use crate::model::FaceModel;
 use crate::synth::blend::Blend;
+use crate::synth::graph::Graph;
 use crate::synth::random::RandomLips;
+use crate::synth::unit::UnitSelection;
 use crate::synth::{Pose, Request, Smoothing, SynthError, Synthesiser, synthesise};
 
 /// The smoothing weights tried on the validation split.
@@ -40,10 +42,13 @@ impl System {
     }
 
     /// The comparison of \[blend\] §6 with fair baselines: blend C = 1 with N = 1, 3, 5, the
-    /// per-phoneme mean and random lips, each smoothed at `lambda` and unsmoothed.
-    pub fn comparison(lambda: f64) -> Vec<System> {
+    /// per-phoneme mean, random lips, unit selection (`unit`) and the dynamic-phoneme graph,
+    /// each smoothed at `lambda` and unsmoothed.
+    pub fn comparison(lambda: f64, unit: UnitSelection) -> Vec<System> {
         let mut rows = Vec::new();
         for smoothing in [Some(lambda), None] {
+            rows.push(System::new(unit, smoothing));
+            rows.push(System::new(Graph::default(), smoothing));
             for n in [1, 3, 5] {
                 rows.push(System::new(
                     Blend {
@@ -69,6 +74,20 @@ pub struct SystemScores {
     pub mean: Scores,
     /// Per sentence, in order.
     pub per_sentence: Vec<Scores>,
+    /// For systems that select codebook frames: mean TC_avg, SL_avg and VC_avg over the
+    /// sentences (\[unitsel\] eq. 12–15).
+    pub selection: Option<SelectionMeans>,
+}
+
+/// Means of the selection measures over sentences.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct SelectionMeans {
+    /// Mean target cost per frame.
+    pub tc_avg: f64,
+    /// Mean run length (frames).
+    pub sl_avg: f64,
+    /// Mean visual cost between consecutive frames.
+    pub vc_avg: f64,
 }
 
 /// Synthesises every held-out sentence from its own phone timings with each system and scores
@@ -83,6 +102,7 @@ pub fn evaluate(
         .iter()
         .map(|system| {
             let smoothing = system.smoothing.map_or(Smoothing::Off, Smoothing::On);
+            let mut selections = Vec::new();
             let per_sentence = heldout
                 .iter()
                 .map(|s| {
@@ -92,13 +112,23 @@ pub fn evaluate(
                         ..Request::new(s.segments.clone(), codebook.fps, smoothing)
                     };
                     let u = synthesise(system.synthesiser.as_ref(), codebook, request)?;
+                    if let Some(stats) = &u.synthesis.selection {
+                        selections.push((stats.tc_avg, stats.sl_avg, stats.vc_avg));
+                    }
                     Ok(score(model, u.variants()[0].1, &s.frames))
                 })
                 .collect::<Result<Vec<_>, SynthError>>()?;
+            let n = selections.len().max(1) as f64;
+            let selection = (!selections.is_empty()).then(|| SelectionMeans {
+                tc_avg: selections.iter().map(|s| s.0).sum::<f64>() / n,
+                sl_avg: selections.iter().map(|s| s.1).sum::<f64>() / n,
+                vc_avg: selections.iter().map(|s| s.2).sum::<f64>() / n,
+            });
             Ok(SystemScores {
                 system: system.name.clone(),
                 mean: mean_scores(&per_sentence),
                 per_sentence,
+                selection,
             })
         })
         .collect()

@@ -8,6 +8,7 @@ pub mod backdrop;
 pub mod blend;
 pub mod graph;
 pub mod output;
+pub mod pareto;
 pub mod random;
 pub mod smooth;
 pub mod unit;

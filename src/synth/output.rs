@@ -92,6 +92,9 @@ pub struct Report {
     pub phones: Vec<PhoneReport>,
     /// Fallbacks and other notes.
     pub warnings: Vec<String>,
+    /// For unit selection and the graph: TC_avg, SL_avg, VC_avg, the path cost and the runs
+    /// of codebook frames used.
+    pub selection: Option<super::unit::SelectionStats>,
     /// The A/B order, for an A/B comparison.
     pub ab_key: Option<AbKey>,
 }
@@ -243,6 +246,7 @@ pub fn write(
         renderer: renderer.describe(),
         phones: utterance.synthesis.phones.clone(),
         warnings: utterance.synthesis.warnings.clone(),
+        selection: utterance.synthesis.selection.clone(),
         ab_key: key,
     };
     let path = dir.join("report.json");

@@ -205,7 +205,13 @@ impl UnitSelection {
 
     /// The visual and skip costs `(f, g)` of joining `a` to `b` (both 0 for the next frame
     /// of the same sentence).
-    fn join_costs(&self, cb: &Codebook, k: &[f64], a: CodebookFrame, b: CodebookFrame) -> (f64, f64) {
+    fn join_costs(
+        &self,
+        cb: &Codebook,
+        k: &[f64],
+        a: CodebookFrame,
+        b: CodebookFrame,
+    ) -> (f64, f64) {
         if a.sentence == b.sentence && b.frame == a.frame + 1 {
             return (0.0, 0.0);
         }
@@ -402,7 +408,8 @@ impl UnitSelection {
                     a.iter()
                         .flat_map(|&(u, _)| {
                             let k = &k;
-                            b.iter().map(move |&(w, _)| self.join_costs(codebook, k, u, w))
+                            b.iter()
+                                .map(move |&(w, _)| self.join_costs(codebook, k, u, w))
                         })
                         .collect()
                 })
@@ -423,7 +430,9 @@ impl UnitSelection {
         prepared: &Prepared,
     ) -> Result<(Vec<CodebookFrame>, SelectionStats), SynthError> {
         self.weights.validate()?;
-        let Prepared { lists, joins, k, .. } = prepared;
+        let Prepared {
+            lists, joins, k, ..
+        } = prepared;
         let w = self.weights;
         let sizes: Vec<usize> = lists.iter().map(Vec::len).collect();
         let (path, cost) = cheapest_path(
@@ -438,8 +447,11 @@ impl UnitSelection {
             },
         )
         .ok_or(SynthError::Empty)?;
-        let selection: Vec<CodebookFrame> =
-            path.iter().enumerate().map(|(i, &c)| lists[i][c].0).collect();
+        let selection: Vec<CodebookFrame> = path
+            .iter()
+            .enumerate()
+            .map(|(i, &c)| lists[i][c].0)
+            .collect();
         let stats = selection_stats(codebook, k, &selection, |i| lists[i][path[i]].1, cost);
         Ok((selection, stats))
     }
@@ -570,5 +582,88 @@ pub fn selection_stats(
         vc_avg: visual_sum / (n.max(2) - 1) as f64,
         path_cost,
         segments,
+    }
+}
+
+/// A weights file: the four path-cost weights (all required), the constants (optional, the
+/// defaults otherwise) and, from `train-weights`, how they were chosen. `train-weights`
+/// writes it; `synth --weights` and `eval --weights` read it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct WeightsFile {
+    /// The path-cost weights.
+    pub weights: UnitWeights,
+    /// The constants.
+    #[serde(default)]
+    pub constants: UnitConstants,
+    /// How the weights were trained (free-form, for the record).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub training: Option<serde_json::Value>,
+}
+
+/// What can be wrong with a weights file.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum WeightsError {
+    /// The file could not be read or written.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: std::path::PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// Not a weights file: bad JSON, a missing weight or an unknown key.
+    #[error("{path}: {reason}")]
+    Invalid {
+        /// The file.
+        path: std::path::PathBuf,
+        /// What is wrong.
+        reason: String,
+    },
+    /// A weight or constant out of range.
+    #[error("{path}: {source}")]
+    Range {
+        /// The file.
+        path: std::path::PathBuf,
+        /// What is out of range.
+        source: InvalidOption,
+    },
+}
+
+impl WeightsFile {
+    /// Reads and checks a weights file.
+    pub fn read(path: &std::path::Path) -> Result<Self, WeightsError> {
+        let text = std::fs::read_to_string(path).map_err(|source| WeightsError::Io {
+            path: path.into(),
+            source,
+        })?;
+        let file: WeightsFile = serde_json::from_str(&text).map_err(|e| WeightsError::Invalid {
+            path: path.into(),
+            reason: e.to_string(),
+        })?;
+        let range = |source| WeightsError::Range {
+            path: path.into(),
+            source,
+        };
+        file.weights.validate().map_err(range)?;
+        file.constants.validate().map_err(range)?;
+        Ok(file)
+    }
+
+    /// Writes the file atomically.
+    pub fn write(&self, path: &std::path::Path) -> Result<(), WeightsError> {
+        let json = serde_json::to_vec_pretty(self).expect("weights serialise");
+        crate::atomic::write_file(path, &json).map_err(|source| WeightsError::Io {
+            path: path.into(),
+            source,
+        })
+    }
+
+    /// The unit selection these weights and constants make.
+    pub fn unit_selection(&self) -> UnitSelection {
+        UnitSelection {
+            weights: self.weights,
+            constants: self.constants,
+        }
     }
 }
