@@ -188,17 +188,14 @@ struct Lattice<'a> {
 
 impl Lattice<'_> {
     /// The most probable stitch from unit `a`'s offset half to unit `b`'s onset half:
-    /// (probability, frame of a, frame of b); probability 1 for consecutive units of one
-    /// sentence, 0 for a unit followed by itself (a within-state loop).
+    /// (ln probability, frame of a, frame of b); probability 1 for consecutive units of one
+    /// sentence. Logarithms throughout, so distant frames never underflow to "impossible".
     fn stitch(&self, a: usize, b: usize) -> (f64, usize, usize) {
         let (ua, ub) = (self.units[a], self.units[b]);
         let fps = self.codebook.fps;
         if ua.sentence == ub.sentence && b == a + 1 {
             let f = (ua.offset * fps).round() as usize;
-            return (1.0, f, f);
-        }
-        if a == b {
-            return (0.0, 0, 0);
+            return (0.0, f, f);
         }
         let fa = frames_in(&self.features, fps, ua.sentence, ua.centre, ua.offset);
         let fb = frames_in(&self.features, fps, ub.sentence, ub.onset, ub.centre);
@@ -206,33 +203,41 @@ impl Lattice<'_> {
             self.features.frames(ua.sentence) as isize,
             self.features.frames(ub.sentence) as isize,
         );
-        let mut best = (0.0, fa[0], fb[0]);
+        let mut best = (f64::NEG_INFINITY, fa[0], fb[0]);
         for &x in &fa {
             for &y in &fb {
                 // Averaged along the diagonal over 3 frames: similar motion, not only pose.
-                let mut p = 0.0;
-                for delta in -1isize..=1 {
+                // ln of the mean of exp(−d/σ), shifted by the smallest d/σ.
+                let z: [f64; 3] = std::array::from_fn(|i| {
+                    let delta = i as isize - 1;
                     let (xx, yy) = (
                         (x as isize + delta).clamp(0, na - 1) as usize,
                         (y as isize + delta).clamp(0, nb - 1) as usize,
                     );
-                    let d = self.features.distance((ua.sentence, xx), (ub.sentence, yy));
-                    p += (-d / self.sigma).exp() / 3.0;
-                }
-                if p > best.0 {
-                    best = (p, x, y);
+                    self.features.distance((ua.sentence, xx), (ub.sentence, yy)) / self.sigma
+                });
+                let m = z.iter().copied().fold(f64::INFINITY, f64::min);
+                let ln_p = -m + (z.iter().map(|v| (m - v).exp()).sum::<f64>() / 3.0).ln();
+                if ln_p > best.0 {
+                    best = (ln_p, x, y);
                 }
             }
         }
         best
     }
 
+    /// `−ln p` of the transition from unit `a` to unit `b`. With `prune`, improbable
+    /// transitions and a unit followed by itself (a within-state loop) are cut; without, they
+    /// stay as the fallback when nothing else connects (a repeated phone with one example).
     fn cost(&self, a: usize, b: usize, prune: bool) -> f64 {
-        let p = self.stitch(a, b).0;
-        if p <= 0.0 || (prune && p < self.min_probability) {
+        if prune && a == b {
+            return f64::INFINITY;
+        }
+        let ln_p = self.stitch(a, b).0;
+        if prune && ln_p < self.min_probability.ln() {
             f64::INFINITY
         } else {
-            -p.ln()
+            -ln_p
         }
     }
 }
@@ -452,5 +457,171 @@ impl Synthesiser for Graph {
             warnings,
             selection: Some(stats),
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::codebook::SimilarityOptions;
+    use crate::corpus::Sentence;
+    use crate::facespace::Layout;
+
+    /// A small random codebook: `n` sentences of three phones from a four-phone inventory.
+    fn random_codebook(rng: &mut Rng, n: usize) -> Codebook {
+        let layout = Layout::new(1, 2);
+        let inventory = ["aa", "m", "b", "s"];
+        let sentences: Vec<Sentence> = (0..n)
+            .map(|k| {
+                let segments: Vec<Segment> = (0..3)
+                    .map(|i| Segment {
+                        start: 0.12 * i as f64,
+                        end: 0.12 * (i + 1) as f64,
+                        phone: Phone::parse(inventory[(rng.uniform() * 4.0) as usize]).unwrap(),
+                    })
+                    .collect();
+                let rows: Vec<f32> = (0..9)
+                    .flat_map(|_| {
+                        let mut r = vec![1.0, 0.0, 0.0, 0.0];
+                        r.extend((0..3).map(|_| rng.range(-1.0, 1.0) as f32));
+                        r
+                    })
+                    .collect();
+                Sentence {
+                    name: format!("s{k}"),
+                    source: "random".into(),
+                    frames: Frames::from_rows(layout, 25.0, rows).unwrap(),
+                    segments,
+                }
+            })
+            .collect();
+        Codebook::build(
+            sentences,
+            25.0,
+            layout,
+            None,
+            SimilarityOptions::default(),
+            &mut crate::no_progress,
+        )
+        .unwrap()
+    }
+
+    /// The graph's path is the most probable of all unit sequences: on small random
+    /// codebooks every choice of candidate units is enumerated and costed (pruned
+    /// transitions excluded while any path survives pruning, as the search does).
+    #[test]
+    fn graph_path_is_the_most_probable_of_every_path() {
+        let (mut fallbacks, mut pruned_away) = (0, 0);
+        for seed in 0..16u64 {
+            let mut rng = Rng::new(seed);
+            let cb = random_codebook(&mut rng, 3);
+            let phones = ["aa", "m", "b", "s"];
+            let target: Vec<Segment> = (0..3)
+                .map(|i| Segment {
+                    start: 0.1 * i as f64,
+                    end: 0.1 * (i + 1) as f64,
+                    phone: Phone::parse(phones[(rng.uniform() * 4.0) as usize]).unwrap(),
+                })
+                .collect();
+            let graph = Graph {
+                constants: GraphConstants {
+                    // High enough that pruning bites on some seeds.
+                    min_probability: 0.05,
+                    ..GraphConstants::default()
+                },
+            };
+            let lattice = graph.lattice(&cb, &target, &mut Vec::new()).unwrap();
+            let (chosen, cost) = graph.choose(&lattice).unwrap();
+            let path_cost = |path: &[usize], prune: bool| -> f64 {
+                path.windows(2)
+                    .map(|w| lattice.cost(w[0], w[1], prune))
+                    .sum()
+            };
+            let mut best = [f64::INFINITY; 2];
+            let pools = &lattice.candidates;
+            for &a in &pools[0] {
+                for &b in &pools[1] {
+                    for &c in &pools[2] {
+                        for (slot, prune) in [(0, true), (1, false)] {
+                            best[slot] = best[slot].min(path_cost(&[a, b, c], prune));
+                        }
+                    }
+                }
+            }
+            fallbacks += usize::from(best[0].is_infinite());
+            pruned_away += usize::from(best[0].is_finite() && best[0] > best[1] + 1e-12);
+            let expected = if best[0].is_finite() {
+                best[0]
+            } else {
+                best[1]
+            };
+            assert!(
+                (cost - expected).abs() < 1e-9,
+                "seed {seed}: graph {cost}, brute force {expected}"
+            );
+            let own = path_cost(&chosen, best[0].is_finite());
+            assert!(
+                (own - cost).abs() < 1e-9,
+                "seed {seed}: path costs {own}, reported {cost}"
+            );
+            // Merged labels: a /b/ target takes /p/ and /b/ units alike, and only them
+            // while the codebook has any (else its viseme class, reported).
+            let label = |u: usize| {
+                let unit = lattice.units[u];
+                cb.sentences[unit.sentence].segments[unit.segment].phone
+            };
+            for (k, g) in target.iter().enumerate() {
+                let all = 0..lattice.units.len();
+                let same = all.clone().any(|u| merged(label(u)) == merged(g.phone));
+                let class = all.clone().any(|u| label(u).viseme() == g.phone.viseme());
+                for &u in &pools[k] {
+                    if same {
+                        assert_eq!(merged(label(u)), merged(g.phone), "seed {seed}");
+                    } else if class {
+                        assert_eq!(label(u).viseme(), g.phone.viseme(), "seed {seed}");
+                    }
+                }
+                if !same && !class {
+                    assert_eq!(pools[k].len(), lattice.units.len(), "seed {seed}");
+                }
+            }
+        }
+        // Both branches ran: pruning that cut the overall cheapest path, and the unpruned
+        // fallback when pruning (or a repeated single unit) left no path at all.
+        assert!(
+            fallbacks > 0 && pruned_away > 0,
+            "{fallbacks} {pruned_away}"
+        );
+    }
+
+    /// A phone repeated in the target with a single example in the codebook: the unit must
+    /// follow itself, which only the unpruned fallback allows.
+    #[test]
+    fn a_repeated_phone_with_one_example_still_synthesises() {
+        let mut rng = Rng::new(3);
+        let mut cb = random_codebook(&mut rng, 1);
+        let p = |s: &str| Phone::parse(s).unwrap();
+        for (g, ph) in cb.sentences[0].segments.iter_mut().zip(["m", "aa", "s"]) {
+            g.phone = p(ph);
+        }
+        let target: Vec<Segment> = (0..3)
+            .map(|i| Segment {
+                start: 0.1 * i as f64,
+                end: 0.1 * (i + 1) as f64,
+                phone: p("aa"),
+            })
+            .collect();
+        let s = Graph::default().synthesise(&cb, &target, 25.0).unwrap();
+        assert_eq!(s.frames.len(), 8);
+        assert!(s.phones.iter().all(|r| r.used == p("aa")));
+    }
+
+    #[test]
+    fn voicing_pairs_merge_and_nasals_stay_apart() {
+        let p = |s: &str| Phone::parse(s).unwrap();
+        assert_eq!(merged(p("b")), merged(p("p")));
+        assert_eq!(merged(p("zh")), merged(p("sh")));
+        assert_ne!(merged(p("m")), merged(p("n")));
+        assert_ne!(merged(p("m")), merged(p("b")));
     }
 }
