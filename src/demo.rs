@@ -1,8 +1,8 @@
 //! The whole pipeline on the committed demo data (`facespace demo`, the README's first
 //! command): build a lower-face region model from the talker's training frames, generate the
 //! demo corpus from its real face-space points, build the codebook, synthesise a sentence
-//! that is not in the corpus, and write it smoothed and unsmoothed with a blind side-by-side —
-//! the lower face synthesised, the rest of the face (eyes, brows, blinks, head motion) from a
+//! that is not in the corpus by top-N blending and by unit selection, and write each smoothed
+//! and unsmoothed with a blind side-by-side — the lower face synthesised, the rest of the face (eyes, brows, blinks, head motion) from a
 //! real stretch of the talker's video, whose tracked pose the synthesis replays.
 
 use std::path::{Path, PathBuf};
@@ -20,6 +20,7 @@ use crate::render::{CpuRenderer, DEFAULT_FEATHER};
 use crate::synth::backdrop::{Backdrop, BackdropError, PoseMode};
 use crate::synth::blend::Blend;
 use crate::synth::output::{self, OutputError, OutputOptions, Report};
+use crate::synth::unit::UnitSelection;
 use crate::synth::{DEFAULT_SMOOTHING, Request, Smoothing, SynthError, synthesise};
 
 /// The demo utterance; it must not be one of the corpus sentences.
@@ -115,14 +116,19 @@ pub struct DemoReport {
     pub phones: usize,
     /// Frames of the utterance.
     pub frames: usize,
-    /// The utterance's report (also in `report.json`).
+    /// The blended utterance's report (also in `report.json`).
     pub report: Report,
+    /// The unit-selection utterance's report (also in `unit/report.json`).
+    pub unit_report: Report,
     /// What was written where.
     pub files: Vec<(&'static str, PathBuf)>,
 }
 
 /// Runs the demo (see the module docs).
-pub fn run(options: &DemoOptions, progress: impl FnMut(Progress)) -> Result<DemoReport, DemoError> {
+pub fn run(
+    options: &DemoOptions,
+    mut progress: impl FnMut(Progress),
+) -> Result<DemoReport, DemoError> {
     let normalise = |s: &str| {
         s.to_lowercase()
             .chars()
@@ -179,20 +185,32 @@ pub fn run(options: &DemoOptions, progress: impl FnMut(Progress)) -> Result<Demo
         pose: backdrop.pose.clone(),
         ..Request::new(target, fps, Smoothing::Ab(DEFAULT_SMOOTHING))
     };
-    let mut utterance = synthesise(&Blend::default(), &cb, request)?;
-    backdrop.anchor_region(&region, &mut utterance)?;
     let renderer = CpuRenderer::feathered(&region, DEFAULT_FEATHER);
+    let output_options = OutputOptions {
+        seed: 1,
+        text: Some(&options.text),
+        ..OutputOptions::default()
+    };
+    // The same sentence by both modes: top-N blending in `o`, unit selection in `o/unit`.
+    let mut utterance = synthesise(&Blend::default(), &cb, request.clone())?;
+    backdrop.anchor_region(&region, &mut utterance)?;
     let report = output::write(
         o,
         &renderer,
         &utterance,
         backdrop.background()?,
-        &OutputOptions {
-            seed: 1,
-            text: Some(&options.text),
-            ..OutputOptions::default()
-        },
-        progress,
+        &output_options,
+        &mut progress,
+    )?;
+    let mut unit = synthesise(&UnitSelection::default(), &cb, request)?;
+    backdrop.anchor_region(&region, &mut unit)?;
+    let unit_report = output::write(
+        &o.join("unit"),
+        &renderer,
+        &unit,
+        backdrop.background()?,
+        &output_options,
+        &mut progress,
     )?;
     phonemes::write_labels(&o.join("utterance.lab"), &utterance.target)?;
     Ok(DemoReport {
@@ -204,6 +222,7 @@ pub fn run(options: &DemoOptions, progress: impl FnMut(Progress)) -> Result<Demo
         phones: utterance.target.len(),
         frames: utterance.synthesis.frames.len(),
         report,
+        unit_report,
         files: vec![
             ("smoothed video", o.join("smoothed/video.mp4")),
             ("smoothed frames", o.join("smoothed/frames")),
@@ -213,6 +232,7 @@ pub fn run(options: &DemoOptions, progress: impl FnMut(Progress)) -> Result<Demo
                 o.join("side_by_side.mp4"),
             ),
             ("trajectory plot", o.join("plot.png")),
+            ("unit selection (same files)", o.join("unit")),
             ("phone timings", o.join("utterance.lab")),
             ("lower-face model", o.join("model")),
             ("codebook", o.join("codebook")),

@@ -112,6 +112,9 @@ fn demo_writes_its_outputs() {
         "plot.png",
         "codebook/codebook.json",
         "smoothed/frames/000000.png",
+        "unit/smoothed/video.mp4",
+        "unit/side_by_side.mp4",
+        "unit/report.json",
     ] {
         assert!(Path::new(&tmp.path().join(f)).is_file(), "missing {f}");
     }
@@ -236,6 +239,58 @@ fn corpus_then_codebook() {
         o.status.success() && text(&o).contains("per-phoneme mean, unsmoothed"),
         "{}",
         text(&o)
+    );
+    // Unit selection: weights trained on the validation split (a small search), then used.
+    let weights = tmp.path().join("weights.json");
+    let train = || {
+        facespace(&[
+            "train-weights",
+            "--model",
+            model.to_str().unwrap(),
+            "--codebook",
+            cb.to_str().unwrap(),
+            "--validation",
+            corpus.join("validation").to_str().unwrap(),
+            "--population",
+            "6",
+            "--generations",
+            "2",
+            "-o",
+            weights.to_str().unwrap(),
+        ])
+    };
+    let o = train();
+    assert!(o.status.success(), "{}", text(&o));
+    let first = std::fs::read(&weights).unwrap();
+    assert!(weights.with_extension("png").is_file());
+    assert!(train().status.success());
+    assert_eq!(
+        first,
+        std::fs::read(&weights).unwrap(),
+        "same seed, same file"
+    );
+    let unit = tmp.path().join("unit");
+    let o = facespace(&[
+        "synth",
+        "--model",
+        model.to_str().unwrap(),
+        "--codebook",
+        cb.to_str().unwrap(),
+        "--text",
+        "Move the big boat.",
+        "--mode",
+        "unit",
+        "--weights",
+        weights.to_str().unwrap(),
+        "-o",
+        unit.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(unit.join("report.json")).unwrap()).unwrap();
+    assert!(
+        report["selection"]["sl_avg"].as_f64().unwrap() >= 1.0,
+        "{report}"
     );
     let o = facespace(&[
         "synth",

@@ -263,3 +263,125 @@ fn unit_selection_finds_the_cheapest_of_every_path() {
         );
     }
 }
+
+/// Weights files: written and read back; a missing, unknown, negative or non-finite weight,
+/// a truncated file and a missing file are errors naming the file.
+#[test]
+fn weights_files_round_trip_and_bad_ones_are_named() {
+    use facespace::synth::unit::{UnitConstants, WeightsFile};
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("w.json");
+    let file = WeightsFile {
+        weights: UnitWeights {
+            w_tc: 0.5,
+            w_cc: 2.0,
+            w_ccf: 3.0,
+            w_ccg: 0.25,
+        },
+        constants: UnitConstants {
+            beam: 90,
+            ..UnitConstants::default()
+        },
+        training: None,
+    };
+    file.write(&path).unwrap();
+    assert_eq!(WeightsFile::read(&path).unwrap(), file);
+    // Constants are optional: the defaults.
+    std::fs::write(
+        &path,
+        r#"{"weights": {"w_tc": 1, "w_cc": 1, "w_ccf": 1, "w_ccg": 1}}"#,
+    )
+    .unwrap();
+    assert_eq!(
+        WeightsFile::read(&path).unwrap().constants,
+        UnitConstants::default()
+    );
+    for (text, expect) in [
+        (
+            r#"{"weights": {"w_tc": 1, "w_cc": 1, "w_ccf": 1}}"#,
+            "w_ccg",
+        ),
+        (
+            r#"{"weights": {"w_tc": 1, "w_cc": 1, "w_ccf": 1, "w_ccg": 1, "w_x": 1}}"#,
+            "w_x",
+        ),
+        (
+            r#"{"weights": {"w_tc": 1, "w_cc": -2, "w_ccf": 1, "w_ccg": 1}}"#,
+            "w_cc = -2",
+        ),
+        (
+            r#"{"weights": {"w_tc": 1, "w_cc": 1, "w_ccf": 1, "w_ccg": 1}, "constants": {"p": 0}}"#,
+            "p = 0",
+        ),
+        (r#"{"weights": {"w_tc": 1, "w_cc": 1, "#, "EOF"),
+    ] {
+        std::fs::write(&path, text).unwrap();
+        let err = WeightsFile::read(&path).unwrap_err().to_string();
+        assert!(
+            err.contains("w.json") && err.contains(expect),
+            "{text}: {err}"
+        );
+    }
+    let err = WeightsFile::read(&dir.path().join("absent.json"))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("absent.json"), "{err}");
+}
+
+/// Pareto training: deterministic for a seed, its front mutually non-dominated, the chosen
+/// point on it, every front point evaluated; and a bad option is an error.
+#[test]
+fn pareto_training_is_deterministic_and_its_front_non_dominated() {
+    use facespace::synth::pareto::{ParetoOptions, train};
+    use facespace::synth::unit::UnitConstants;
+    let model = FaceModel::load(&common::root().join("models/demo/model")).unwrap();
+    let frames = load_training_set(&common::root().join("models/demo/training"), None).unwrap();
+    let generated = generator::generate(&model, &frames, &CorpusOptions::default()).unwrap();
+    let cb = demo_codebook();
+    let validation = generated.part(Split::Validation);
+    let options = ParetoOptions {
+        population: 8,
+        max_generations: 3,
+        ..ParetoOptions::default()
+    };
+    let run = |options: &ParetoOptions| {
+        train(
+            &model,
+            &cb,
+            &validation[..2],
+            UnitConstants::default(),
+            options,
+            facespace::no_progress,
+        )
+    };
+    let a = run(&options).unwrap();
+    let b = run(&options).unwrap();
+    assert_eq!(a, b, "same seed, same training");
+    let other = run(&ParetoOptions { seed: 7, ..options }).unwrap();
+    assert_ne!(a.evaluated, other.evaluated, "another seed, another search");
+    for p in &a.front {
+        assert!(a.front.iter().all(|q| !q.dominates(p)));
+        assert!(a.evaluated.contains(p));
+    }
+    assert!(a.front.contains(&a.chosen));
+    assert!(a.generations <= 3 && a.evaluated.len() == 8 * (a.generations + 1));
+    assert!((-1.0..=1.0).contains(&a.correlation.0));
+    let err = run(&ParetoOptions {
+        population: 1,
+        ..options
+    })
+    .unwrap_err()
+    .to_string();
+    assert!(err.contains("population"), "{err}");
+    assert!(
+        train(
+            &model,
+            &cb,
+            &[],
+            UnitConstants::default(),
+            &options,
+            facespace::no_progress
+        )
+        .is_err()
+    );
+}

@@ -59,6 +59,15 @@ pub fn run(a: DemoArgs) -> Result<()> {
         options.background.display(),
         r.report.pose
     );
+    if let Some(s) = &r.unit_report.selection {
+        println!(
+            "unit selection: {} runs of codebook frames (mean {:.1} frames), target cost {:.1}/frame, visual cost {:.3} at joins",
+            s.segments.len(),
+            s.sl_avg,
+            s.tc_avg,
+            s.vc_avg
+        );
+    }
     println!("wrote to {}:", options.output.display());
     for (what, path) in &r.files {
         println!("  {what:<38} {}", path.display());
