@@ -16,7 +16,7 @@ use crate::corpus::demo::{self as generator, CorpusOptions, GenerateError, Split
 use crate::mesh::Region;
 use crate::model::{BuildOptions, FaceModel, ModelError, load_training_set};
 use crate::phonemes::{self, PhonemeError};
-use crate::render::{CpuRenderer, DEFAULT_FEATHER};
+use crate::render::{DEFAULT_FEATHER, RenderError, RendererChoice, choose_renderer};
 use crate::synth::backdrop::{Backdrop, BackdropError, PoseMode};
 use crate::synth::blend::Blend;
 use crate::synth::output::{self, OutputError, OutputOptions, Report};
@@ -70,6 +70,9 @@ pub enum DemoError {
     /// Writing the outputs failed.
     #[error(transparent)]
     Output(#[from] OutputError),
+    /// The renderer asked for could not be made.
+    #[error(transparent)]
+    Render(#[from] RenderError),
 }
 
 /// Options of [`run`].
@@ -85,6 +88,8 @@ pub struct DemoOptions {
     pub training: PathBuf,
     /// A video of the talker to draw the synthesised lower face over.
     pub background: PathBuf,
+    /// Which renderer draws.
+    pub renderer: RendererChoice,
 }
 
 impl Default for DemoOptions {
@@ -95,6 +100,7 @@ impl Default for DemoOptions {
             model: default_model(),
             training: default_training(),
             background: default_background(),
+            renderer: RendererChoice::Auto,
         }
     }
 }
@@ -120,6 +126,8 @@ pub struct DemoReport {
     pub report: Report,
     /// The unit-selection utterance's report (also in `unit/report.json`).
     pub unit_report: Report,
+    /// Why the CPU rendered, when the GPU was hoped for.
+    pub renderer_note: Option<String>,
     /// What was written where.
     pub files: Vec<(&'static str, PathBuf)>,
 }
@@ -185,7 +193,8 @@ pub fn run(
         pose: backdrop.pose.clone(),
         ..Request::new(target, fps, Smoothing::Ab(DEFAULT_SMOOTHING))
     };
-    let renderer = CpuRenderer::feathered(&region, DEFAULT_FEATHER);
+    let chosen = choose_renderer(options.renderer, &region, Some(DEFAULT_FEATHER))?;
+    let renderer = chosen.renderer.as_ref();
     let output_options = OutputOptions {
         seed: 1,
         text: Some(&options.text),
@@ -196,7 +205,7 @@ pub fn run(
     backdrop.anchor_region(&region, &mut utterance)?;
     let report = output::write(
         o,
-        &renderer,
+        renderer,
         &utterance,
         backdrop.background()?,
         &output_options,
@@ -206,7 +215,7 @@ pub fn run(
     backdrop.anchor_region(&region, &mut unit)?;
     let unit_report = output::write(
         &o.join("unit"),
-        &renderer,
+        renderer,
         &unit,
         backdrop.background()?,
         &output_options,
@@ -221,6 +230,7 @@ pub fn run(
         sentences,
         phones: utterance.target.len(),
         frames: utterance.synthesis.frames.len(),
+        renderer_note: chosen.note.clone(),
         report,
         unit_report,
         files: vec![

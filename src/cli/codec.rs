@@ -5,10 +5,10 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use clap::Args;
 use facespace::codec::{self, Clip, TrackingSummary};
-use facespace::render::{Background, CpuRenderer, DEFAULT_FEATHER};
+use facespace::render::{Background, DEFAULT_FEATHER};
 use facespace::video::{Sink, Source};
 
-use super::{DEMO_MODEL, TrackingArgs, load_model, progress_bar, tracking_line};
+use super::{DEMO_MODEL, RendererArg, TrackingArgs, load_model, progress_bar, tracking_line};
 
 #[derive(Args)]
 pub struct EncodeArgs {
@@ -44,6 +44,9 @@ pub struct DecodeArgs {
     /// Leave the clip's audio out.
     #[arg(long)]
     no_audio: bool,
+    /// Which renderer draws the faces.
+    #[arg(long, value_enum, default_value_t)]
+    renderer: RendererArg,
     /// Output: .mp4, .y4m, a folder of PNGs (no extension), or what a system ffmpeg writes.
     #[arg(short, long)]
     output: PathBuf,
@@ -105,19 +108,17 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
     let model = load_model(&a.model)?;
     let clip = Clip::load(&a.clip, &model)
         .with_context(|| format!("loading clip {}", a.clip.display()))?;
-    let (background, renderer) = match &a.background {
-        Some(p) => (
-            Background::Video(Box::new(Source::open(p)?)),
-            CpuRenderer::feathered(&model, a.feather),
-        ),
+    let (background, feather) = match &a.background {
+        Some(p) => (Background::Video(Box::new(Source::open(p)?)), Some(a.feather)),
         None => (
             Background::Plain {
                 width: clip.width,
                 height: clip.height,
             },
-            CpuRenderer::new(&model),
+            None,
         ),
     };
+    let renderer = a.renderer.make(&model, feather)?;
     let audio = clip.audio_path(&a.clip).filter(|_| !a.no_audio);
     let fps = clip.frames.fps();
     let mut sink = Sink::create(&a.output, clip.width, clip.height, fps, audio.as_deref())?;
@@ -128,15 +129,17 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
         );
     }
     let (bar, progress) = progress_bar();
+    bar.set_prefix(format!("{} · ", renderer.describe()));
     let clock = std::time::Instant::now();
-    codec::decode(&renderer, &clip, background, &mut sink, progress)
+    codec::decode(renderer.as_ref(), &clip, background, &mut sink, progress)
         .with_context(|| format!("decoding {}", a.clip.display()))?;
     let frames = sink.finish()?;
     bar.finish_and_clear();
     let seconds = clock.elapsed().as_secs_f64();
     println!(
-        "decoded {frames} frames in {seconds:.2} s ({:.0} fps) → {}",
+        "decoded {frames} frames in {seconds:.2} s ({:.0} fps, {}) → {}",
         frames as f64 / seconds,
+        renderer.describe(),
         a.output.display()
     );
     Ok(())

@@ -6,9 +6,8 @@ use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
 use facespace::corpus::demo::{self, CorpusOptions, Split};
 use facespace::model::load_training_set;
-use facespace::render::CpuRenderer;
 
-use super::{DEMO_MODEL, load_model, progress_bar};
+use super::{DEMO_MODEL, RendererArg, load_model, progress_bar};
 
 #[derive(Subcommand)]
 pub enum CorpusCommand {
@@ -30,6 +29,9 @@ pub struct DemoArgs {
     /// Also render every frame as PNG under frames/NAME/.
     #[arg(long)]
     frames: bool,
+    /// Which renderer draws the frames (with --frames).
+    #[arg(long, value_enum, default_value_t)]
+    renderer: RendererArg,
     /// Output folder (train/ and heldout/ inside).
     #[arg(short, long)]
     output: PathBuf,
@@ -55,7 +57,11 @@ fn generate(a: DemoArgs) -> Result<()> {
     let still_name = Path::new(&still.name)
         .file_name()
         .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
-    let renderer = CpuRenderer::new(&model);
+    let renderer = if a.frames {
+        Some(a.renderer.make(&model, None)?)
+    } else {
+        None
+    };
     let (bar, progress) = progress_bar();
     corpus
         .save(
@@ -63,7 +69,7 @@ fn generate(a: DemoArgs) -> Result<()> {
             &model,
             &options,
             &still_name,
-            a.frames.then_some((&renderer as _, &still.image)),
+            renderer.as_deref().map(|r| (r, &still.image)),
             progress,
         )
         .with_context(|| format!("writing {}", a.output.display()))?;

@@ -23,6 +23,9 @@ pub struct DemoArgs {
     /// A video of the talker to draw the synthesised lower face over.
     #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/models/demo/background.mp4"))]
     background: PathBuf,
+    /// Which renderer draws.
+    #[arg(long, value_enum, default_value_t)]
+    renderer: super::RendererArg,
 }
 
 pub fn run(a: DemoArgs) -> Result<()> {
@@ -34,9 +37,13 @@ pub fn run(a: DemoArgs) -> Result<()> {
         model: a.model,
         training: a.training,
         background: a.background,
+        renderer: a.renderer.choice(),
     };
     let r = demo::run(&options, progress)?;
     bar.finish_and_clear();
+    if let Some(note) = &r.renderer_note {
+        eprintln!("note: {note}");
+    }
     println!(
         "model {} ({} shape + {} appearance parameters, from {} real frames); its lower-face region model: {} appearance parameters",
         options.model.display(),

@@ -14,7 +14,7 @@ mod weights;
 use std::path::PathBuf;
 
 use anyhow::Result;
-use clap::{Args, Parser, Subcommand};
+use clap::{Args, Parser, Subcommand, ValueEnum};
 use facespace::codec::{EncodeOptions, TrackingSummary};
 use facespace::fit::{DEFAULT_REINIT_ERROR, FitOptions};
 use facespace::model::FaceModel;
@@ -87,7 +87,7 @@ pub fn run() -> Result<()> {
 fn progress_bar() -> (ProgressBar, impl FnMut(Progress)) {
     let bar = ProgressBar::new(1);
     bar.set_style(
-        ProgressStyle::with_template("{spinner} {msg:<18} [{bar:30}] {pos}/{len} {elapsed}")
+        ProgressStyle::with_template("{spinner} {prefix}{msg:<18} [{bar:30}] {pos}/{len} {elapsed}")
             .expect("valid template"),
     );
     let handle = bar.clone();
@@ -97,6 +97,42 @@ fn progress_bar() -> (ProgressBar, impl FnMut(Progress)) {
         handle.set_message(p.stage);
     };
     (bar, callback)
+}
+
+/// `--renderer`: which renderer draws.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, ValueEnum)]
+enum RendererArg {
+    /// A hardware GPU when there is one, else the CPU.
+    #[default]
+    Auto,
+    /// The GPU on the best adapter found, software ones (llvmpipe, lavapipe) included.
+    Gpu,
+    /// The CPU.
+    Cpu,
+}
+
+impl RendererArg {
+    fn choice(self) -> facespace::render::RendererChoice {
+        use facespace::render::RendererChoice;
+        match self {
+            RendererArg::Auto => RendererChoice::Auto,
+            RendererArg::Gpu => RendererChoice::Gpu,
+            RendererArg::Cpu => RendererChoice::Cpu,
+        }
+    }
+
+    /// The renderer, saying on stderr why the CPU draws when the GPU was hoped for.
+    fn make<'m>(
+        self,
+        model: &'m FaceModel,
+        feather: Option<f64>,
+    ) -> Result<Box<dyn facespace::render::Renderer + 'm>> {
+        let chosen = facespace::render::choose_renderer(self.choice(), model, feather)?;
+        if let Some(note) = &chosen.note {
+            eprintln!("note: {note}");
+        }
+        Ok(chosen.renderer)
+    }
 }
 
 /// Loads a model, naming it in the error.

@@ -7,7 +7,7 @@ use clap::{Args, ValueEnum};
 use facespace::codebook::Codebook;
 use facespace::codec::EncodeOptions;
 use facespace::phonemes::{self, PhoneMap};
-use facespace::render::{Background, CpuRenderer, DEFAULT_FEATHER};
+use facespace::render::{Background, DEFAULT_FEATHER};
 use facespace::synth::Synthesiser;
 use facespace::synth::backdrop::{Backdrop, PoseMode};
 use facespace::synth::blend::Blend;
@@ -26,7 +26,7 @@ fn is_image(path: &std::path::Path) -> bool {
             .is_some_and(|e| video::IMAGE_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
 }
 
-use super::{DEMO_MODEL, load_model, progress_bar};
+use super::{DEMO_MODEL, RendererArg, load_model, progress_bar};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum Smooth {
@@ -71,6 +71,9 @@ pub struct SynthArgs {
     /// How to synthesise.
     #[arg(long, value_enum, default_value_t = Mode::Blend)]
     mode: Mode,
+    /// Which renderer draws the faces.
+    #[arg(long, value_enum, default_value_t)]
+    renderer: RendererArg,
     /// Unit-selection weights and constants (a `train-weights` file; default: all weights 1,
     /// [unitsel]'s constants).
     #[arg(long)]
@@ -199,11 +202,12 @@ pub fn run(a: SynthArgs) -> Result<()> {
         Some(b) => b.background()?,
         None => Background::plain_for(&model, &utterance.synthesis.frames),
     };
-    let renderer = CpuRenderer::feathered(&model, DEFAULT_FEATHER);
+    let renderer = a.renderer.make(&model, Some(DEFAULT_FEATHER))?;
     let (bar, progress) = progress_bar();
+    bar.set_prefix(format!("{} · ", renderer.describe()));
     let report = output::write(
         &a.output,
-        &renderer,
+        renderer.as_ref(),
         &utterance,
         background,
         &OutputOptions {

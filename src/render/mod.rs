@@ -7,6 +7,8 @@
 //! caller consumes the frames in order, so memory does not grow with the sequence.
 
 mod composite;
+#[cfg(feature = "gpu")]
+pub mod gpu;
 
 use std::ops::Range;
 use std::path::PathBuf;
@@ -53,6 +55,14 @@ pub enum RenderError {
         /// Frames needed.
         needed: usize,
     },
+    /// The GPU failed while rendering.
+    #[cfg(feature = "gpu")]
+    #[error(transparent)]
+    Gpu(#[from] gpu::GpuError),
+    /// `--renderer gpu` in a build without the `gpu` feature.
+    #[cfg(not(feature = "gpu"))]
+    #[error("this build has no GPU renderer (built without the `gpu` feature)")]
+    NoGpuSupport,
     /// A canvas of another size than the background.
     #[error("{what} is {found:?}, the frames are {expected:?}")]
     Size {
@@ -143,6 +153,76 @@ impl Renderer for CpuRenderer<'_> {
             None => warp::from_reference_into(frame, &r.texture, points, canvas)?,
         }
         Ok(())
+    }
+}
+
+/// Which renderer draws (`--renderer auto|gpu|cpu`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RendererChoice {
+    /// A hardware GPU when one exists, else the CPU. A software adapter (Mesa's llvmpipe or
+    /// lavapipe) is not used: it runs on the same cores as the CPU renderer, several times
+    /// slower (BENCHMARKS.md).
+    #[default]
+    Auto,
+    /// The GPU renderer on the best adapter found, software ones included; an error if there
+    /// is none.
+    Gpu,
+    /// The CPU renderer.
+    Cpu,
+}
+
+/// A renderer as chosen, with a note when it is not what was asked for or why the CPU draws.
+pub struct ChosenRenderer<'m> {
+    /// The renderer.
+    pub renderer: Box<dyn Renderer + 'm>,
+    /// Why the CPU renders under `Auto` (no adapter, or only a software one).
+    pub note: Option<String>,
+}
+
+/// Makes the renderer `choice` names for `model`'s faces: a hard edge (`feather` = `None`) or
+/// feathered over `feather` pixels. Only [`RendererChoice::Gpu`] can fail for want of a GPU.
+pub fn choose_renderer<'m>(
+    choice: RendererChoice,
+    model: &'m FaceModel,
+    feather: Option<f64>,
+) -> Result<ChosenRenderer<'m>, RenderError> {
+    let cpu = || -> Box<dyn Renderer + 'm> {
+        match feather {
+            Some(f) => Box::new(CpuRenderer::feathered(model, f)),
+            None => Box::new(CpuRenderer::new(model)),
+        }
+    };
+    let chosen = |renderer, note| Ok(ChosenRenderer { renderer, note });
+    match choice {
+        RendererChoice::Cpu => chosen(cpu(), None),
+        #[cfg(feature = "gpu")]
+        RendererChoice::Gpu => {
+            let gpu = gpu::Gpu::new(gpu::Backends::Any)?;
+            chosen(Box::new(gpu::GpuRenderer::new(&gpu, model, feather)?), None)
+        }
+        #[cfg(not(feature = "gpu"))]
+        RendererChoice::Gpu => Err(RenderError::NoGpuSupport),
+        #[cfg(feature = "gpu")]
+        RendererChoice::Auto => match gpu::Gpu::new(gpu::Backends::Any) {
+            Ok(g) if g.is_software() => chosen(
+                cpu(),
+                Some(format!(
+                    "the only GPU adapter is {}, a software one, slower than the CPU renderer: rendering on the CPU (--renderer gpu uses it)",
+                    g.describe()
+                )),
+            ),
+            Ok(g) => match gpu::GpuRenderer::new(&g, model, feather) {
+                Ok(r) => chosen(Box::new(r), None),
+                Err(e) => chosen(cpu(), Some(format!("{e}: rendering on the CPU"))),
+            },
+            Err(e) => chosen(cpu(), Some(format!("{e}: rendering on the CPU"))),
+        },
+        #[cfg(not(feature = "gpu"))]
+        RendererChoice::Auto => chosen(
+            cpu(),
+            Some("built without the gpu feature: rendering on the CPU".into()),
+        ),
     }
 }
 

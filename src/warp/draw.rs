@@ -110,42 +110,42 @@ pub fn from_reference_blend_into(
     Ok(())
 }
 
-/// The span-walking rasteriser behind both: `C` = 3 copies RGB, `C` = 4 blends by alpha.
-fn draw<const C: usize>(
+/// A destination triangle: barycentric coordinates and source position are affine in the
+/// pixel position, `v(x, y) = v0 + vx·x + vy·y`, so each row is a span walked by constant
+/// increments. Shared with the GPU renderer, which draws the same quads.
+pub(crate) struct Tri {
+    /// `λ_i = l0[i] + lx[i]·x + ly[i]·y`.
+    pub l0: [f64; 3],
+    pub lx: [f64; 3],
+    pub ly: [f64; 3],
+    /// Lowest barycentric value still drawn, per vertex: 0 inside, negative across a hull
+    /// edge (−dilation / height of the triangle over that edge).
+    pub floor: [f64; 3],
+    /// The first vertex in the image (an origin near the triangle, for precision in f32).
+    pub origin: Point,
+    /// Source (reference-frame) position: `s = s0 + sx·x + sy·y`.
+    pub s0: Point,
+    /// The triangle's vertices in the reference frame.
+    pub src: [Point; 3],
+    pub sx: Point,
+    pub sy: Point,
+    /// The bounding box grown by the dilation: a sliver's shifted half-plane would otherwise
+    /// reach far beyond the triangle.
+    pub x_lo: f64,
+    pub x_hi: f64,
+    pub y0: usize,
+    pub y1: usize,
+}
+
+/// The drawable triangles of the mesh at `landmarks` on a `w × h` canvas (degenerate and
+/// off-canvas ones dropped), in mesh order.
+pub(crate) fn triangles(
     frame: &ReferenceFrame,
-    source: &[f32],
     landmarks: &[Point],
-    canvas: &mut RgbImage,
-) {
-    let (w, h) = (canvas.width() as usize, canvas.height() as usize);
-    if w == 0 || h == 0 {
-        return;
-    }
-    /// A destination triangle: barycentric coordinates and source position are affine in
-    /// the pixel position, `v(x, y) = v0 + vx·x + vy·y`, so each row is a span walked by
-    /// constant increments.
-    struct Tri {
-        /// `λ_i = l0[i] + lx[i]·x + ly[i]·y`.
-        l0: [f64; 3],
-        lx: [f64; 3],
-        ly: [f64; 3],
-        /// Lowest barycentric value still drawn, per vertex: 0 inside, negative across a
-        /// hull edge (−dilation / height of the triangle over that edge).
-        floor: [f64; 3],
-        /// Source (reference-frame) position: `s = s0 + sx·x + sy·y`.
-        s0: Point,
-        /// The triangle's vertices in the reference frame.
-        src: [Point; 3],
-        sx: Point,
-        sy: Point,
-        /// The bounding box grown by the dilation: a sliver's shifted half-plane would
-        /// otherwise reach far beyond the triangle.
-        x_lo: f64,
-        x_hi: f64,
-        y0: usize,
-        y1: usize,
-    }
-    let tris: Vec<Tri> = frame
+    w: usize,
+    h: usize,
+) -> Vec<Tri> {
+    frame
         .triangles
         .iter()
         .zip(&frame.hull_edges)
@@ -180,6 +180,7 @@ fn draw<const C: usize>(
             let s0 = [at(l00, 0), at(l00, 1)];
             Some(Tri {
                 l0: l00,
+                origin: a,
                 lx,
                 ly,
                 floor,
@@ -193,7 +194,21 @@ fn draw<const C: usize>(
                 y1: (hi_y.floor() as usize).min(h - 1),
             })
         })
-        .collect();
+        .collect()
+}
+
+/// The span-walking rasteriser behind both: `C` = 3 copies RGB, `C` = 4 blends by alpha.
+fn draw<const C: usize>(
+    frame: &ReferenceFrame,
+    source: &[f32],
+    landmarks: &[Point],
+    canvas: &mut RgbImage,
+) {
+    let (w, h) = (canvas.width() as usize, canvas.height() as usize);
+    if w == 0 || h == 0 {
+        return;
+    }
+    let tris = triangles(frame, landmarks, w, h);
     const BAND: usize = 16;
     let (fw, fh) = (frame.width, frame.height);
     canvas
@@ -241,7 +256,7 @@ fn draw<const C: usize>(
                         if C == 4 {
                             let a = v[3].clamp(0.0, 1.0);
                             for (p, f) in px.iter_mut().zip(v) {
-                                *p = to_u8(a * f + (1.0 - a) * f32::from(*p));
+                                *p = to_u8(a * f.clamp(0.0, 255.0) + (1.0 - a) * f32::from(*p));
                             }
                         } else {
                             px.copy_from_slice(&[v[0], v[1], v[2]].map(to_u8));

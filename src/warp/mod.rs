@@ -19,6 +19,7 @@ pub use draw::{
     RENDER_DILATION, from_reference_blend_into, from_reference_into, texture_to_image,
     texture_to_rgb, to_u8,
 };
+pub(crate) use draw::{Tri, triangles};
 
 use crate::mesh::ReferenceFrame;
 use crate::shape::Point;
@@ -203,7 +204,7 @@ pub fn to_reference_grey_into(
     Ok(())
 }
 
-fn check_landmarks(frame: &ReferenceFrame, landmarks: &[Point]) -> Result<(), WarpError> {
+pub(crate) fn check_landmarks(frame: &ReferenceFrame, landmarks: &[Point]) -> Result<(), WarpError> {
     if landmarks.len() != frame.landmarks.len() {
         return Err(WarpError::LandmarkCount {
             expected: frame.landmarks.len(),
