@@ -1,6 +1,9 @@
 //! Piecewise affine warp of a 720×576 RGB frame through the 68-landmark face mesh
 //! (112 triangles), both directions, on one thread and on all threads.
 //! Run: cargo bench --bench warp
+//! For instruction counts (repeatable on a shared machine), `WARP_CALLS=N` runs each direction
+//! N times on one thread outside criterion and exits, e.g. under
+//! `valgrind --tool=callgrind --toggle-collect='*warp*_into*'`.
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use facespace::mesh::{self, ReferenceFrame};
@@ -45,6 +48,16 @@ fn bench(c: &mut Criterion) {
     let mut texture = vec![0f32; frame.n_pixels() * 3];
     warp::to_reference_into(&frame, &image, &landmarks, &mut texture).unwrap();
     let mut out = RgbImage::new(720, 576);
+    if let Some(n) = std::env::var("WARP_CALLS").ok().and_then(|v| v.parse::<usize>().ok()) {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        pool.install(|| {
+            for _ in 0..n {
+                warp::to_reference_into(&frame, &image, &landmarks, &mut texture).unwrap();
+                warp::from_reference_into(&frame, &texture, &landmarks, &mut out).unwrap();
+            }
+        });
+        std::process::exit(0);
+    }
     for threads in [1, 2] {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)

@@ -42,8 +42,24 @@ fn texture_to_image_with(
         }
     };
     let mut img = vec![0f32; frame.width * frame.height * c];
-    for (i, p) in frame.pixels.iter().enumerate() {
-        put(&mut img, p.y as usize * frame.width + p.x as usize, i);
+    let at = |p: &crate::mesh::MaskPixel| p.y as usize * frame.width + p.x as usize;
+    if alpha.is_none() {
+        // Mask pixels are row-major: copy each run of adjacent pixels as one slice.
+        let mut start = 0;
+        while start < frame.pixels.len() {
+            let dst = at(&frame.pixels[start]);
+            let run = frame.pixels[start..]
+                .iter()
+                .enumerate()
+                .take_while(|(k, p)| at(p) == dst + k)
+                .count();
+            img[dst * 3..(dst + run) * 3].copy_from_slice(&texture[start * 3..(start + run) * 3]);
+            start += run;
+        }
+    } else {
+        for (i, p) in frame.pixels.iter().enumerate() {
+            put(&mut img, at(p), i);
+        }
     }
     for &(dst, src) in &frame.padding {
         put(&mut img, dst as usize, src as usize);
@@ -73,7 +89,9 @@ pub fn texture_to_rgb(frame: &ReferenceFrame, texture: &[f32]) -> Result<RgbImag
 /// Rounds a grey level to the nearest 8-bit value.
 #[inline]
 pub fn to_u8(v: f32) -> u8 {
-    (v + 0.5).clamp(0.0, 255.0) as u8
+    // Through i32: the value is already in range, and f32 → i32 is one instruction where the
+    // saturating f32 → u8 is several.
+    (v + 0.5).clamp(0.0, 255.0) as i32 as u8
 }
 
 /// How far (pixels) rendering extends the face beyond the mesh boundary, extrapolating the
@@ -117,6 +135,8 @@ pub(crate) struct Tri {
     /// `λ_i = l0[i] + lx[i]·x + ly[i]·y`.
     pub l0: [f64; 3],
     pub lx: [f64; 3],
+    /// `1 / lx[i]` (0 where `lx[i]` is 0): row spans without divisions.
+    pub inv_lx: [f64; 3],
     pub ly: [f64; 3],
     /// Lowest barycentric value still drawn, per vertex: 0 inside, negative across a hull
     /// edge (−dilation / height of the triangle over that edge).
@@ -181,6 +201,7 @@ pub(crate) fn triangles(
             Some(Tri {
                 l0: l00,
                 origin: a,
+                inv_lx: lx.map(|v: f64| if v != 0.0 { 1.0 / v } else { 0.0 }),
                 lx,
                 ly,
                 floor,
@@ -218,41 +239,38 @@ fn draw<const C: usize>(
             let (r0, r1) = (band * BAND, (band * BAND + BAND).min(h) - 1);
             for t in tris.iter().filter(|t| t.y1 >= r0 && t.y0 <= r1) {
                 for y in t.y0.max(r0)..=t.y1.min(r1) {
-                    // The row's span: every λ_i(x) = c_i + lx_i·x ≥ floor_i.
-                    let (mut lo, mut hi) = (t.x_lo, t.x_hi);
-                    for i in 0..3 {
-                        let c = t.l0[i] + t.ly[i] * y as f64 - t.floor[i];
-                        if t.lx[i] > 0.0 {
-                            lo = lo.max(-c / t.lx[i]);
-                        } else if t.lx[i] < 0.0 {
-                            hi = hi.min(-c / t.lx[i]);
-                        } else if c < 0.0 {
-                            hi = -1.0;
+                    // The row's span: every λ_i(x) = c_i + lx_i·x ≥ floor_i; and within it the
+                    // pixels inside the triangle proper (every λ_i ≥ 0), the rest dilated.
+                    let span = |floor: [f64; 3]| {
+                        let (mut lo, mut hi) = (t.x_lo, t.x_hi);
+                        for i in 0..3 {
+                            let c = t.l0[i] + t.ly[i] * y as f64 - floor[i];
+                            if t.lx[i] > 0.0 {
+                                lo = lo.max(-c * t.inv_lx[i]);
+                            } else if t.lx[i] < 0.0 {
+                                hi = hi.min(-c * t.inv_lx[i]);
+                            } else if c < 0.0 {
+                                hi = -1.0;
+                            }
                         }
-                    }
+                        (lo, hi)
+                    };
+                    let (lo, hi) = span(t.floor);
                     if hi < lo {
                         continue;
                     }
                     let (x0, x1) = (lo.ceil() as usize, hi as usize);
+                    let (in_lo, in_hi) = span([0.0; 3]);
+                    // The inside run [i0, i1) within [x0, x1].
+                    let (i0, i1) = if in_hi < in_lo {
+                        (x0, x0)
+                    } else {
+                        let i0 = (in_lo.ceil().max(x0 as f64) as usize).min(x1 + 1);
+                        let i1 = ((in_hi.floor() + 1.0).max(i0 as f64) as usize).min(x1 + 1);
+                        (i0, i1)
+                    };
                     let row = &mut rows[(y - r0) * w * 3..(y - r0 + 1) * w * 3];
-                    let mut sx = t.s0[0] + t.sx[0] * x0 as f64 + t.sy[0] * y as f64;
-                    let mut sy = t.s0[1] + t.sx[1] * x0 as f64 + t.sy[1] * y as f64;
-                    let mut l: [f64; 3] =
-                        std::array::from_fn(|i| t.l0[i] + t.lx[i] * x0 as f64 + t.ly[i] * y as f64);
-                    for px in row[x0 * 3..(x1 + 1) * 3].chunks_exact_mut(3) {
-                        let v = if l.iter().all(|&v| v >= 0.0) {
-                            sample::<f32, C>(source, fw, fh, sx, sy, |v: f32| v)
-                        } else {
-                            // Dilated pixel beyond a hull edge: sample the nearest point of the
-                            // triangle rather than extrapolate its map, which a sliver would
-                            // stretch far outside the texture.
-                            let c = l.map(|v| v.max(0.0));
-                            let sum = c[0] + c[1] + c[2];
-                            let at = |k: usize| {
-                                (c[0] * t.src[0][k] + c[1] * t.src[1][k] + c[2] * t.src[2][k]) / sum
-                            };
-                            sample::<f32, C>(source, fw, fh, at(0), at(1), |v: f32| v)
-                        };
+                    let put = |px: &mut [u8], v: [f32; C]| {
                         if C == 4 {
                             let a = v[3].clamp(0.0, 1.0);
                             for (p, f) in px.iter_mut().zip(v) {
@@ -261,9 +279,29 @@ fn draw<const C: usize>(
                         } else {
                             px.copy_from_slice(&[v[0], v[1], v[2]].map(to_u8));
                         }
+                    };
+                    // Dilated pixels beyond a hull edge: sample the nearest point of the
+                    // triangle rather than extrapolate its map, which a sliver would stretch
+                    // far outside the texture.
+                    let dilated = |x: usize| {
+                        let l: [f64; 3] = std::array::from_fn(|i| {
+                            (t.l0[i] + t.lx[i] * x as f64 + t.ly[i] * y as f64).max(0.0)
+                        });
+                        let sum = l[0] + l[1] + l[2];
+                        let at = |k: usize| {
+                            (l[0] * t.src[0][k] + l[1] * t.src[1][k] + l[2] * t.src[2][k]) / sum
+                        };
+                        sample::<f32, C>(source, fw, fh, at(0), at(1), |v: f32| v)
+                    };
+                    for x in (x0..i0).chain(i1..=x1) {
+                        put(&mut row[x * 3..x * 3 + 3], dilated(x));
+                    }
+                    let mut sx = t.s0[0] + t.sx[0] * i0 as f64 + t.sy[0] * y as f64;
+                    let mut sy = t.s0[1] + t.sx[1] * i0 as f64 + t.sy[1] * y as f64;
+                    for px in row[i0 * 3..i1 * 3].chunks_exact_mut(3) {
+                        put(px, sample::<f32, C>(source, fw, fh, sx, sy, |v: f32| v));
                         sx += t.sx[0];
                         sy += t.sx[1];
-                        l.iter_mut().zip(&t.lx).for_each(|(v, d)| *v += d);
                     }
                 }
             }

@@ -82,20 +82,21 @@ fn sample<T: Copy, const C: usize>(
     let yc = y.clamp(0.0, (h - 1) as f64);
     // Truncation is floor here (both are ≥ 0) and, unlike f64::floor on baseline x86-64,
     // needs no libm call.
-    let (x0, y0) = (xc as usize, yc as usize);
-    let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
+    // Through i32 for the same reason (both are in 0..=w − 1 after the clamp).
+    let (x0, y0) = (xc as i32 as usize, yc as i32 as usize);
     let (fx, fy) = ((xc - x0 as f64) as f32, (yc - y0 as f64) as f32);
-    let (i00, i01, i10, i11) = (
-        (y0 * w + x0) * C,
-        (y0 * w + x1) * C,
-        (y1 * w + x0) * C,
-        (y1 * w + x1) * C,
-    );
+    // The two texels of each row as one slice (one bounds check per row); at the last
+    // column or row the neighbour is the texel itself.
+    let dx = if x0 + 1 < w { C } else { 0 };
+    let dy = if y0 + 1 < h { w * C } else { 0 };
+    let i00 = (y0 * w + x0) * C;
+    let top = &data[i00..i00 + dx + C];
+    let bottom = &data[i00 + dy..i00 + dy + dx + C];
     let mut out = [0f32; C];
     for (c, o) in out.iter_mut().enumerate() {
-        let top = to_f32(data[i00 + c]) * (1.0 - fx) + to_f32(data[i01 + c]) * fx;
-        let bottom = to_f32(data[i10 + c]) * (1.0 - fx) + to_f32(data[i11 + c]) * fx;
-        *o = top * (1.0 - fy) + bottom * fy;
+        let t = to_f32(top[c]) * (1.0 - fx) + to_f32(top[dx + c]) * fx;
+        let b = to_f32(bottom[c]) * (1.0 - fx) + to_f32(bottom[dx + c]) * fx;
+        *o = t * (1.0 - fy) + b * fy;
     }
     out
 }
@@ -150,6 +151,42 @@ impl GreyImage {
     }
 }
 
+/// Per triangle, the affine map from a reference-frame pixel to its source point in the image,
+/// `(x, y) = (m[0] + m[1]·px + m[2]·py, m[3] + m[4]·px + m[5]·py)`: the barycentric
+/// combination of the triangle's image vertices, folded once per call so each pixel costs two
+/// multiply-adds per coordinate.
+fn source_maps(frame: &ReferenceFrame, landmarks: &[Point]) -> Vec<[f64; 6]> {
+    frame
+        .triangles
+        .iter()
+        .map(|t| {
+            let [r0, r1, r2] = t.map(|v| frame.landmarks[v as usize]);
+            let [a, b, c] = t.map(|v| landmarks[v as usize]);
+            match crate::mesh::BarycentricMap::new(r0, r1, r2) {
+                Some(to_bary) => {
+                    let (l00, l10, l01) = (
+                        to_bary.at([0.0, 0.0]),
+                        to_bary.at([1.0, 0.0]),
+                        to_bary.at([0.0, 1.0]),
+                    );
+                    let at = |l: [f64; 3], k: usize| l[0] * a[k] + l[1] * b[k] + l[2] * c[k];
+                    let (x0, y0) = (at(l00, 0), at(l00, 1));
+                    [
+                        x0,
+                        at(l10, 0) - x0,
+                        at(l01, 0) - x0,
+                        y0,
+                        at(l10, 1) - y0,
+                        at(l01, 1) - y0,
+                    ]
+                }
+                // A degenerate reference triangle covers no mask pixel.
+                None => [a[0], 0.0, 0.0, a[1], 0.0, 0.0],
+            }
+        })
+        .collect()
+}
+
 /// Gathers `C`-channel samples of `data` (`w × h`) at each mask pixel's source point.
 fn gather<T: Copy + Send + Sync, const C: usize>(
     frame: &ReferenceFrame,
@@ -160,14 +197,15 @@ fn gather<T: Copy + Send + Sync, const C: usize>(
     to_f32: impl Fn(T) -> f32 + Sync,
 ) {
     const CHUNK: usize = 2048;
+    let maps = source_maps(frame, landmarks);
     out.par_chunks_mut(CHUNK * C)
         .zip(frame.pixels.par_chunks(CHUNK))
         .for_each(|(out, pixels)| {
             for (o, p) in out.chunks_exact_mut(C).zip(pixels) {
-                let [a, b, c] = frame.triangles[p.triangle as usize].map(|v| landmarks[v as usize]);
-                let l = p.bary.map(|v| v as f64);
-                let x = l[0] * a[0] + l[1] * b[0] + l[2] * c[0];
-                let y = l[0] * a[1] + l[1] * b[1] + l[2] * c[1];
+                let m = &maps[p.triangle as usize];
+                let (px, py) = (f64::from(p.x), f64::from(p.y));
+                let x = m[0] + m[1] * px + m[2] * py;
+                let y = m[3] + m[4] * px + m[5] * py;
                 o.copy_from_slice(&sample::<T, C>(data, w, h, x, y, &to_f32));
             }
         });
