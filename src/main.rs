@@ -10,6 +10,13 @@ fn main() {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
+    // Mesa's Vulkan driver complains on stderr when XDG_RUNTIME_DIR is unset (containers, CI);
+    // we never present to a window, so any private writable folder will do.
+    #[cfg(unix)]
+    if std::env::var_os("XDG_RUNTIME_DIR").is_none() {
+        // SAFETY: no other thread exists yet.
+        unsafe { std::env::set_var("XDG_RUNTIME_DIR", std::env::temp_dir()) }
+    }
     if let Err(err) = cli::run() {
         eprintln!("error: {}", error_chain(&err));
         std::process::exit(1);
