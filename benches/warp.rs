@@ -48,8 +48,14 @@ fn bench(c: &mut Criterion) {
     let mut texture = vec![0f32; frame.n_pixels() * 3];
     warp::to_reference_into(&frame, &image, &landmarks, &mut texture).unwrap();
     let mut out = RgbImage::new(720, 576);
-    if let Some(n) = std::env::var("WARP_CALLS").ok().and_then(|v| v.parse::<usize>().ok()) {
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    if let Some(n) = std::env::var("WARP_CALLS")
+        .ok()
+        .and_then(|v| v.parse::<usize>().ok())
+    {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
         pool.install(|| {
             for _ in 0..n {
                 warp::to_reference_into(&frame, &image, &landmarks, &mut texture).unwrap();

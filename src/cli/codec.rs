@@ -109,7 +109,10 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
     let clip = Clip::load(&a.clip, &model)
         .with_context(|| format!("loading clip {}", a.clip.display()))?;
     let (background, feather) = match &a.background {
-        Some(p) => (Background::Video(Box::new(Source::open(p)?)), Some(a.feather)),
+        Some(p) => (
+            Background::Video(Box::new(Source::open(p)?)),
+            Some(a.feather),
+        ),
         None => (
             Background::Plain {
                 width: clip.width,

@@ -87,8 +87,10 @@ pub fn run() -> Result<()> {
 fn progress_bar() -> (ProgressBar, impl FnMut(Progress)) {
     let bar = ProgressBar::new(1);
     bar.set_style(
-        ProgressStyle::with_template("{spinner} {prefix}{msg:<18} [{bar:30}] {pos}/{len} {elapsed}")
-            .expect("valid template"),
+        ProgressStyle::with_template(
+            "{spinner} {prefix}{msg:<18} [{bar:30}] {pos}/{len} {elapsed}",
+        )
+        .expect("valid template"),
     );
     let handle = bar.clone();
     let callback = move |p: Progress| {

@@ -93,7 +93,10 @@ impl Gpu {
             reason: reason.into(),
         };
         let downlevel = adapter.get_downlevel_capabilities();
-        if !downlevel.flags.contains(wgpu::DownlevelFlags::COMPUTE_SHADERS) {
+        if !downlevel
+            .flags
+            .contains(wgpu::DownlevelFlags::COMPUTE_SHADERS)
+        {
             return Err(unsupported("no compute shaders"));
         }
         let limits = adapter.limits();
@@ -339,7 +342,11 @@ impl<'m> GpuRenderer<'m> {
             multisample: wgpu::MultisampleState::default(),
             fragment: Some(wgpu::FragmentState {
                 module: &module,
-                entry_point: Some(if feather.is_some() { "feathered" } else { "hard" }),
+                entry_point: Some(if feather.is_some() {
+                    "feathered"
+                } else {
+                    "hard"
+                }),
                 compilation_options: Default::default(),
                 targets: &[Some(wgpu::ColorTargetState {
                     format: wgpu::TextureFormat::Rgba8Unorm,
@@ -516,12 +523,7 @@ impl<'m> GpuRenderer<'m> {
         for p in params {
             let landmarks = self.model.landmarks(*p)?;
             warp::check_landmarks(frame, &landmarks.points)?;
-            let tris = warp::triangles(
-                frame,
-                &landmarks.points,
-                size.0 as usize,
-                size.1 as usize,
-            );
+            let tris = warp::triangles(frame, &landmarks.points, size.0 as usize, size.1 as usize);
             instances.push(tris.iter().map(Instance::of).collect::<Vec<_>>());
         }
         let (device, queue) = (&self.gpu.device, &self.gpu.queue);

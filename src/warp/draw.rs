@@ -4,7 +4,7 @@
 use image::RgbImage;
 use rayon::prelude::*;
 
-use super::{WarpError, check_landmarks, sample};
+use super::{WarpError, all_inside, check_landmarks, sample, sample_inside};
 use crate::mesh::{BarycentricMap, ReferenceFrame};
 use crate::shape::Point;
 
@@ -298,8 +298,17 @@ fn draw<const C: usize>(
                     }
                     let mut sx = t.s0[0] + t.sx[0] * i0 as f64 + t.sy[0] * y as f64;
                     let mut sy = t.s0[1] + t.sx[1] * i0 as f64 + t.sy[1] * y as f64;
+                    // Inside pixels are convex combinations of the source vertices.
+                    let inside = all_inside(&t.src, fw, fh, 1.0);
                     for px in row[i0 * 3..i1 * 3].chunks_exact_mut(3) {
-                        put(px, sample::<f32, C>(source, fw, fh, sx, sy, |v: f32| v));
+                        put(
+                            px,
+                            if inside {
+                                sample_inside::<f32, C>(source, fw, sx, sy, |v: f32| v)
+                            } else {
+                                sample::<f32, C>(source, fw, fh, sx, sy, |v: f32| v)
+                            },
+                        );
                         sx += t.sx[0];
                         sy += t.sx[1];
                     }

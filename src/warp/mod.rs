@@ -101,6 +101,42 @@ fn sample<T: Copy, const C: usize>(
     out
 }
 
+/// [`sample`] for a point known to lie in `[0, w − 2] × [0, h − 2]` (every texel neighbour
+/// exists): no clamping or edge tests, for the bulk of pixels whose triangle lies inside.
+#[inline(always)]
+fn sample_inside<T: Copy, const C: usize>(
+    data: &[T],
+    w: usize,
+    x: f64,
+    y: f64,
+    to_f32: impl Fn(T) -> f32,
+) -> [f32; C] {
+    let (x0, y0) = (x as i32 as usize, y as i32 as usize);
+    let (fx, fy) = ((x - x0 as f64) as f32, (y - y0 as f64) as f32);
+    let i00 = (y0 * w + x0) * C;
+    let top = &data[i00..i00 + 2 * C];
+    let bottom = &data[i00 + w * C..i00 + w * C + 2 * C];
+    let mut out = [0f32; C];
+    for (c, o) in out.iter_mut().enumerate() {
+        let t = to_f32(top[c]) * (1.0 - fx) + to_f32(top[C + c]) * fx;
+        let b = to_f32(bottom[c]) * (1.0 - fx) + to_f32(bottom[C + c]) * fx;
+        *o = t * (1.0 - fy) + b * fy;
+    }
+    out
+}
+
+/// Whether every point lies at least `margin` pixels inside where [`sample_inside`] may
+/// sample a `w × h` image.
+fn all_inside(points: &[[f64; 2]], w: usize, h: usize, margin: f64) -> bool {
+    let (xs, ys) = (
+        margin..=w as f64 - 2.0 - margin,
+        margin..=h as f64 - 2.0 - margin,
+    );
+    points
+        .iter()
+        .all(|p| xs.contains(&p[0]) && ys.contains(&p[1]))
+}
+
 /// A single-channel f32 image (grey levels), for fitting on luminance.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GreyImage {
@@ -197,16 +233,26 @@ fn gather<T: Copy + Send + Sync, const C: usize>(
     to_f32: impl Fn(T) -> f32 + Sync,
 ) {
     const CHUNK: usize = 2048;
-    let maps = source_maps(frame, landmarks);
+    // A triangle whose image vertices all lie inside needs no clamping at any of its pixels
+    // (they are convex combinations of the vertices; a margin of one pixel absorbs rounding).
+    let maps: Vec<([f64; 6], bool)> = source_maps(frame, landmarks)
+        .into_iter()
+        .zip(&frame.triangles)
+        .map(|(m, t)| (m, all_inside(&t.map(|v| landmarks[v as usize]), w, h, 1.0)))
+        .collect();
     out.par_chunks_mut(CHUNK * C)
         .zip(frame.pixels.par_chunks(CHUNK))
         .for_each(|(out, pixels)| {
             for (o, p) in out.chunks_exact_mut(C).zip(pixels) {
-                let m = &maps[p.triangle as usize];
+                let (m, inside) = &maps[p.triangle as usize];
                 let (px, py) = (f64::from(p.x), f64::from(p.y));
                 let x = m[0] + m[1] * px + m[2] * py;
                 let y = m[3] + m[4] * px + m[5] * py;
-                o.copy_from_slice(&sample::<T, C>(data, w, h, x, y, &to_f32));
+                o.copy_from_slice(&if *inside {
+                    sample_inside::<T, C>(data, w, x, y, &to_f32)
+                } else {
+                    sample::<T, C>(data, w, h, x, y, &to_f32)
+                });
             }
         });
 }
@@ -242,7 +288,10 @@ pub fn to_reference_grey_into(
     Ok(())
 }
 
-pub(crate) fn check_landmarks(frame: &ReferenceFrame, landmarks: &[Point]) -> Result<(), WarpError> {
+pub(crate) fn check_landmarks(
+    frame: &ReferenceFrame,
+    landmarks: &[Point],
+) -> Result<(), WarpError> {
     if landmarks.len() != frame.landmarks.len() {
         return Err(WarpError::LandmarkCount {
             expected: frame.landmarks.len(),
@@ -298,4 +347,35 @@ pub fn to_reference_into(
         |v| v as f32,
     );
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The unclamped sampler agrees with the clamped one wherever it may be used, on a
+    /// 3-channel image with distinct texels, up to the image's last inner texel.
+    #[test]
+    fn sample_inside_matches_sample() {
+        let (w, h) = (7, 5);
+        let data: Vec<u8> = (0..w * h * 3).map(|i| (i * 37 % 251) as u8).collect();
+        let to_f32 = |v: u8| f32::from(v);
+        let mut checked = 0;
+        for i in 0..=40 {
+            for j in 0..=40 {
+                let (x, y) = (i as f64 * 0.125, j as f64 * 0.075);
+                if !all_inside(&[[x, y]], w, h, 0.0) {
+                    continue;
+                }
+                let a = sample::<u8, 3>(&data, w, h, x, y, to_f32);
+                let b = sample_inside::<u8, 3>(&data, w, x, y, to_f32);
+                assert_eq!(a, b, "at ({x}, {y})");
+                checked += 1;
+            }
+        }
+        // Points up to x = 5, y = 3 (the last inner texel) were all compared.
+        assert_eq!(checked, 41 * 41);
+        assert!(!all_inside(&[[5.01, 0.0]], w, h, 0.0));
+        assert!(!all_inside(&[[1.0, 1.0]], w, h, 1.5));
+    }
 }
