@@ -250,7 +250,7 @@ impl<'m> GpuRenderer<'m> {
         let stride = padded_row(w, 16) / 16;
         let limits = device.limits();
         let basis_bytes = ((n_params + 1) * dim * 4) as u64;
-        if basis_bytes > limits.max_storage_buffer_binding_size as u64
+        if basis_bytes > limits.max_storage_buffer_binding_size
             || w > limits.max_texture_dimension_2d
             || h > limits.max_texture_dimension_2d
         {

@@ -141,7 +141,9 @@ pub(crate) struct Tri {
     /// Lowest barycentric value still drawn, per vertex: 0 inside, negative across a hull
     /// edge (−dilation / height of the triangle over that edge).
     pub floor: [f64; 3],
-    /// The first vertex in the image (an origin near the triangle, for precision in f32).
+    /// The first vertex in the image (an origin near the triangle, for precision in f32 on
+    /// the GPU).
+    #[cfg_attr(not(feature = "gpu"), allow(dead_code))]
     pub origin: Point,
     /// Source (reference-frame) position: `s = s0 + sx·x + sy·y`.
     pub s0: Point,
@@ -243,8 +245,8 @@ fn draw<const C: usize>(
                     // pixels inside the triangle proper (every λ_i ≥ 0), the rest dilated.
                     let span = |floor: [f64; 3]| {
                         let (mut lo, mut hi) = (t.x_lo, t.x_hi);
-                        for i in 0..3 {
-                            let c = t.l0[i] + t.ly[i] * y as f64 - floor[i];
+                        for (i, floor) in floor.iter().enumerate() {
+                            let c = t.l0[i] + t.ly[i] * y as f64 - floor;
                             if t.lx[i] > 0.0 {
                                 lo = lo.max(-c * t.inv_lx[i]);
                             } else if t.lx[i] < 0.0 {

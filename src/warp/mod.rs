@@ -19,6 +19,7 @@ pub use draw::{
     RENDER_DILATION, from_reference_blend_into, from_reference_into, texture_to_image,
     texture_to_rgb, to_u8,
 };
+#[cfg(feature = "gpu")]
 pub(crate) use draw::{Tri, triangles};
 
 use crate::mesh::ReferenceFrame;
