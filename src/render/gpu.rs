@@ -47,7 +47,8 @@ pub enum GpuError {
 /// Which backends to look for an adapter on.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Backends {
-    /// Any (Vulkan first, then GL).
+    /// Any (Vulkan first, then GL), narrowed by the `WGPU_BACKEND` environment variable
+    /// (`vulkan`, `gl`) as other wgpu programs are.
     Any,
     /// Vulkan only (a real driver or lavapipe).
     Vulkan,
@@ -58,7 +59,10 @@ pub enum Backends {
 impl Backends {
     fn wgpu(self) -> wgpu::Backends {
         match self {
-            Backends::Any => wgpu::Backends::VULKAN | wgpu::Backends::GL,
+            Backends::Any => {
+                let ours = wgpu::Backends::VULKAN | wgpu::Backends::GL;
+                wgpu::Backends::from_env().map_or(ours, |env| env & ours)
+            }
             Backends::Vulkan => wgpu::Backends::VULKAN,
             Backends::Gl => wgpu::Backends::GL,
         }
