@@ -110,3 +110,87 @@ fn gpu_frames_match_the_cpu_renderer() {
         eprintln!("skipped: no GPU adapter on any backend (the CPU renderer is used instead)");
     }
 }
+
+/// Runs the binary with `WGPU_BACKEND` set (or not).
+fn facespace_with(backend: Option<&str>, args: &[&str]) -> (bool, String) {
+    let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_facespace"));
+    cmd.args(args);
+    match backend {
+        Some(b) => cmd.env("WGPU_BACKEND", b),
+        None => cmd.env_remove("WGPU_BACKEND"),
+    };
+    let out = cmd.output().expect("binary runs");
+    (out.status.success(), common::text(&out))
+}
+
+/// `decode` through each renderer choice. With no adapter (simulated by asking wgpu for a
+/// backend Linux lacks) `auto` renders on the CPU and says so, byte for byte the CPU's frames,
+/// and `gpu` is a clear error that writes nothing; with an adapter, `gpu` decodes within the
+/// parity tolerance of the CPU.
+#[test]
+fn decode_chooses_its_renderer() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |s: &str| dir.path().join(s).to_string_lossy().into_owned();
+    let frames = common::root().join("tests/data/clip");
+    let frames = frames.to_str().unwrap();
+    let init = format!("{frames}/01000.pts");
+    let (ok, text) = facespace_with(
+        None,
+        &["encode", frames, "--init", &init, "-o", &p("clip.fsp")],
+    );
+    assert!(ok, "{text}");
+    let decode = |backend, renderer, out: &str| {
+        facespace_with(
+            backend,
+            &[
+                "decode",
+                &p("clip.fsp"),
+                "--renderer",
+                renderer,
+                "-o",
+                &p(out),
+            ],
+        )
+    };
+    let (ok, text) = decode(None, "cpu", "cpu.y4m");
+    assert!(ok && text.contains("CPU"), "{text}");
+    let cpu = std::fs::read(p("cpu.y4m")).unwrap();
+
+    let (ok, text) = decode(Some("metal"), "auto", "auto.y4m");
+    assert!(ok, "{text}");
+    assert!(
+        text.contains("no GPU adapter") && text.contains("CPU"),
+        "{text}"
+    );
+    assert!(std::fs::read(p("auto.y4m")).unwrap() == cpu);
+
+    let (ok, text) = decode(Some("metal"), "gpu", "gpu-none.y4m");
+    assert!(
+        !ok && text.contains("no GPU adapter") && !text.contains("panicked"),
+        "{text}"
+    );
+    assert!(!dir.path().join("gpu-none.y4m").exists());
+
+    if let Err(e) = Gpu::new(Backends::Any) {
+        eprintln!("GPU decode skipped: {e}");
+        return;
+    }
+    let (ok, text) = decode(None, "gpu", "gpu.y4m");
+    assert!(ok && text.contains("GPU:"), "{text}");
+    let gpu = std::fs::read(p("gpu.y4m")).unwrap();
+    assert_eq!(gpu.len(), cpu.len());
+    let off = cpu
+        .iter()
+        .zip(&gpu)
+        .filter(|(a, b)| a.abs_diff(**b) > 1)
+        .count();
+    eprintln!(
+        "{text}: {off} of {} Y4M bytes differ by more than one level",
+        cpu.len()
+    );
+    assert!(
+        off * 1000 <= cpu.len(),
+        "{off} of {} bytes differ by > 1",
+        cpu.len()
+    );
+}
