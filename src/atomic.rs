@@ -1,8 +1,30 @@
 //! Crash-safe writes: everything is written beside its destination and renamed into place,
-//! so a reader never sees a half-written file or model folder.
+//! so a reader never sees a half-written file or folder, and a folder is replaced only when it
+//! provably holds nothing but what facespace wrote there.
+//!
+//! Staging files and folders are named `.facespace-tmp-*` and hold an advisory lock
+//! (`flock`) while their writer lives; the next write into the same folder removes any whose
+//! lock is free, i.e. whose writer was killed. A folder is swapped in by one
+//! `renameat2(RENAME_EXCHANGE)` on Linux, so the destination exists at every instant; where
+//! the exchange is unsupported (another OS, a file system without it) two renames are used and
+//! a crash between them leaves the previous folder as `.facespace-old-*` beside it.
 
+use std::fs::File;
 use std::io::{self, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
+
+/// Prefix of every staging file and folder (cleaned when unlocked).
+const STAGING: &str = ".facespace-tmp-";
+/// Prefix of a previous folder kept by the two-rename fallback (never cleaned automatically).
+const OLD: &str = ".facespace-old-";
+/// Written into every folder [`replace_dir`] builds: its kind and the names it holds.
+pub const OWNED: &str = ".facespace-owned.json";
+
+#[derive(serde::Serialize, serde::Deserialize)]
+struct Owned {
+    kind: String,
+    files: Vec<String>,
+}
 
 /// Writes `bytes` to `path` through a temporary file in the same folder and a rename.
 pub fn write_file(path: &Path, bytes: &[u8]) -> io::Result<()> {
@@ -11,12 +33,15 @@ pub fn write_file(path: &Path, bytes: &[u8]) -> io::Result<()> {
     persist(tmp, path)
 }
 
-/// A temporary file beside `path` (its folder created if need be), for [`persist`]; dropped
-/// instead, it is removed.
+/// A locked temporary file beside `path` (its folder created if need be), for [`persist`];
+/// dropped instead, it is removed.
 pub fn staging_file(path: &Path) -> io::Result<tempfile::NamedTempFile> {
     let dir = parent_of(path);
     std::fs::create_dir_all(dir)?;
-    tempfile::Builder::new().prefix(".tmp-").tempfile_in(dir)
+    clean_stale(dir);
+    let tmp = tempfile::Builder::new().prefix(STAGING).tempfile_in(dir)?;
+    lock(tmp.as_file());
+    Ok(tmp)
 }
 
 /// Flushes a [`staging_file`] to disk and renames it to `path`.
@@ -30,56 +55,194 @@ pub fn persist(tmp: tempfile::NamedTempFile, path: &Path) -> io::Result<()> {
     Ok(())
 }
 
-/// Builds a folder with `fill` in a temporary sibling, then swaps it in for `target`
-/// (an existing `target` is replaced only once the new one is complete). A non-empty
-/// `target` is replaced only if it holds `marker` (e.g. `model.json`), so saving never wipes
-/// a folder of something else. `io` turns this function's own I/O errors into the caller's.
+/// A locked temporary folder in `parent`, removed when dropped.
+pub struct StagingDir {
+    dir: tempfile::TempDir,
+    _lock: Option<File>,
+}
+
+impl StagingDir {
+    /// Creates one (and first removes the staging that killed writers left in `parent`).
+    pub fn new(parent: &Path) -> io::Result<Self> {
+        std::fs::create_dir_all(parent)?;
+        clean_stale(parent);
+        let dir = tempfile::Builder::new()
+            .prefix(STAGING)
+            .tempdir_in(parent)?;
+        let lock = File::open(dir.path()).ok();
+        if let Some(f) = &lock {
+            self::lock(f);
+        }
+        Ok(Self { dir, _lock: lock })
+    }
+
+    /// Its path.
+    pub fn path(&self) -> &Path {
+        self.dir.path()
+    }
+}
+
+/// Builds a folder with `fill` in a staging sibling, then swaps it in for `target` (an
+/// existing `target` is replaced only once the new one is complete). A non-empty `target` is
+/// replaced only if an earlier save of the same `kind` wrote it and nothing has been added
+/// since (its [`OWNED`] record lists every entry), so saving never deletes a user's files.
+/// `io` turns this function's own I/O errors into the caller's.
 pub fn replace_dir<E>(
     target: &Path,
-    marker: &str,
+    kind: &str,
     fill: impl FnOnce(&Path) -> Result<(), E>,
     io: impl Fn(io::Error) -> E,
 ) -> Result<(), E> {
-    if target.exists()
-        && !target.join(marker).is_file()
-        && std::fs::read_dir(target).map_err(&io)?.next().is_some()
-    {
-        return Err(io(io::Error::new(
-            io::ErrorKind::AlreadyExists,
-            format!(
-                "it exists and is not a folder of this kind (no {marker}); refusing to replace it"
-            ),
-        )));
-    }
-    let parent = parent_of(target);
-    std::fs::create_dir_all(parent).map_err(&io)?;
-    let tmp = tempfile::Builder::new()
-        .prefix(".tmp-")
-        .tempdir_in(parent)
+    check_replaceable(target, kind).map_err(&io)?;
+    let staging = StagingDir::new(parent_of(target)).map_err(&io)?;
+    let staged = staging.path();
+    fill(staged)?;
+    let mut files: Vec<String> = std::fs::read_dir(staged)
+        .map_err(&io)?
+        .map(|e| e.map(|e| e.file_name().to_string_lossy().into_owned()))
+        .collect::<io::Result<_>>()
         .map_err(&io)?;
-    fill(tmp.path())?;
-    let staged = tmp.keep();
-    #[cfg(unix)]
-    std::fs::set_permissions(&staged, std::os::unix::fs::PermissionsExt::from_mode(0o755))
-        .map_err(&io)?;
-    let swap = || -> io::Result<()> {
-        if target.exists() {
-            let old = tempfile::Builder::new()
-                .prefix(".old-")
-                .tempdir_in(parent)?
-                .keep();
-            std::fs::remove_dir(&old)?;
-            std::fs::rename(target, &old)?;
-            if let Err(e) = std::fs::rename(&staged, target) {
-                std::fs::rename(&old, target)?;
-                return Err(e);
-            }
-            std::fs::remove_dir_all(&old)
-        } else {
-            std::fs::rename(&staged, target)
-        }
+    files.sort();
+    let record = Owned {
+        kind: kind.into(),
+        files,
     };
-    swap().map_err(io)
+    let json = serde_json::to_vec_pretty(&record).expect("ownership record serialises");
+    write_file(&staged.join(OWNED), &json).map_err(&io)?;
+    #[cfg(unix)]
+    std::fs::set_permissions(staged, std::os::unix::fs::PermissionsExt::from_mode(0o755))
+        .map_err(&io)?;
+    // Checked again just before the swap: a user may have added files while we worked.
+    check_replaceable(target, kind).map_err(&io)?;
+    swap_in(staged, target).map_err(io)
+    // `staging` drops here: it now holds the previous folder (or nothing) and is removed.
+}
+
+/// Whether `target` may be replaced by a folder of `kind` (see [`replace_dir`]).
+fn check_replaceable(target: &Path, kind: &str) -> io::Result<()> {
+    let refuse = |why: String| Err(io::Error::new(io::ErrorKind::AlreadyExists, why));
+    let Ok(meta) = std::fs::metadata(target) else {
+        return Ok(());
+    };
+    if !meta.is_dir() {
+        return refuse("it exists and is not a folder; refusing to replace it".into());
+    }
+    let mut names = Vec::new();
+    for e in std::fs::read_dir(target)? {
+        names.push(e?.file_name().to_string_lossy().into_owned());
+    }
+    if names.is_empty() {
+        return Ok(());
+    }
+    let record = std::fs::read(target.join(OWNED))
+        .ok()
+        .and_then(|b| serde_json::from_slice::<Owned>(&b).ok());
+    let Some(record) = record else {
+        return refuse(format!(
+            "it is a non-empty folder facespace did not write (no valid {OWNED}); refusing to \
+             replace it — choose a new or empty folder"
+        ));
+    };
+    if record.kind != kind {
+        return refuse(format!(
+            "it holds a facespace {}, not a {kind}; refusing to replace it",
+            record.kind
+        ));
+    }
+    let mut foreign: Vec<&String> = names
+        .iter()
+        .filter(|n| *n != OWNED && !record.files.contains(n))
+        .collect();
+    if !foreign.is_empty() {
+        foreign.sort();
+        let shown: Vec<&str> = foreign.iter().take(3).map(|s| s.as_str()).collect();
+        return refuse(format!(
+            "it holds {} file(s) facespace did not write ({}{}); refusing to replace it",
+            foreign.len(),
+            shown.join(", "),
+            if foreign.len() > 3 { ", …" } else { "" }
+        ));
+    }
+    Ok(())
+}
+
+/// Puts the folder `staged` at `target`; afterwards `staged` holds the previous `target` (or
+/// nothing) for its owner to remove.
+fn swap_in(staged: &Path, target: &Path) -> io::Result<()> {
+    if std::fs::symlink_metadata(target).is_err() {
+        return std::fs::rename(staged, target);
+    }
+    if exchange(staged, target).is_ok() {
+        return Ok(());
+    }
+    // Fallback: two renames; between them the destination is briefly missing.
+    let old = tempfile::Builder::new()
+        .prefix(OLD)
+        .tempdir_in(parent_of(target))?
+        .keep();
+    std::fs::remove_dir(&old)?;
+    std::fs::rename(target, &old)?;
+    if let Err(e) = std::fs::rename(staged, target) {
+        std::fs::rename(&old, target)?;
+        return Err(e);
+    }
+    std::fs::rename(&old, staged)
+}
+
+/// Atomically exchanges two paths (Linux `renameat2(RENAME_EXCHANGE)`).
+#[cfg(target_os = "linux")]
+fn exchange(a: &Path, b: &Path) -> io::Result<()> {
+    use std::ffi::CString;
+    use std::os::unix::ffi::OsStrExt;
+    let c = |p: &Path| CString::new(p.as_os_str().as_bytes()).map_err(io::Error::other);
+    let (ca, cb) = (c(a)?, c(b)?);
+    // SAFETY: two valid NUL-terminated paths relative to the current directory.
+    let r = unsafe {
+        libc::renameat2(
+            libc::AT_FDCWD,
+            ca.as_ptr(),
+            libc::AT_FDCWD,
+            cb.as_ptr(),
+            libc::RENAME_EXCHANGE,
+        )
+    };
+    if r == 0 {
+        Ok(())
+    } else {
+        Err(io::Error::last_os_error())
+    }
+}
+
+#[cfg(not(target_os = "linux"))]
+fn exchange(_: &Path, _: &Path) -> io::Result<()> {
+    Err(io::Error::from(io::ErrorKind::Unsupported))
+}
+
+/// Takes the advisory lock that marks a staging entry as alive (best effort: a file system
+/// without locks only loses the clean-up).
+fn lock(f: &File) {
+    let _ = f.try_lock();
+}
+
+/// Removes the staging entries in `dir` whose writer is gone (their lock is free).
+fn clean_stale(dir: &Path) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for e in entries.flatten() {
+        if !e.file_name().to_string_lossy().starts_with(STAGING) {
+            continue;
+        }
+        let path: PathBuf = e.path();
+        let Ok(f) = File::open(&path) else { continue };
+        if f.try_lock().is_err() {
+            continue;
+        }
+        let _ = match e.file_type() {
+            Ok(t) if t.is_dir() => std::fs::remove_dir_all(&path),
+            _ => std::fs::remove_file(&path),
+        };
+    }
 }
 
 /// The folder `path` is in (`.` for a bare file name).
@@ -94,14 +257,23 @@ pub fn parent_of(path: &Path) -> &Path {
 mod tests {
     use super::*;
 
+    fn names(dir: &Path) -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    }
+
     #[test]
     fn failed_fill_leaves_the_old_folder_untouched() {
         let root = tempfile::tempdir().unwrap();
         let target = root.path().join("model");
-        replace_dir(&target, "a", |d| std::fs::write(d.join("a"), "1"), |e| e).unwrap();
+        replace_dir(&target, "m", |d| std::fs::write(d.join("a"), "1"), |e| e).unwrap();
         let failed = replace_dir(
             &target,
-            "a",
+            "m",
             |d| {
                 std::fs::write(d.join("a"), "2")?;
                 Err(io::Error::other("crash"))
@@ -110,14 +282,87 @@ mod tests {
         );
         assert!(failed.is_err());
         assert_eq!(std::fs::read_to_string(target.join("a")).unwrap(), "1");
-        replace_dir(&target, "a", |d| std::fs::write(d.join("b"), "3"), |e| e).unwrap();
-        // A folder without the marker is never replaced.
-        let err = replace_dir(&target, "a", |_| Ok(()), |e| e).unwrap_err();
+        replace_dir(&target, "m", |d| std::fs::write(d.join("b"), "3"), |e| e).unwrap();
+        assert_eq!(names(&target), [OWNED, "b"]);
+        // Another kind of ours is not replaced.
+        let err = replace_dir(&target, "other", |_| Ok(()), |e| e).unwrap_err();
         assert_eq!(err.kind(), io::ErrorKind::AlreadyExists);
-        assert!(!target.join("a").exists());
         assert_eq!(std::fs::read_to_string(target.join("b")).unwrap(), "3");
-        let left: Vec<_> = std::fs::read_dir(root.path()).unwrap().collect();
-        // The failed attempt's temporary folder is removed when its guard drops.
-        assert_eq!(left.len(), 1, "{left:?}");
+        // The failed attempt's staging and the replaced folder are gone.
+        assert_eq!(names(root.path()), ["model"]);
+    }
+
+    /// Issue 17's reproducer: a folder that merely contains the marker file, or ours with a
+    /// user's file added, is never replaced.
+    #[test]
+    fn user_files_are_never_deleted() {
+        let root = tempfile::tempdir().unwrap();
+        let p = root.path().join("p");
+        std::fs::create_dir(&p).unwrap();
+        std::fs::write(p.join("thesis.tex"), "x").unwrap();
+        std::fs::write(p.join("meta.json"), "{}").unwrap();
+        let err = replace_dir(&p, "clip", |_| Ok(()), |e| e).unwrap_err();
+        assert!(err.to_string().contains("did not write"), "{err}");
+        assert!(p.join("thesis.tex").is_file());
+
+        let ours = root.path().join("ours");
+        replace_dir(
+            &ours,
+            "clip",
+            |d| std::fs::write(d.join("meta.json"), "1"),
+            |e| e,
+        )
+        .unwrap();
+        std::fs::write(ours.join("notes.txt"), "mine").unwrap();
+        let err = replace_dir(&ours, "clip", |_| Ok(()), |e| e).unwrap_err();
+        assert!(err.to_string().contains("notes.txt"), "{err}");
+        assert_eq!(
+            std::fs::read_to_string(ours.join("notes.txt")).unwrap(),
+            "mine"
+        );
+        // A forged record listing the user's file as ours would be needed to replace it;
+        // an empty folder or none at all is fine.
+        let empty = root.path().join("empty");
+        std::fs::create_dir(&empty).unwrap();
+        replace_dir(&empty, "clip", |d| std::fs::write(d.join("x"), "1"), |e| e).unwrap();
+        // A file is never replaced by a folder.
+        let file = root.path().join("file");
+        std::fs::write(&file, "f").unwrap();
+        assert!(replace_dir(&file, "clip", |_| Ok(()), |e| e).is_err());
+        assert_eq!(std::fs::read_to_string(&file).unwrap(), "f");
+    }
+
+    /// Staging whose writer died (lock free) is removed by the next write; live staging
+    /// (lock held) is left alone.
+    #[test]
+    fn stale_staging_is_cleaned_live_staging_kept() {
+        let root = tempfile::tempdir().unwrap();
+        let dead = root.path().join(format!("{STAGING}dead"));
+        std::fs::create_dir(&dead).unwrap();
+        std::fs::write(dead.join("frame.png"), "x").unwrap();
+        std::fs::write(root.path().join(format!("{STAGING}deadfile")), "x").unwrap();
+        let live = StagingDir::new(root.path()).unwrap();
+        write_file(&root.path().join("out.json"), b"{}").unwrap();
+        let left = names(root.path());
+        assert_eq!(left.len(), 2, "{left:?}");
+        assert!(live.path().is_dir() && root.path().join("out.json").is_file());
+        drop(live);
+        assert_eq!(names(root.path()), ["out.json"]);
+    }
+
+    /// The destination exists at every instant of a replace (Linux: one exchange).
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn replace_is_one_exchange() {
+        let root = tempfile::tempdir().unwrap();
+        let a = root.path().join("a");
+        let b = root.path().join("b");
+        std::fs::create_dir(&a).unwrap();
+        std::fs::create_dir(&b).unwrap();
+        std::fs::write(a.join("x"), "a").unwrap();
+        std::fs::write(b.join("x"), "b").unwrap();
+        exchange(&a, &b).unwrap();
+        assert_eq!(std::fs::read_to_string(a.join("x")).unwrap(), "b");
+        assert_eq!(std::fs::read_to_string(b.join("x")).unwrap(), "a");
     }
 }

@@ -123,6 +123,13 @@ fn demo_writes_its_outputs() {
         .count();
     let pngs = std::fs::read_dir(tmp.path().join("smoothed/frames"))
         .unwrap()
+        .filter(|e| {
+            e.as_ref()
+                .unwrap()
+                .path()
+                .extension()
+                .is_some_and(|x| x == "png")
+        })
         .count();
     assert!(
         frames > 25 && frames == pngs,
@@ -332,4 +339,51 @@ fn corpus_then_codebook() {
     ]);
     assert_eq!(o.status.code(), Some(1));
     assert!(text(&o).contains("values per frame"), "{}", text(&o));
+}
+
+/// Issue 17's first reproducer: a folder that merely holds a marker file (`meta.json`) beside
+/// a user's file is not a clip and is never replaced; a clip we wrote is, and a user's file
+/// added to it afterwards makes it refused again.
+#[test]
+fn outputs_never_delete_user_files() {
+    let tmp = tempfile::tempdir().unwrap();
+    let p = tmp.path().join("p");
+    std::fs::create_dir(&p).unwrap();
+    std::fs::write(p.join("thesis.tex"), "x").unwrap();
+    std::fs::write(p.join("meta.json"), "{}").unwrap();
+    let clip = common::root().join("tests/data/clip");
+    let init = clip.join("01000.pts");
+    let encode = |out: &Path| {
+        facespace(&[
+            "encode",
+            clip.to_str().unwrap(),
+            "--init",
+            init.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ])
+    };
+    let o = encode(&p);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    assert!(text(&o).contains("did not write"), "{}", text(&o));
+    assert_eq!(std::fs::read_to_string(p.join("thesis.tex")).unwrap(), "x");
+
+    let ours = tmp.path().join("ours.fsp");
+    assert!(encode(&ours).status.success());
+    assert!(
+        encode(&ours).status.success(),
+        "a clip we wrote is replaced"
+    );
+    std::fs::write(ours.join("notes.txt"), "mine").unwrap();
+    let o = encode(&ours);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(text(&o).contains("notes.txt"), "{}", text(&o));
+    assert!(ours.join("notes.txt").is_file());
+    // Nothing of ours is left behind beside the outputs.
+    let litter: Vec<_> = std::fs::read_dir(tmp.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with('.'))
+        .collect();
+    assert!(litter.is_empty(), "{litter:?}");
 }

@@ -78,7 +78,7 @@ impl Codebook {
         let json = serde_json::to_string_pretty(&manifest).expect("manifest serialises");
         atomic::replace_dir(
             dir,
-            MANIFEST,
+            "codebook",
             |tmp| -> Result<(), CodebookError> {
                 for (i, s) in self.sentences.iter().enumerate() {
                     npy::write(&tmp.join(sentence_file(i)), s.frames.values())?;

@@ -119,7 +119,8 @@ impl Clip {
     }
 
     /// Saves the clip folder atomically; `audio_from` (the input video) gives `audio.m4a`
-    /// when it has sound. A non-empty folder without `meta.json` is never replaced.
+    /// when it has sound. A non-empty folder is replaced only if it is a clip facespace
+    /// wrote, with nothing added since.
     pub fn save(&self, dir: &Path, audio_from: Option<&Path>) -> Result<(), CodecError> {
         let io = |source| CodecError::Io {
             path: dir.into(),
@@ -127,7 +128,7 @@ impl Clip {
         };
         atomic::replace_dir(
             dir,
-            META,
+            "clip",
             |staged| {
                 let mut meta = ClipMeta {
                     format: FORMAT.into(),

@@ -107,7 +107,7 @@ impl FaceModel {
         let json = serde_json::to_string_pretty(&manifest).expect("manifest serialises");
         atomic::replace_dir(
             dir,
-            MANIFEST,
+            "model",
             |tmp| -> Result<(), ModelError> {
                 let (s, a) = (&self.shape.pca, &self.appearance.pca);
                 let (ks, ka) = (s.n_components(), a.n_components());

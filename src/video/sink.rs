@@ -23,7 +23,7 @@ pub struct Sink {
 }
 
 enum SinkKind {
-    Frames(tempfile::TempDir),
+    Frames(atomic::StagingDir),
     Y4m(y4m::Writer<BufWriter<tempfile::NamedTempFile>>),
     Mp4(Box<mp4::Writer>, Option<mp4::AudioTrack>),
     Ffmpeg(
@@ -32,9 +32,6 @@ enum SinkKind {
         tempfile::TempPath,
     ),
 }
-
-/// Marker of a frame folder written by a [`Sink`].
-const FIRST_FRAME: &str = "000000.png";
 
 impl Sink {
     /// A sink chosen by `path`: a path without extension → a folder of PNG frames
@@ -63,12 +60,7 @@ impl Sink {
             source,
         };
         let kind = match extension(path).as_str() {
-            "" => SinkKind::Frames(
-                tempfile::Builder::new()
-                    .prefix(".tmp-")
-                    .tempdir_in(parent)
-                    .map_err(io_error(parent))?,
-            ),
+            "" => SinkKind::Frames(atomic::StagingDir::new(parent).map_err(io_error(parent))?),
             "y4m" => {
                 let f = atomic::staging_file(path).map_err(io_error(parent))?;
                 SinkKind::Y4m(
@@ -185,7 +177,7 @@ impl Sink {
             SinkKind::Frames(dir) => {
                 atomic::replace_dir(
                     &path,
-                    FIRST_FRAME,
+                    "frames",
                     |staged| {
                         for e in std::fs::read_dir(dir.path())? {
                             let e = e?;
