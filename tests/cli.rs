@@ -387,3 +387,49 @@ fn outputs_never_delete_user_files() {
         .collect();
     assert!(litter.is_empty(), "{litter:?}");
 }
+
+/// Issue 15: tracking another person with the demo model (the default) is an error naming
+/// the likely cause, and writes nothing; `--allow-lost` keeps the result and counts the lost
+/// frames. The demo talker's own clip tracks with no frame lost.
+#[test]
+fn another_face_is_a_loud_error() {
+    let tmp = tempfile::tempdir().unwrap();
+    let frames = tmp.path().join("lenna");
+    std::fs::create_dir(&frames).unwrap();
+    for i in 0..4 {
+        std::fs::copy(
+            common::faces_dir().join("lenna.png"),
+            frames.join(format!("{i:05}.png")),
+        )
+        .unwrap();
+    }
+    let f = frames.to_str().unwrap();
+    for (command, out) in [("track", "lm.npy"), ("encode", "clip.fsp")] {
+        let out = tmp.path().join(out);
+        let o = facespace(&[command, f, "-o", out.to_str().unwrap()]);
+        let t = text(&o);
+        assert_eq!(o.status.code(), Some(1), "{t}");
+        assert!(
+            t.contains("built for another face") && t.contains("--allow-lost"),
+            "{t}"
+        );
+        assert!(!out.exists(), "{command} wrote {}", out.display());
+    }
+    let out = tmp.path().join("lm.npy");
+    let o = facespace(&["track", f, "--allow-lost", "-o", out.to_str().unwrap()]);
+    assert!(
+        o.status.success() && text(&o).contains("lost"),
+        "{}",
+        text(&o)
+    );
+    assert!(out.is_file());
+
+    let clip = common::root().join("tests/data/clip");
+    let o = facespace(&[
+        "track",
+        clip.to_str().unwrap(),
+        "-o",
+        tmp.path().join("own.npy").to_str().unwrap(),
+    ]);
+    assert!(text(&o).contains("0 lost"), "{}", text(&o));
+}

@@ -159,6 +159,10 @@ struct TrackingArgs {
     /// accurate when the appearance is far from the mean; 0 = off).
     #[arg(long, default_value_t = 0)]
     refine: usize,
+    /// Keep the result when the first frame has no face the model explains or the face is
+    /// lost on most frames (otherwise an error: usually a model of someone else).
+    #[arg(long)]
+    allow_lost: bool,
 }
 
 impl TrackingArgs {
@@ -176,6 +180,7 @@ impl TrackingArgs {
                 ..FitOptions::default()
             },
             bits,
+            allow_lost: self.allow_lost,
         })
     }
 }
@@ -183,11 +188,12 @@ impl TrackingArgs {
 /// One line on a tracking record.
 fn tracking_line(s: &TrackingSummary, seconds: f64) -> String {
     format!(
-        "{} frames in {seconds:.2} s ({:.0} fps incl. decoding): residual mean {:.2}, max {:.2} grey levels; {} re-initialised",
+        "{} frames in {seconds:.2} s ({:.0} fps incl. decoding): residual mean {:.2}, max {:.2} grey levels; {} re-initialised, {} lost",
         s.frames,
         s.frames as f64 / seconds,
         s.mean_error,
         s.max_error,
         s.reinitialised,
+        s.lost,
     )
 }

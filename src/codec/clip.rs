@@ -50,6 +50,9 @@ pub struct FrameTrack {
     pub fit_error: f64,
     /// Whether the frame was re-initialised after a lost fit.
     pub reinitialised: bool,
+    /// Whether the kept fit is still above the re-initialisation threshold (the face lost).
+    #[serde(default)]
+    pub lost: bool,
 }
 
 /// Uniform scalar quantisation of each column over its range in the clip.

@@ -85,6 +85,32 @@ pub enum CodecError {
     /// A video without frames.
     #[error("{0}: no frames")]
     NoFrames(PathBuf),
+    /// The model explains no face in the first frame: almost always a model of someone else.
+    #[error(
+        "{path}: no face this model explains in the first frame (residual {error:.1} grey levels, a face it was built for fits under {threshold}); this model was probably built for another face: build one from your own frames (README: \"Your own talker\"), give the first frame's landmarks with --init, or pass --allow-lost to keep the result anyway"
+    )]
+    NoFace {
+        /// The video.
+        path: PathBuf,
+        /// The first frame's residual RMS.
+        error: f64,
+        /// The threshold it exceeds.
+        threshold: f64,
+    },
+    /// Most frames were lost.
+    #[error(
+        "{path}: the face was lost on {lost} of {frames} frames (residual above {threshold} grey levels); this model was probably built for another face: build one from your own frames (README: \"Your own talker\"), or pass --allow-lost to keep the result anyway"
+    )]
+    FaceLost {
+        /// The video.
+        path: PathBuf,
+        /// Frames whose kept fit is above the threshold.
+        lost: usize,
+        /// Frames tracked.
+        frames: usize,
+        /// The residual threshold.
+        threshold: f64,
+    },
     /// An option out of range.
     #[error(transparent)]
     Option(#[from] InvalidOption),
@@ -103,6 +129,9 @@ pub struct EncodeOptions {
     pub fit: FitOptions,
     /// Quantise the parameters to 8 or 16 bits per value (over each column's range).
     pub bits: Option<u32>,
+    /// Keep going when the first frame has no face the model explains or most frames are
+    /// lost (otherwise [`CodecError::NoFace`] / [`CodecError::FaceLost`]).
+    pub allow_lost: bool,
 }
 
 impl Default for EncodeOptions {
@@ -113,6 +142,7 @@ impl Default for EncodeOptions {
             init: None,
             fit: FitOptions::default(),
             bits: None,
+            allow_lost: false,
         }
     }
 }
@@ -172,16 +202,34 @@ pub fn track(
         for frame in std::iter::once(Ok(first)).chain(frames) {
             let frame = frame?;
             let t = tracker.track(&frame)?;
+            let lost = t.error > options.reinit_error;
+            if lost && tracking.is_empty() && !options.allow_lost {
+                return Err(CodecError::NoFace {
+                    path: path.clone(),
+                    error: t.error,
+                    threshold: options.reinit_error,
+                });
+            }
             tracking.push(FrameTrack {
                 pose: t.pose.to_array(),
                 fit_error: t.error,
                 reinitialised: t.reinitialised,
+                lost,
             });
             on_frame(frame, &t)?;
             progress(Progress {
                 stage: "tracking",
                 done: tracking.len(),
                 total: total.max(tracking.len()),
+            });
+        }
+        let lost = tracking.iter().filter(|t| t.lost).count();
+        if 2 * lost > tracking.len() && !options.allow_lost {
+            return Err(CodecError::FaceLost {
+                path: path.clone(),
+                lost,
+                frames: tracking.len(),
+                threshold: options.reinit_error,
             });
         }
         Ok(tracking)
@@ -214,6 +262,8 @@ pub struct TrackingSummary {
     pub max_error: f64,
     /// Frames re-initialised.
     pub reinitialised: usize,
+    /// Frames whose kept fit is still above the threshold (lost).
+    pub lost: usize,
 }
 
 impl TrackingSummary {
@@ -225,6 +275,7 @@ impl TrackingSummary {
             mean_error: tracking.iter().map(|t| t.fit_error).sum::<f64>() / n,
             max_error: tracking.iter().map(|t| t.fit_error).fold(0.0, f64::max),
             reinitialised: tracking.iter().filter(|t| t.reinitialised).count(),
+            lost: tracking.iter().filter(|t| t.lost).count(),
         }
     }
 }
