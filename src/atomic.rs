@@ -39,6 +39,7 @@ pub fn staging_file(path: &Path) -> io::Result<tempfile::NamedTempFile> {
     let dir = parent_of(path);
     std::fs::create_dir_all(dir)?;
     clean_stale(dir);
+    let _creating = CREATING.lock().unwrap_or_else(|e| e.into_inner());
     let tmp = tempfile::Builder::new().prefix(STAGING).tempfile_in(dir)?;
     lock(tmp.as_file());
     Ok(tmp)
@@ -66,6 +67,7 @@ impl StagingDir {
     pub fn new(parent: &Path) -> io::Result<Self> {
         std::fs::create_dir_all(parent)?;
         clean_stale(parent);
+        let _creating = CREATING.lock().unwrap_or_else(|e| e.into_inner());
         let dir = tempfile::Builder::new()
             .prefix(STAGING)
             .tempdir_in(parent)?;
@@ -224,8 +226,25 @@ fn lock(f: &File) {
     let _ = f.try_lock();
 }
 
+/// Held from creating a staging entry until it is locked, and while cleaning, so this
+/// process never takes its own brand-new staging for a dead writer's. (Two processes
+/// staging into one folder at the same instant could still race in that window.)
+static CREATING: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+/// Folders this process has already cleaned (once each is enough: anything stale is older).
+static CLEANED: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+
 /// Removes the staging entries in `dir` whose writer is gone (their lock is free).
 fn clean_stale(dir: &Path) {
+    let key = dir.canonicalize().unwrap_or_else(|_| dir.to_path_buf());
+    {
+        let mut cleaned = CLEANED.lock().unwrap_or_else(|e| e.into_inner());
+        if cleaned.contains(&key) {
+            return;
+        }
+        cleaned.push(key);
+    }
+    let _creating = CREATING.lock().unwrap_or_else(|e| e.into_inner());
     let Ok(entries) = std::fs::read_dir(dir) else {
         return;
     };

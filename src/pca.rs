@@ -3,8 +3,13 @@
 //! With fewer samples than dimensions (the appearance case: ~30 images, ~120 000 values)
 //! the eigenvectors come from the n×n Gram matrix (the snapshot method, Sirovich 1987);
 //! otherwise from the d×d covariance. Both accumulate in f64; the model stores f32.
+//! The snapshot method runs on column blocks of the samples (f64 matrix products, blocks in
+//! parallel), never holding the centred data whole, and forms only the kept components:
+//! 600 textures × 111 426 values in about a second and a few hundred MB.
 
 use nalgebra::{DMatrix, SymmetricEigen};
+use ndarray::Array2;
+use ndarray::linalg::general_mat_mul;
 use rayon::prelude::*;
 use thiserror::Error;
 
@@ -118,50 +123,43 @@ impl PcaModel {
             });
         }
         let n = samples.len();
-        let centred: Vec<Vec<f64>> = samples
-            .par_iter()
-            .map(|s| {
-                s.iter()
-                    .zip(mean)
-                    .map(|(&x, &m)| x as f64 - m as f64)
-                    .collect()
-            })
-            .collect();
         let dof = (n - 1) as f64;
-        // Eigen-pairs of the covariance, as (variance, unit vector in data space).
-        let (values, vectors): (Vec<f64>, Vec<Vec<f64>>) = if n <= d {
-            let gram = DMatrix::from_fn(n, n, |i, j| dot(&centred[i], &centred[j]));
-            let (values, u) = sorted_eigen(gram);
-            let vectors = (0..values.len())
-                .into_par_iter()
-                .map(|k| {
-                    let mut v = vec![0f64; d];
-                    for (i, row) in centred.iter().enumerate() {
-                        let w = u[(i, k)];
-                        v.iter_mut().zip(row).for_each(|(vj, &x)| *vj += w * x);
-                    }
-                    normalise(&mut v);
-                    v
-                })
-                .collect();
-            (values.iter().map(|l| l / dof).collect(), vectors)
-        } else {
-            let mut cov = DMatrix::<f64>::zeros(d, d);
-            for row in &centred {
-                for i in 0..d {
-                    for j in 0..=i {
-                        cov[(i, j)] += row[i] * row[j];
+        // Eigen-pairs of the scatter matrix: values (divided by dof below) and, through
+        // `vectors(kept)`, the first `kept` unit vectors in data space, rows of a kept × d
+        // matrix. Only the kept ones are ever formed.
+        let (values, total, vectors): (Vec<f64>, f64, Box<KeptVectors<'_>>) =
+            if n <= d {
+                let gram = gram(samples, mean);
+                let total = gram.trace();
+                let (values, u) = sorted_eigen(gram);
+                let vectors = move |kept: usize| snapshot_vectors(samples, mean, &u, kept);
+                (values, total, Box::new(vectors))
+            } else {
+                let mut cov = DMatrix::<f64>::zeros(d, d);
+                for s in samples {
+                    let row: Vec<f64> = s
+                        .iter()
+                        .zip(mean)
+                        .map(|(&x, &m)| x as f64 - m as f64)
+                        .collect();
+                    for i in 0..d {
+                        for j in 0..=i {
+                            cov[(i, j)] += row[i] * row[j];
+                        }
                     }
                 }
-            }
-            cov.fill_upper_triangle_with_lower_triangle();
-            let (values, v) = sorted_eigen(cov);
-            let vectors = (0..values.len())
-                .map(|k| v.column(k).iter().copied().collect())
-                .collect();
-            (values.iter().map(|l| l / dof).collect(), vectors)
-        };
-        let total_variance: f64 = centred.iter().map(|r| dot(r, r)).sum::<f64>() / dof;
+                cov.fill_upper_triangle_with_lower_triangle();
+                let total = cov.trace();
+                let (values, v) = sorted_eigen(cov);
+                let vectors = move |kept: usize| {
+                    (0..kept)
+                        .flat_map(|k| v.column(k).iter().copied().collect::<Vec<_>>())
+                        .collect()
+                };
+                (values, total, Box::new(vectors))
+            };
+        let values: Vec<f64> = values.iter().map(|l| l / dof).collect();
+        let total_variance = total / dof;
         if total_variance <= 0.0 {
             return Err(PcaError::NoVariance);
         }
@@ -184,13 +182,10 @@ impl PcaModel {
                 k.min(max.unwrap_or(usize::MAX))
             }
         };
+        let components: Vec<f32> = vectors(kept).iter().map(|&x| x as f32).collect();
         Ok(PcaModel {
             mean: mean.to_vec(),
-            components: vectors[..kept]
-                .iter()
-                .flatten()
-                .map(|&x| x as f32)
-                .collect(),
+            components,
             variances: values[..kept].iter().map(|&l| l as f32).collect(),
             total_variance,
         })
@@ -311,6 +306,64 @@ fn sorted_eigen(m: DMatrix<f64>) -> (Vec<f64>, DMatrix<f64>) {
         eig.eigenvectors[(r, order[c])]
     });
     (values, vectors)
+}
+
+/// The first `kept` unit eigenvectors, rows of a kept × d matrix.
+type KeptVectors<'a> = dyn Fn(usize) -> Vec<f64> + 'a;
+
+/// Columns per block of the snapshot method's products: a block of every sample in f64
+/// stays small (n × 2048 × 8 bytes) however long the samples are.
+const BLOCK: usize = 2048;
+
+/// The centred samples' columns `[c0, c1)` as an n × (c1 − c0) f64 matrix.
+fn centred_block(samples: &[&[f32]], mean: &[f32], c0: usize, c1: usize) -> Array2<f64> {
+    Array2::from_shape_fn((samples.len(), c1 - c0), |(i, j)| {
+        f64::from(samples[i][c0 + j]) - f64::from(mean[c0 + j])
+    })
+}
+
+/// The Gram matrix `G = X Xᵀ` of the centred samples (n × n), accumulated over column blocks
+/// by matrix products (in parallel), without ever holding the centred data whole.
+fn gram(samples: &[&[f32]], mean: &[f32]) -> DMatrix<f64> {
+    let (n, d) = (samples.len(), mean.len());
+    let g = (0..d.div_ceil(BLOCK))
+        .into_par_iter()
+        .fold(
+            || Array2::<f64>::zeros((n, n)),
+            |mut g, b| {
+                let x = centred_block(samples, mean, b * BLOCK, ((b + 1) * BLOCK).min(d));
+                general_mat_mul(1.0, &x, &x.t(), 1.0, &mut g);
+                g
+            },
+        )
+        .reduce(|| Array2::<f64>::zeros((n, n)), |a, b| a + b);
+    // Exactly symmetric, as the eigensolver assumes.
+    DMatrix::from_fn(n, n, |i, j| 0.5 * (g[(i, j)] + g[(j, i)]))
+}
+
+/// The first `kept` principal directions from the Gram matrix's eigenvectors `u`:
+/// `v_k ∝ Xᵀ u_k` (Sirovich's snapshot method), unit length, rows of a kept × d matrix.
+fn snapshot_vectors(samples: &[&[f32]], mean: &[f32], u: &DMatrix<f64>, kept: usize) -> Vec<f64> {
+    let (n, d) = (samples.len(), mean.len());
+    let uk = Array2::from_shape_fn((kept, n), |(k, i)| u[(i, k)]);
+    let blocks: Vec<Array2<f64>> = (0..d.div_ceil(BLOCK))
+        .into_par_iter()
+        .map(|b| {
+            let x = centred_block(samples, mean, b * BLOCK, ((b + 1) * BLOCK).min(d));
+            uk.dot(&x)
+        })
+        .collect();
+    let mut v = vec![0f64; kept * d];
+    for (b, block) in blocks.iter().enumerate() {
+        for k in 0..kept {
+            let row = &mut v[k * d + b * BLOCK..k * d + b * BLOCK + block.ncols()];
+            row.iter_mut().zip(block.row(k)).for_each(|(o, &x)| *o = x);
+        }
+    }
+    if d > 0 {
+        v.chunks_exact_mut(d).for_each(normalise);
+    }
+    v
 }
 
 fn dot(a: &[f64], b: &[f64]) -> f64 {

@@ -433,3 +433,54 @@ fn another_face_is_a_loud_error() {
     ]);
     assert!(text(&o).contains("0 lost"), "{}", text(&o));
 }
+
+/// `facespace frames` spreads its frames from the first to the last, names them by their
+/// index in the video (so tracked landmarks line up), and refuses a count of 0.
+#[test]
+fn frames_are_exported_spread_over_the_video() {
+    let tmp = tempfile::tempdir().unwrap();
+    let video = common::root().join("tests/data/video/high_bframes_aac.mp4");
+    let total = facespace::video::Source::open(&video).unwrap().count();
+    let out = tmp.path().join("frames");
+    let o = facespace(&[
+        "frames",
+        video.to_str().unwrap(),
+        "--count",
+        "4",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let mut names: Vec<String> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".png"))
+        .collect();
+    names.sort();
+    let expected: Vec<String> = facespace::video::spread(total, 4)
+        .iter()
+        .map(|i| format!("{i:06}.png"))
+        .collect();
+    assert_eq!(names, expected);
+    assert_eq!(names.last().unwrap(), &format!("{:06}.png", total - 1));
+    // The exported frame is the video's frame of that index.
+    let frame = facespace::video::Source::open(&video)
+        .unwrap()
+        .nth(total - 1)
+        .unwrap()
+        .unwrap();
+    let png = image::open(out.join(names.last().unwrap()))
+        .unwrap()
+        .to_rgb8();
+    assert!(frame == png);
+    let o = facespace(&[
+        "frames",
+        video.to_str().unwrap(),
+        "--count",
+        "0",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(text(&o).contains("frames to export"), "{}", text(&o));
+}

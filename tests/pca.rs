@@ -93,6 +93,67 @@ fn check_recovers_rank(n: usize, d: usize, rank: usize) {
 #[test]
 fn snapshot_method_recovers_known_rank() {
     check_recovers_rank(12, 500, 4); // n < d: Gram matrix
+    // Samples longer than the Gram matrix's column blocks (2048), not a multiple of them.
+    check_recovers_rank(9, 2_100, 3);
+}
+
+/// Full-rank data spanning several column blocks: every kept component is a unit
+/// eigenvector of the scatter matrix with its variance (`‖X_c v‖² / (n − 1) = λ`,
+/// `X_cᵀ X_c v = (n − 1) λ v`), components orthogonal, all variances summing to the total.
+#[test]
+fn snapshot_components_are_eigenvectors_across_blocks() {
+    let (n, d) = (8, 4_500);
+    let mut rng = Rng::new(15);
+    let data: Vec<Vec<f32>> = (0..n)
+        .map(|_| (0..d).map(|_| rng.range(0.0, 255.0) as f32).collect())
+        .collect();
+    let rows: Vec<&[f32]> = data.iter().map(|r| r.as_slice()).collect();
+    let pca = PcaModel::fit(&rows, Components::Count(n)).unwrap();
+    assert_eq!(pca.n_components(), n - 1);
+    let centred: Vec<Vec<f64>> = data
+        .iter()
+        .map(|r| {
+            r.iter()
+                .zip(&pca.mean)
+                .map(|(&x, &m)| f64::from(x) - f64::from(m))
+                .collect()
+        })
+        .collect();
+    let dof = (n - 1) as f64;
+    for k in 0..pca.n_components() {
+        let v: Vec<f64> = pca.component(k).iter().map(|&x| f64::from(x)).collect();
+        let xv: Vec<f64> = centred
+            .iter()
+            .map(|r| r.iter().zip(&v).map(|(a, b)| a * b).sum())
+            .collect();
+        let lambda = f64::from(pca.variances[k]);
+        let var = xv.iter().map(|a| a * a).sum::<f64>() / dof;
+        assert!(
+            (var - lambda).abs() < 1e-4 * lambda,
+            "component {k}: {var} vs {lambda}"
+        );
+        // X_cᵀ (X_c v) − (n − 1) λ v, relative to (n − 1) λ.
+        let mut residual = 0f64;
+        for j in 0..d {
+            let xtxv: f64 = centred.iter().zip(&xv).map(|(r, a)| r[j] * a).sum();
+            residual = residual.max((xtxv - dof * lambda * v[j]).abs());
+        }
+        assert!(
+            residual < 1e-3 * dof * lambda,
+            "component {k}: residual {residual}"
+        );
+        for l in 0..k {
+            let c: f64 = pca
+                .component(l)
+                .iter()
+                .zip(&v)
+                .map(|(&a, b)| f64::from(a) * b)
+                .sum();
+            assert!(c.abs() < 1e-4, "components {l} and {k}: cos {c}");
+        }
+    }
+    let sum: f64 = pca.variances.iter().map(|&l| f64::from(l)).sum();
+    assert!((sum - pca.total_variance).abs() < 1e-4 * pca.total_variance);
 }
 
 #[test]

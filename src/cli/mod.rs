@@ -6,6 +6,7 @@ mod codec;
 mod corpus;
 mod demo;
 mod eval;
+mod frames;
 mod model;
 mod synth;
 mod track;
@@ -46,6 +47,8 @@ enum Command {
     /// Generate corpora.
     #[command(subcommand)]
     Corpus(corpus::CorpusCommand),
+    /// Export frames spread over a video (PNG), to mark landmarks on for a model of your own.
+    Frames(frames::FramesArgs),
     /// Track faces through a video or frame folder by AAM search.
     Track(track::TrackArgs),
     /// Encode a video through face-space: track + project every frame → a clip folder.
@@ -61,8 +64,9 @@ enum Command {
     TrainWeights(weights::TrainWeightsArgs),
     /// Score synthesis against held-out sentences (r_pca, r_h, RMSE, DTW) with baselines.
     Eval(eval::EvalArgs),
-    /// The whole pipeline on the demo model: generated corpus → codebook → an unseen
-    /// sentence, smoothed and unsmoothed, over the talker's real frame.
+    /// The whole pipeline on the demo model: a lower-face region model, the generated corpus,
+    /// a codebook, and an unseen sentence by blending and by unit selection, smoothed and
+    /// unsmoothed, over a real stretch of the talker's video.
     Demo(demo::DemoArgs),
 }
 
@@ -71,6 +75,7 @@ pub fn run() -> Result<()> {
         Command::Model(c) => model::run(c),
         Command::Codebook(c) => codebook::run(c),
         Command::Corpus(c) => corpus::run(c),
+        Command::Frames(a) => frames::run(a),
         Command::Track(a) => track::run(a),
         Command::Encode(a) => codec::encode(a),
         Command::Decode(a) => codec::decode(a),

@@ -4,6 +4,7 @@
 //! destination and rename into place when finished, so a failed run leaves no partial file.
 //! An AAC track is carried from an MP4 input to an MP4 output; other audio needs ffmpeg.
 
+mod export;
 pub mod mp4;
 mod sink;
 mod source;
@@ -14,6 +15,7 @@ use std::process::Command;
 
 use image::RgbImage;
 
+pub use export::{MAX_EXPORT, export_frames, spread};
 pub use sink::Sink;
 pub use source::{DEFAULT_FPS, Source, VideoInfo};
 
