@@ -62,6 +62,16 @@ pub fn read<T: DeserializeOwned>(
     format: &'static str,
     version: u32,
 ) -> Result<T, ManifestError> {
+    read_versions(path, format, version..=version).map(|(t, _)| t)
+}
+
+/// [`read`] accepting any version in `versions` (older ones this build still reads); returns
+/// the version found beside the contents.
+pub fn read_versions<T: DeserializeOwned>(
+    path: &Path,
+    format: &'static str,
+    versions: std::ops::RangeInclusive<u32>,
+) -> Result<(T, u32), ManifestError> {
     let invalid = |reason: String| ManifestError::Invalid {
         path: path.into(),
         reason,
@@ -85,15 +95,22 @@ pub fn read<T: DeserializeOwned>(
         )));
     }
     let found = value.get("version");
-    if found.and_then(|v| v.as_u64()) != Some(u64::from(version)) {
+    let Some(version) = found
+        .and_then(|v| v.as_u64())
+        .and_then(|v| u32::try_from(v).ok())
+        .filter(|v| versions.contains(v))
+    else {
         return Err(ManifestError::Version {
             path: path.into(),
             format,
             found: found.map_or("(none)".into(), |v| v.to_string()),
-            supported: version,
+            supported: *versions.end(),
         });
-    }
-    serde_json::from_value(value).map_err(|e| invalid(e.to_string()))
+    };
+    Ok((
+        serde_json::from_value(value).map_err(|e| invalid(e.to_string()))?,
+        version,
+    ))
 }
 
 /// `dir/name` when `name` is a plain file name (no separators, not `.` or `..`).

@@ -127,37 +127,36 @@ impl PcaModel {
         // Eigen-pairs of the scatter matrix: values (divided by dof below) and, through
         // `vectors(kept)`, the first `kept` unit vectors in data space, rows of a kept × d
         // matrix. Only the kept ones are ever formed.
-        let (values, total, vectors): (Vec<f64>, f64, Box<KeptVectors<'_>>) =
-            if n <= d {
-                let gram = gram(samples, mean);
-                let total = gram.trace();
-                let (values, u) = sorted_eigen(gram);
-                let vectors = move |kept: usize| snapshot_vectors(samples, mean, &u, kept);
-                (values, total, Box::new(vectors))
-            } else {
-                let mut cov = DMatrix::<f64>::zeros(d, d);
-                for s in samples {
-                    let row: Vec<f64> = s
-                        .iter()
-                        .zip(mean)
-                        .map(|(&x, &m)| x as f64 - m as f64)
-                        .collect();
-                    for i in 0..d {
-                        for j in 0..=i {
-                            cov[(i, j)] += row[i] * row[j];
-                        }
+        let (values, total, vectors): (Vec<f64>, f64, Box<KeptVectors<'_>>) = if n <= d {
+            let gram = gram(samples, mean);
+            let total = gram.trace();
+            let (values, u) = sorted_eigen(gram);
+            let vectors = move |kept: usize| snapshot_vectors(samples, mean, &u, kept);
+            (values, total, Box::new(vectors))
+        } else {
+            let mut cov = DMatrix::<f64>::zeros(d, d);
+            for s in samples {
+                let row: Vec<f64> = s
+                    .iter()
+                    .zip(mean)
+                    .map(|(&x, &m)| x as f64 - m as f64)
+                    .collect();
+                for i in 0..d {
+                    for j in 0..=i {
+                        cov[(i, j)] += row[i] * row[j];
                     }
                 }
-                cov.fill_upper_triangle_with_lower_triangle();
-                let total = cov.trace();
-                let (values, v) = sorted_eigen(cov);
-                let vectors = move |kept: usize| {
-                    (0..kept)
-                        .flat_map(|k| v.column(k).iter().copied().collect::<Vec<_>>())
-                        .collect()
-                };
-                (values, total, Box::new(vectors))
+            }
+            cov.fill_upper_triangle_with_lower_triangle();
+            let total = cov.trace();
+            let (values, v) = sorted_eigen(cov);
+            let vectors = move |kept: usize| {
+                (0..kept)
+                    .flat_map(|k| v.column(k).iter().copied().collect::<Vec<_>>())
+                    .collect()
             };
+            (values, total, Box::new(vectors))
+        };
         let values: Vec<f64> = values.iter().map(|l| l / dof).collect();
         let total_variance = total / dof;
         if total_variance <= 0.0 {

@@ -219,7 +219,34 @@ fn clip_folders_round_trip_quantise_and_refuse_other_models() {
     let path = dir.path().join("clip.fsp");
     clip.save(&path, None).unwrap();
     let back = Clip::load(&path, &model).unwrap();
-    assert!(back == clip, "float32 clips load exactly");
+    assert!(
+        back.frames == clip.frames,
+        "float32 parameters load exactly"
+    );
+    // The tracking record is stored compactly: residuals to 0.01 grey level, flags exact,
+    // the pose taken from the parameters (f32).
+    assert_tracking_close(&back, &clip);
+    assert!(
+        Clip {
+            tracking: clip.tracking.clone(),
+            ..back.clone()
+        } == clip
+    );
+    // A version-1 folder (tracking in meta.json) still loads, its record as written.
+    let v1 = dir.path().join("v1.fsp");
+    clip.save(&v1, None).unwrap();
+    let mut meta: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(v1.join("meta.json")).unwrap()).unwrap();
+    meta["version"] = 1.into();
+    meta["tracking"] = serde_json::to_value(&clip.tracking).unwrap();
+    std::fs::write(v1.join("meta.json"), meta.to_string()).unwrap();
+    std::fs::remove_file(v1.join("tracking.npy")).unwrap();
+    assert!(Clip::load(&v1, &model).unwrap() == clip);
+    // A version-2 folder without its tracking record is an error naming the file.
+    std::fs::remove_file(path.join("tracking.npy")).unwrap();
+    let err = Clip::load(&path, &model).unwrap_err().to_string();
+    assert!(err.contains("tracking.npy"), "{err}");
+    clip.save(&path, None).unwrap();
     for bits in [16, 8] {
         let q = clip.quantised(bits).unwrap();
         let table = q.quantisation.clone().unwrap();
@@ -265,6 +292,20 @@ fn clip_folders_round_trip_quantise_and_refuse_other_models() {
     std::fs::write(other.join("keep.txt"), "mine").unwrap();
     assert!(clip.save(&other, None).is_err());
     assert!(other.join("keep.txt").is_file());
+}
+
+fn assert_tracking_close(a: &Clip, b: &Clip) {
+    assert_eq!(a.tracking.len(), b.tracking.len());
+    for (x, y) in a.tracking.iter().zip(&b.tracking) {
+        assert_eq!((x.reinitialised, x.lost), (y.reinitialised, y.lost));
+        assert!(
+            (x.fit_error - y.fit_error).abs() <= 0.005 + 1e-9,
+            "{x:?} vs {y:?}"
+        );
+        for (p, q) in x.pose.iter().zip(&y.pose) {
+            assert!((p - q).abs() <= 1e-6 * q.abs().max(1.0), "{x:?} vs {y:?}");
+        }
+    }
 }
 
 fn cli(args: &[&str]) -> String {
@@ -324,6 +365,13 @@ fn real_clip_through_the_cli() {
     assert!(psnr > 28.5 && ssim > 0.78, "{report}");
     assert_eq!(report["frames"], 50);
     assert!(report["compression_ratio"].as_f64().unwrap() > 50.0);
+    // The honest size: the whole folder on disk, more than the parameters alone.
+    let on_disk = report["clip_bytes_per_frame"].as_f64().unwrap();
+    assert!(on_disk > report["params_bytes_per_frame"].as_f64().unwrap());
+    assert!(
+        (on_disk * 50.0 - Clip::disk_bytes(&dir.path().join("clip.fsp")).unwrap() as f64).abs()
+            < 1.0
+    );
     assert!(dir.path().join("report.png").is_file());
     // The clip was encoded with the demo model; any other is refused, and nothing written.
     let faces = common::root().join("models/faces/training");

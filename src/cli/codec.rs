@@ -87,15 +87,20 @@ pub fn encode(a: EncodeArgs) -> Result<()> {
         "encoded {}",
         tracking_line(&TrackingSummary::of(&clip.tracking), seconds)
     );
+    let (on_disk, input) = (
+        Clip::disk_bytes(&a.output)? as f64 / frames,
+        codec::score::input_bytes(&a.input)? as f64 / frames,
+    );
     println!(
-        "parameter stream {:.0} bytes/frame ({} values{}) vs input {:.0} bytes/frame",
+        "clip on disk {on_disk:.0} bytes/frame (parameter stream {:.0}: {} values{}; tracking record, manifests{}) vs input {input:.0} bytes/frame: {:.1}× smaller",
         clip.stream_bytes() as f64 / frames,
         clip.frames.layout().dims(),
         match (&clip.quantisation, encoded.quantisation_error_sd) {
             (Some(q), Some(e)) => format!(" at {} bits; max quantisation error {e:.2e} σ", q.bits),
             _ => " as float32".into(),
         },
-        codec::score::input_bytes(&a.input)? as f64 / frames,
+        if clip.audio.is_some() { ", audio" } else { "" },
+        input / on_disk,
     );
     if let Some(audio) = clip.audio_path(&a.output).filter(|p| p.is_file()) {
         println!("audio kept → {}", audio.display());
@@ -153,18 +158,19 @@ pub fn report(a: ReportArgs) -> Result<()> {
     let clip = Clip::load(&a.clip, &model)
         .with_context(|| format!("loading clip {}", a.clip.display()))?;
     let (bar, progress) = progress_bar();
-    let report = codec::score::score(&model, &a.input, &clip, progress)?;
+    let report = codec::score::score(&model, &a.input, &clip, &a.clip, progress)?;
     bar.finish_and_clear();
     report
         .write(&a.output)
         .with_context(|| format!("writing {}", a.output.display()))?;
     println!(
-        "{} frames: PSNR mean {:.2} dB (min {:.2}), SSIM mean {:.4} (min {:.4}) inside the face; {:.0} bytes/frame of parameters vs {:.0} of input ({:.1}×) → {}, {}",
+        "{} frames: PSNR mean {:.2} dB (min {:.2}), SSIM mean {:.4} (min {:.4}) inside the face; the clip on disk {:.0} bytes/frame ({:.0} of them parameters) vs {:.0} of input ({:.1}× smaller) → {}, {}",
         report.frames,
         report.psnr.mean,
         report.psnr.min,
         report.ssim.mean,
         report.ssim.min,
+        report.clip_bytes_per_frame,
         report.params_bytes_per_frame,
         report.input_bytes_per_frame,
         report.compression_ratio,

@@ -1,7 +1,10 @@
 //! The clip folder (DESIGN §12): `meta.json` and `params.npy` — frames × `[pose | b_s | b_a]`,
 //! float32 — or, quantised, `params_u16.npy` / `params_u8.npy` with each column's range in
-//! `meta.json` (`value = min + q·(max − min)/(2^bits − 1)`), plus `audio.m4a` when the input
-//! had sound.
+//! `meta.json` (`value = min + q·(max − min)/(2^bits − 1)`), `tracking.npy` (frames × 2
+//! uint16: the fit's residual in hundredths of a grey level, saturating; flags, bit 0
+//! re-initialised, bit 1 lost — the pose is the parameters' first four columns), plus
+//! `audio.m4a` when the input had sound. Version 1 kept the tracking record in `meta.json`
+//! (read still).
 
 use std::path::{Path, PathBuf};
 
@@ -17,9 +20,10 @@ use crate::{atomic, video};
 
 /// The clip folder format.
 pub const FORMAT: &str = "facespace-clip";
-/// The clip folder version this build writes and reads.
-pub const VERSION: u32 = 1;
+/// The clip folder version this build writes (and the newest it reads; it reads 1 too).
+pub const VERSION: u32 = 2;
 const META: &str = "meta.json";
+const TRACKING: &str = "tracking.npy";
 const AUDIO: &str = "audio.m4a";
 /// Frames a clip may declare (a cap for damaged manifests: ten hours at 100 fps).
 const MAX_FRAMES: usize = 3_600_000;
@@ -38,6 +42,8 @@ struct ClipMeta {
     quantisation: Option<Quantisation>,
     audio: Option<String>,
     source: String,
+    /// Version 1 only: the tracking record (version 2 keeps it in `tracking.npy`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     tracking: Vec<FrameTrack>,
 }
 
@@ -145,8 +151,29 @@ impl Clip {
                     quantisation: self.quantisation.clone(),
                     audio: None,
                     source: self.source.clone(),
-                    tracking: self.tracking.clone(),
+                    tracking: Vec::new(),
                 };
+                if self.tracking.len() != self.frames.len() {
+                    return Err(CodecError::Invalid {
+                        path: dir.into(),
+                        message: format!(
+                            "{} frames with {} tracking records",
+                            self.frames.len(),
+                            self.tracking.len()
+                        ),
+                    });
+                }
+                let record: Vec<u16> = self
+                    .tracking
+                    .iter()
+                    .flat_map(|t| {
+                        let error = (t.fit_error * 100.0).round().clamp(0.0, 65535.0) as u16;
+                        [error, u16::from(t.reinitialised) | u16::from(t.lost) << 1]
+                    })
+                    .collect();
+                let record = Array2::from_shape_vec((self.tracking.len(), 2), record)
+                    .expect("tracking shape");
+                npy::write(&staged.join(TRACKING), record.view())?;
                 let shape = (meta.frames, meta.layout.dims());
                 match &meta.quantisation {
                     Some(q) => {
@@ -180,7 +207,8 @@ impl Clip {
     /// frame count, frame rate, finite values, codes within their bits).
     pub fn load(dir: &Path, model: &FaceModel) -> Result<Clip, CodecError> {
         let meta_path = dir.join(META);
-        let meta: ClipMeta = manifest::read(&meta_path, FORMAT, VERSION)?;
+        let (mut meta, version): (ClipMeta, u32) =
+            manifest::read_versions(&meta_path, FORMAT, 1..=VERSION)?;
         let invalid = |message: String| CodecError::Invalid {
             path: meta_path.clone(),
             message,
@@ -194,7 +222,27 @@ impl Clip {
         }
         model.layout().expect(meta.layout)?;
         let dims = meta.layout.dims();
-        if meta.frames > MAX_FRAMES || meta.tracking.len() != meta.frames {
+        if meta.frames > MAX_FRAMES {
+            return Err(invalid(format!(
+                "{} frames (at most {MAX_FRAMES})",
+                meta.frames
+            )));
+        }
+        let tracking_flags: Option<Array2<u16>> = if version >= 2 {
+            if !meta.tracking.is_empty() {
+                return Err(invalid(
+                    "a version-2 clip keeps its tracking in tracking.npy".into(),
+                ));
+            }
+            Some(manifest::read_array(
+                dir,
+                TRACKING,
+                &[Some(meta.frames), Some(2)],
+            )?)
+        } else {
+            None
+        };
+        if version < 2 && meta.tracking.len() != meta.frames {
             return Err(invalid(format!(
                 "{} frames with {} tracking records",
                 meta.frames,
@@ -243,6 +291,19 @@ impl Clip {
         if let Some(audio) = &meta.audio {
             manifest::member(dir, audio)?;
         }
+        if let Some(record) = tracking_flags {
+            meta.tracking = record
+                .rows()
+                .into_iter()
+                .enumerate()
+                .map(|(i, r)| FrameTrack {
+                    pose: frames.params(i).pose.to_array(),
+                    fit_error: f64::from(r[0]) / 100.0,
+                    reinitialised: r[1] & 1 != 0,
+                    lost: r[1] & 2 != 0,
+                })
+                .collect();
+        }
         Ok(Clip {
             frames,
             model_hash: meta.model_hash,
@@ -253,6 +314,22 @@ impl Clip {
             source: meta.source,
             tracking: meta.tracking,
         })
+    }
+
+    /// Bytes the clip folder takes on disk (every regular file in it, manifests included).
+    pub fn disk_bytes(dir: &Path) -> Result<u64, CodecError> {
+        let io = |source| CodecError::Io {
+            path: dir.into(),
+            source,
+        };
+        let mut total = 0;
+        for e in std::fs::read_dir(dir).map_err(io)? {
+            let meta = e.map_err(io)?.metadata().map_err(io)?;
+            if meta.is_file() {
+                total += meta.len();
+            }
+        }
+        Ok(total)
     }
 
     /// The clip folder's audio file, if any.

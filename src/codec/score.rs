@@ -69,12 +69,17 @@ pub struct QualityReport {
     pub psnr: Stat,
     /// SSIM inside the face mask (scikit-image conventions).
     pub ssim: Stat,
-    /// Bytes per frame of the parameter stream.
+    /// Bytes per frame of the parameter stream alone.
     pub params_bytes_per_frame: f64,
+    /// Bytes per frame of the whole clip folder on disk (what decoding needs: parameters,
+    /// tracking record, manifests; audio too when kept).
+    pub clip_bytes_per_frame: f64,
     /// Bytes per frame of the input.
     pub input_bytes_per_frame: f64,
-    /// Input bytes over parameter bytes.
+    /// Input bytes over the clip folder's bytes on disk.
     pub compression_ratio: f64,
+    /// Input bytes over the parameter stream's bytes.
+    pub params_compression_ratio: f64,
 }
 
 /// Bytes of the input: its file size, or a frame folder's total.
@@ -99,6 +104,7 @@ pub fn score(
     model: &FaceModel,
     input: &Path,
     clip: &Clip,
+    clip_dir: &Path,
     mut progress: impl FnMut(Progress),
 ) -> Result<QualityReport, CodecError> {
     let mut source = Source::open(input)?;
@@ -150,8 +156,9 @@ pub fn score(
         });
     }
     let frames = n.max(1) as f64;
-    let (params_bpf, input_bpf) = (
+    let (params_bpf, clip_bpf, input_bpf) = (
         clip.stream_bytes() as f64 / frames,
+        Clip::disk_bytes(clip_dir)? as f64 / frames,
         input_bytes(input)? as f64 / frames,
     );
     Ok(QualityReport {
@@ -163,8 +170,10 @@ pub fn score(
         psnr: Stat::of(psnr),
         ssim: Stat::of(ssim),
         params_bytes_per_frame: params_bpf,
+        clip_bytes_per_frame: clip_bpf,
         input_bytes_per_frame: input_bpf,
-        compression_ratio: input_bpf / params_bpf,
+        compression_ratio: input_bpf / clip_bpf,
+        params_compression_ratio: input_bpf / params_bpf,
     })
 }
 
