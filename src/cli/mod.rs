@@ -151,7 +151,8 @@ fn load_model(path: &std::path::Path) -> Result<FaceModel> {
 /// How frames are tracked (shared by `track` and `encode`).
 #[derive(Args)]
 struct TrackingArgs {
-    /// Landmarks of the first frame; without it the first frame is searched on a grid.
+    /// Landmarks of the first frame (.pts or menpo .ljson); without it the first frame is
+    /// searched on a grid.
     #[arg(long)]
     init: Option<PathBuf>,
     /// Pyramid levels.
@@ -173,7 +174,7 @@ struct TrackingArgs {
 impl TrackingArgs {
     fn options(&self, bits: Option<u32>) -> Result<EncodeOptions> {
         let init = match &self.init {
-            Some(p) => Some(shape::read_pts(p)?),
+            Some(p) => Some(shape::read_landmarks(p)?),
             None => None,
         };
         Ok(EncodeOptions {

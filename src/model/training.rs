@@ -24,8 +24,8 @@ pub struct TrainingExample {
     pub landmarks: Landmarks,
 }
 
-/// Loads every image in `images` with the `.pts` file of the same stem from `landmarks`
-/// (default: the same folder), checking that the pairs belong together.
+/// Loads every image in `images` with the `.pts` (or menpo `.ljson`) file of the same stem
+/// from `landmarks` (default: the same folder), checking that the pairs belong together.
 pub fn load_training_set(
     images: &Path,
     landmarks: Option<&Path>,
@@ -40,8 +40,9 @@ pub fn load_training_set(
         return Err(ModelError::NoImages { dir: images.into() });
     }
     let stems: Vec<&std::ffi::OsStr> = image_paths.iter().filter_map(|p| p.file_stem()).collect();
-    let orphan = video::files_with_extension(pts_dir, "pts")
-        .map_err(io(pts_dir))?
+    let mut marked = video::files_with_extension(pts_dir, "pts").map_err(io(pts_dir))?;
+    marked.extend(video::files_with_extension(pts_dir, "ljson").map_err(io(pts_dir))?);
+    let orphan = marked
         .into_iter()
         .find(|p| !p.file_stem().is_some_and(|s| stems.contains(&s)));
     if let Some(pts) = orphan {
@@ -50,16 +51,16 @@ pub fn load_training_set(
     let examples = image_paths
         .par_iter()
         .map(|image_path| {
-            let pts = pts_dir
-                .join(image_path.file_stem().unwrap_or_default())
-                .with_extension("pts");
-            if !pts.is_file() {
-                return Err(ModelError::MissingLandmarks {
+            // iBUG .pts, or menpo's .ljson where there is no .pts.
+            let stem = pts_dir.join(image_path.file_stem().unwrap_or_default());
+            let pts = [stem.with_extension("pts"), stem.with_extension("ljson")]
+                .into_iter()
+                .find(|p| p.is_file())
+                .ok_or_else(|| ModelError::MissingLandmarks {
                     image: image_path.clone(),
-                    pts,
-                });
-            }
-            let landmarks = shape::read_pts(&pts)?;
+                    pts: stem.with_extension("pts"),
+                })?;
+            let landmarks = shape::read_landmarks(&pts)?;
             let image = image::open(image_path)
                 .map_err(|source| ModelError::Image {
                     path: image_path.clone(),
@@ -67,7 +68,7 @@ pub fn load_training_set(
                 })?
                 .to_rgb8();
             check_inside(&landmarks, &image, &pts, image_path)?;
-            Ok((
+            Ok::<_, ModelError>((
                 pts,
                 TrainingExample {
                     name: image_path.display().to_string(),

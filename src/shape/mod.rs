@@ -5,6 +5,7 @@
 //! right, y down. iBUG `.pts` files count from 1 (their Matlab origin; menpo does the same
 //! conversion), so reading subtracts 1 and writing adds 1.
 
+mod ljson;
 mod procrustes;
 mod pts;
 mod similarity;
@@ -14,6 +15,7 @@ use std::path::PathBuf;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
+pub use ljson::{parse_ljson, read_landmarks, read_ljson};
 pub use procrustes::{Procrustes, generalised_procrustes};
 pub use pts::{format_pts, parse_pts, read_pts, write_pts, write_sequence};
 pub use similarity::{Similarity, align, centroid};
@@ -49,6 +51,14 @@ pub enum ShapeError {
         path: PathBuf,
         /// The line (1-based).
         line: usize,
+        /// What is wrong.
+        reason: String,
+    },
+    /// A menpo `.ljson` file is malformed.
+    #[error("{path}: {reason}")]
+    Ljson {
+        /// The file.
+        path: PathBuf,
         /// What is wrong.
         reason: String,
     },
