@@ -170,7 +170,8 @@ fn bad_input_is_a_clear_error_and_leaves_nothing_behind() {
     assert!(matches!(
         Source::open(&junk),
         Err(VideoError::Mp4 {
-            source: facespace::video::mp4::Mp4Error::Container(_),
+            source: facespace::video::mp4::Mp4Error::Container(_)
+                | facespace::video::mp4::Mp4Error::Malformed(_),
             ..
         })
     ));
@@ -272,4 +273,74 @@ fn y4m_headers_are_checked() {
             "{name}: {err:?}"
         );
     }
+}
+
+/// Issue 17: MP4s whose box sizes or table counts are damaged (sizes 0, 1, 8, −4, +1000 or
+/// doubled on every header and table box; entry counts 0 and 2³²−1; an `mdhd` timescale of
+/// 0) used to make the `mp4` crate spin forever or panic. Each must now open, decode or fail
+/// with an error within a few seconds.
+#[test]
+fn damaged_mp4_boxes_are_errors_not_hangs() {
+    let src = std::fs::read(sample()).unwrap();
+    let boxes: [&[u8; 4]; 20] = [
+        b"mvhd", b"tkhd", b"mdhd", b"hdlr", b"vmhd", b"smhd", b"dref", b"stsz", b"stts", b"stsc",
+        b"stco", b"stss", b"ctts", b"stsd", b"sgpd", b"sbgp", b"udta", b"elst", b"trak", b"stbl",
+    ];
+    let mut cases: Vec<(String, Vec<u8>)> = Vec::new();
+    for name in boxes {
+        for at in (4..src.len() - 4).filter(|&i| &src[i..i + 4] == name) {
+            let size = u32::from_be_bytes(src[at - 4..at].try_into().unwrap());
+            for new in [
+                0,
+                1,
+                8,
+                size.wrapping_sub(4),
+                size + 1000,
+                size.wrapping_mul(2),
+            ] {
+                let mut d = src.clone();
+                d[at - 4..at].copy_from_slice(&new.to_be_bytes());
+                cases.push((
+                    format!("{} at {at}: size {new}", String::from_utf8_lossy(name)),
+                    d,
+                ));
+            }
+            let count_at = if name == b"stsz" { at + 16 } else { at + 8 };
+            for new in [0u32, u32::MAX] {
+                let mut d = src.clone();
+                d[count_at..count_at + 4].copy_from_slice(&new.to_be_bytes());
+                cases.push((
+                    format!("{} at {at}: count {new}", String::from_utf8_lossy(name)),
+                    d,
+                ));
+            }
+            if name == b"mdhd" {
+                let mut d = src.clone();
+                d[at + 16..at + 20].copy_from_slice(&0u32.to_be_bytes());
+                cases.push((format!("mdhd at {at}: timescale 0"), d));
+            }
+        }
+    }
+    assert!(cases.len() > 150, "{} cases", cases.len());
+    let dir = tempfile::tempdir().unwrap();
+    let mut errors = 0;
+    for (k, (label, bytes)) in cases.into_iter().enumerate() {
+        let path = dir.path().join(format!("case{k}.mp4"));
+        std::fs::write(&path, bytes).unwrap();
+        let (tx, rx) = std::sync::mpsc::channel();
+        let p = path.clone();
+        std::thread::spawn(move || {
+            let outcome = std::panic::catch_unwind(|| match Source::open(&p) {
+                Ok(source) => source.take(30).find_map(Result::err).map(|e| e.to_string()),
+                Err(e) => Some(e.to_string()),
+            });
+            let _ = tx.send(outcome);
+        });
+        match rx.recv_timeout(std::time::Duration::from_secs(20)) {
+            Ok(Ok(error)) => errors += usize::from(error.is_some()),
+            Ok(Err(_)) => panic!("{label}: panicked"),
+            Err(_) => panic!("{label}: still running after 20 s (hang)"),
+        }
+    }
+    assert!(errors > 100, "only {errors} damaged files were refused");
 }

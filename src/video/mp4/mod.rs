@@ -4,11 +4,12 @@
 //! IDR frame every two seconds, and copies an AAC audio track through untouched.
 
 mod audio;
+mod boxes;
 mod reader;
 mod writer;
 
 use std::fs::File;
-use std::io::BufReader;
+use std::io::{BufReader, Seek};
 use std::path::Path;
 
 use thiserror::Error;
@@ -78,13 +79,18 @@ pub enum Mp4Error {
     /// An out-of-range frame rate.
     #[error(transparent)]
     Option(#[from] InvalidOption),
+    /// The box structure is damaged (checked before parsing).
+    #[error("malformed MP4: {0}")]
+    Malformed(String),
 }
 
 type Mp4File = mp4::Mp4Reader<BufReader<File>>;
 
 fn open(path: &Path) -> Result<Mp4File, Mp4Error> {
-    let file = File::open(path)?;
+    let mut file = File::open(path)?;
+    boxes::check(&mut file)?;
     let size = file.metadata()?.len();
+    file.rewind()?;
     Ok(mp4::Mp4Reader::read_header(BufReader::new(file), size)?)
 }
 
