@@ -223,12 +223,15 @@ impl FaceParams<'_> {
     }
 }
 
-/// Frame rates are positive and at most this many per second.
+/// Lowest frame rate any sequence or video may declare (one frame per 100 s); below it a
+/// damaged manifest or a typo, and MP4 timescales stop being representable.
+pub const MIN_FPS: f64 = 0.01;
+/// Frame rates are at most this many per second.
 pub const MAX_FPS: f64 = 1000.0;
 
-/// Checks a frame rate: finite, in (0, [`MAX_FPS`]].
+/// Checks a frame rate: finite, in [[`MIN_FPS`], [`MAX_FPS`]].
 pub fn check_fps(fps: f64) -> Result<f64, InvalidOption> {
-    options::in_range("frame rate", fps, f64::MIN_POSITIVE, MAX_FPS)
+    options::in_range("frame rate", fps, MIN_FPS, MAX_FPS)
 }
 
 /// A face-space sequence: `frames × dims` values at `fps`, every value finite.

@@ -42,9 +42,19 @@ pub fn in_range(name: &str, value: f64, lo: f64, hi: f64) -> Result<f64, Invalid
         };
         Err(InvalidOption::new(
             name,
-            value,
+            readable(value),
             format!("a finite number {lo_text} and ≤ {hi}"),
         ))
+    }
+}
+
+/// A number as a person reads it: scientific notation when very small or very large (Rust's
+/// `{}` prints 1e-300 as three hundred digits).
+fn readable(v: f64) -> String {
+    if v != 0.0 && v.is_finite() && !(1e-4..1e9).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        v.to_string()
     }
 }
 

@@ -221,6 +221,11 @@ impl Clip {
             });
         }
         model.layout().expect(meta.layout)?;
+        crate::facespace::check_fps(meta.fps).map_err(|e| invalid(e.to_string()))?;
+        for (name, side) in [("width", meta.width), ("height", meta.height)] {
+            crate::options::count_in(name, side as usize, 1, video::y4m::MAX_SIDE)
+                .map_err(|e| invalid(e.to_string()))?;
+        }
         let dims = meta.layout.dims();
         if meta.frames > MAX_FRAMES {
             return Err(invalid(format!(

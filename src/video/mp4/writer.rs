@@ -39,7 +39,7 @@ impl Writer {
             return Err(Mp4Error::OddSize { width, height });
         }
         // At least one tick per frame at the timescale fps × FRAME_TICKS.
-        crate::options::in_range("frame rate", fps, 0.01, crate::facespace::MAX_FPS)?;
+        crate::facespace::check_fps(fps)?;
         let timescale = (fps * f64::from(FRAME_TICKS)).round() as u32;
         // About 0.25 bit per pixel: visually clean for faces; the codec report measures it.
         let bits = (f64::from(width * height) * fps * 0.25) as u32;
