@@ -484,3 +484,78 @@ fn frames_are_exported_spread_over_the_video() {
     assert_eq!(o.status.code(), Some(1));
     assert!(text(&o).contains("frames to export"), "{}", text(&o));
 }
+
+/// Issue 17's second reproducer: `track` into a folder of hand-made `.pts` and `synth` into a
+/// folder holding a user's `video.mp4` are refused, the files untouched; a fresh folder is
+/// written whole and may be written again.
+#[test]
+fn track_and_synth_never_overwrite_user_files() {
+    let tmp = tempfile::tempdir().unwrap();
+    let hand = tmp.path().join("hand");
+    std::fs::create_dir(&hand).unwrap();
+    std::fs::write(hand.join("01000.pts"), "mine").unwrap();
+    let clip = common::root().join("tests/data/clip");
+    let track = |out: &Path| {
+        facespace(&[
+            "track",
+            clip.to_str().unwrap(),
+            "--init",
+            clip.join("01000.pts").to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ])
+    };
+    let o = track(&hand);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    assert_eq!(
+        std::fs::read_to_string(hand.join("01000.pts")).unwrap(),
+        "mine"
+    );
+    let fresh = tmp.path().join("fresh");
+    assert!(track(&fresh).status.success());
+    assert!(track(&fresh).status.success());
+    assert_eq!(std::fs::read_dir(&fresh).unwrap().count(), 51);
+
+    let cb = tmp.path().join("cb");
+    let corpus = tmp.path().join("corpus");
+    assert!(
+        facespace(&["corpus", "demo", "-o", corpus.to_str().unwrap()])
+            .status
+            .success()
+    );
+    let o = facespace(&[
+        "codebook",
+        "build",
+        "--model",
+        common::root().join("models/demo/model").to_str().unwrap(),
+        "--corpus",
+        corpus.join("train").to_str().unwrap(),
+        "-o",
+        cb.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let user = tmp.path().join("user");
+    std::fs::create_dir(&user).unwrap();
+    std::fs::write(user.join("video.mp4"), "mine").unwrap();
+    let synth = |out: &Path| {
+        facespace(&[
+            "synth",
+            "--codebook",
+            cb.to_str().unwrap(),
+            "--text",
+            "Move the big boat.",
+            "-o",
+            out.to_str().unwrap(),
+        ])
+    };
+    let o = synth(&user);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    assert_eq!(
+        std::fs::read_to_string(user.join("video.mp4")).unwrap(),
+        "mine"
+    );
+    let out = tmp.path().join("out");
+    assert!(synth(&out).status.success());
+    assert!(synth(&out).status.success());
+    assert!(out.join("video.mp4").is_file() && out.join("report.json").is_file());
+}

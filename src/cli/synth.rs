@@ -205,7 +205,7 @@ pub fn run(a: SynthArgs) -> Result<()> {
     let renderer = a.renderer.make(&model, Some(DEFAULT_FEATHER))?;
     let (bar, progress) = progress_bar();
     bar.set_prefix(format!("{} · ", renderer.describe()));
-    let report = output::write(
+    let report = output::write_folder(
         &a.output,
         renderer.as_ref(),
         &utterance,

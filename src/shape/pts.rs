@@ -149,11 +149,23 @@ pub fn write_sequence(
         crate::npy::write(path, array.view())?;
         return Ok(());
     }
-    for (i, lm) in landmarks.iter().enumerate() {
-        let name = names
-            .and_then(|n| n.get(i).cloned())
-            .unwrap_or_else(|| format!("{i:06}"));
-        write_pts(&path.join(format!("{name}.pts")), lm)?;
-    }
-    Ok(())
+    // A folder of .pts is staged and swapped in whole: never mixed into, or overwriting, a
+    // folder of hand-made landmarks (or the input frames' own).
+    atomic::replace_dir(
+        path,
+        "landmarks",
+        |staged| {
+            for (i, lm) in landmarks.iter().enumerate() {
+                let name = names
+                    .and_then(|n| n.get(i).cloned())
+                    .unwrap_or_else(|| format!("{i:06}"));
+                write_pts(&staged.join(format!("{name}.pts")), lm)?;
+            }
+            Ok(())
+        },
+        |source| ShapeError::Io {
+            path: path.into(),
+            source,
+        },
+    )
 }

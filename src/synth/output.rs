@@ -115,6 +115,36 @@ fn video_path(dir: &Path, stem: &str, (w, h): (u32, u32)) -> PathBuf {
     dir.join(format!("{stem}.{ext}"))
 }
 
+/// [`write`] into a staging folder swapped in for `dir` when everything is written: a
+/// killed or failed run leaves `dir` as it was (and its staging is cleaned by the next run),
+/// and a folder facespace did not write, or one holding files it did not write, is never
+/// replaced or mixed into.
+pub fn write_folder(
+    dir: &Path,
+    renderer: &dyn Renderer,
+    utterance: &Utterance,
+    background: Background,
+    options: &OutputOptions<'_>,
+    progress: impl FnMut(Progress),
+) -> Result<Report, OutputError> {
+    let mut report = None;
+    atomic::replace_dir(
+        dir,
+        "synthesis",
+        |staged| {
+            report = Some(write(
+                staged, renderer, utterance, background, options, progress,
+            )?);
+            Ok(())
+        },
+        |source| OutputError::Io {
+            path: dir.into(),
+            source,
+        },
+    )?;
+    Ok(report.expect("the folder was written"))
+}
+
 /// Renders and writes `utterance` into `dir` over `background` (see the module docs).
 pub fn write(
     dir: &Path,
