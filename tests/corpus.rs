@@ -127,3 +127,66 @@ fn similarity_recovers_the_generators_phone_geometry() {
         present.len()
     );
 }
+
+/// Issue 15: `corpus from-videos` on the committed test clip (50 frames at 25 fps) with a
+/// generated `.lab` writes a corpus whose codebook synthesises; a label file of another
+/// duration is an error naming both files, and nothing is written.
+#[test]
+fn corpus_from_recordings_builds_a_codebook_that_synthesises() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("recordings");
+    let clip = dir.join("s1");
+    std::fs::create_dir_all(&clip).unwrap();
+    for e in std::fs::read_dir(common::root().join("tests/data/clip")).unwrap() {
+        let p = e.unwrap().path();
+        if p.extension().is_some_and(|x| x == "jpg") {
+            std::fs::copy(&p, clip.join(p.file_name().unwrap())).unwrap();
+        }
+    }
+    let lab = dir.join("s1.lab");
+    std::fs::write(
+        &lab,
+        "0 5000000 sil\n5000000 10000000 m\n10000000 15000000 uw\n15000000 20000000 sil\n",
+    )
+    .unwrap();
+    let p = |x: &std::path::Path| x.to_str().unwrap().to_owned();
+    let corpus = tmp.path().join("corpus");
+    let o = common::facespace(&["corpus", "from-videos", &p(&dir), "-o", &p(&corpus)]);
+    assert!(o.status.success(), "{}", common::text(&o));
+    assert!(corpus.join("s1.npy").is_file() && corpus.join("s1.lab").is_file());
+    let cb = tmp.path().join("cb");
+    let model = common::root().join("models/demo/model");
+    let o = common::facespace(&[
+        "codebook",
+        "build",
+        "--model",
+        &p(&model),
+        "--corpus",
+        &p(&corpus),
+        "--fps",
+        "25",
+        "-o",
+        &p(&cb),
+    ]);
+    assert!(o.status.success(), "{}", common::text(&o));
+    let out = tmp.path().join("out");
+    let o = common::facespace(&[
+        "synth",
+        "--codebook",
+        &p(&cb),
+        "--labels",
+        &p(&lab),
+        "-o",
+        &p(&out),
+    ]);
+    assert!(o.status.success(), "{}", common::text(&o));
+    assert!(out.join("video.mp4").is_file());
+
+    std::fs::write(&lab, "0 5000000 sil\n5000000 30000000 m\n").unwrap();
+    let other = tmp.path().join("corpus2");
+    let o = common::facespace(&["corpus", "from-videos", &p(&dir), "-o", &p(&other)]);
+    let t = common::text(&o);
+    assert_eq!(o.status.code(), Some(1), "{t}");
+    assert!(t.contains(&p(&clip)) && t.contains(&p(&lab)), "{t}");
+    assert!(!other.exists());
+}

@@ -1,4 +1,5 @@
-//! `facespace corpus demo`: the generated demo corpus (see `facespace::corpus::demo`).
+//! `facespace corpus demo`: the generated demo corpus (see `facespace::corpus::demo`);
+//! `facespace corpus from-videos`: a corpus from recordings with phone labels.
 
 use std::path::{Path, PathBuf};
 
@@ -14,6 +15,30 @@ pub enum CorpusCommand {
     /// Generate the phoneme-labelled demo corpus (generated trajectories over real face-space
     /// points; see the README).
     Demo(DemoArgs),
+    /// A corpus from recordings: every NAME.mp4 (or NAME.y4m, frame folder NAME/, any video
+    /// ffmpeg reads) with NAME.lab / NAME.TextGrid / NAME.tsv in DIR is tracked and projected
+    /// with the model → NAME.npy + labels (+ NAME.m4a) for `codebook build`.
+    FromVideos(FromVideosArgs),
+}
+
+#[derive(Args)]
+pub struct FromVideosArgs {
+    /// The talker's model.
+    #[arg(long, default_value = DEMO_MODEL)]
+    model: PathBuf,
+    /// Folder of recordings and their label files.
+    dir: PathBuf,
+    /// TextGrid tier to read (default: the first interval tier).
+    #[arg(long)]
+    tier: Option<String>,
+    /// Phone-label map (as `codebook build --phone-map`).
+    #[arg(long)]
+    phone_map: Option<PathBuf>,
+    #[command(flatten)]
+    tracking: super::TrackingArgs,
+    /// Output corpus folder.
+    #[arg(short, long)]
+    output: PathBuf,
 }
 
 #[derive(Args)]
@@ -40,6 +65,7 @@ pub struct DemoArgs {
 pub fn run(command: CorpusCommand) -> Result<()> {
     match command {
         CorpusCommand::Demo(a) => generate(a),
+        CorpusCommand::FromVideos(a) => from_videos(a),
     }
 }
 
@@ -93,5 +119,46 @@ fn generate(a: DemoArgs) -> Result<()> {
     if a.frames {
         println!("rendered frames → {}", a.output.join("frames").display());
     }
+    Ok(())
+}
+
+fn from_videos(a: FromVideosArgs) -> Result<()> {
+    let start = std::time::Instant::now();
+    let model = load_model(&a.model)?;
+    let options = a.tracking.options(None)?;
+    let map = match &a.phone_map {
+        Some(p) => facespace::phonemes::PhoneMap::read(p)?,
+        None => facespace::phonemes::PhoneMap::default(),
+    };
+    let (bar, progress) = progress_bar();
+    let (fps, sentences) = facespace::corpus::from_recordings(
+        &model,
+        &a.dir,
+        &a.output,
+        &options,
+        a.tier.as_deref(),
+        &map,
+        progress,
+    )
+    .with_context(|| format!("making a corpus of {}", a.dir.display()))?;
+    bar.finish_and_clear();
+    for s in &sentences {
+        println!(
+            "  {}: {} frames, residual mean {:.2}, {} lost{}",
+            s.name,
+            s.frames,
+            s.tracking.mean_error,
+            s.tracking.lost,
+            if s.audio { ", sound kept" } else { "" }
+        );
+    }
+    println!(
+        "{} sentences at {fps} fps in {:.1} s → {} (next: facespace codebook build --model {} --corpus {} --fps {fps} -o CODEBOOK)",
+        sentences.len(),
+        start.elapsed().as_secs_f64(),
+        a.output.display(),
+        a.model.display(),
+        a.output.display()
+    );
     Ok(())
 }

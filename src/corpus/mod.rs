@@ -4,6 +4,9 @@
 //! talker, whose video has no sound to label.
 
 pub mod demo;
+mod recordings;
+
+pub use recordings::{Recorded, from_recordings};
 
 use std::path::{Path, PathBuf};
 
@@ -51,6 +54,14 @@ pub enum CorpusError {
     MissingLabels {
         /// The trajectory.
         npy: PathBuf,
+    },
+    /// A recording could not be tracked or projected.
+    #[error("{path}: {source}")]
+    Encode {
+        /// The recording.
+        path: PathBuf,
+        /// The cause.
+        source: Box<crate::codec::CodecError>,
     },
     /// Labels and frames of different lengths.
     #[error(
