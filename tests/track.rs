@@ -138,3 +138,46 @@ fn grid_search_finds_unseen_faces() {
     );
     assert_eq!(found, errors.len(), "{errors:.3?}");
 }
+
+/// Issue 15's bootstrap loop: `model::suggest` exports the worst-explained frames, best first
+/// (the first is the clip's highest score), spread apart, each with its fitted landmarks.
+#[test]
+fn suggest_exports_the_worst_explained_frames_spread_out() {
+    let model =
+        facespace::model::FaceModel::load(&common::root().join("models/demo/model")).unwrap();
+    let clip = common::root().join("tests/data/clip");
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("suggested");
+    let options = facespace::codec::EncodeOptions {
+        init: Some(facespace::shape::read_pts(&clip.join("01000.pts")).unwrap()),
+        ..Default::default()
+    };
+    let chosen =
+        facespace::model::suggest(&model, &clip, 3, &out, &options, facespace::no_progress)
+            .unwrap();
+    assert_eq!(chosen.len(), 3);
+    assert!(chosen.windows(2).all(|w| w[0].score >= w[1].score));
+    let gap = 50 / 6;
+    for (i, a) in chosen.iter().enumerate() {
+        for b in &chosen[i + 1..] {
+            assert!(a.index.abs_diff(b.index) > gap, "{a:?} {b:?}");
+        }
+        let frames = facespace::video::frame_files(&clip).unwrap();
+        let png = image::open(out.join(format!("{:06}.png", a.index)))
+            .unwrap()
+            .to_rgb8();
+        assert!(png == image::open(&frames[a.index]).unwrap().to_rgb8());
+        let pts = facespace::shape::read_pts(&out.join(format!("{:06}.pts", a.index))).unwrap();
+        assert_eq!(pts.len(), 68);
+    }
+    // The best is the highest score over the whole clip: tracking it again gives no higher.
+    let (_, tracking) = facespace::codec::track_landmarks(
+        &model,
+        facespace::video::Source::open(&clip).unwrap(),
+        &options,
+        facespace::no_progress,
+    )
+    .unwrap();
+    let max_residual = tracking.iter().map(|t| t.fit_error).fold(0.0, f64::max);
+    assert!(chosen[0].score >= max_residual - 1e-9);
+}

@@ -1,4 +1,4 @@
-//! `facespace model build | info | reconstruct`.
+//! `facespace model build | info | reconstruct | suggest`.
 
 use std::path::{Path, PathBuf};
 
@@ -23,6 +23,27 @@ pub enum ModelCommand {
     },
     /// Project an image to face-space, reconstruct it, and write original | reconstruction.
     Reconstruct(ReconstructArgs),
+    /// The frames of a video the model explains worst (fit residual, appearance outside the
+    /// training span), spread over time, with the fitted landmarks as starting .pts: mark
+    /// them, add them to the training set, rebuild.
+    Suggest(SuggestArgs),
+}
+
+#[derive(Args)]
+pub struct SuggestArgs {
+    /// The current model.
+    #[arg(long, default_value = super::DEMO_MODEL)]
+    model: PathBuf,
+    /// The talker's video (or frame folder).
+    input: PathBuf,
+    /// How many frames.
+    #[arg(short = 'n', long, default_value_t = 10)]
+    count: usize,
+    #[command(flatten)]
+    tracking: super::TrackingArgs,
+    /// Output folder of NNNNNN.png + NNNNNN.pts.
+    #[arg(short, long)]
+    output: PathBuf,
 }
 
 #[derive(Args)]
@@ -81,7 +102,30 @@ pub fn run(command: ModelCommand) -> Result<()> {
         ModelCommand::Build(a) => build(a),
         ModelCommand::Info { model } => info(&model),
         ModelCommand::Reconstruct(a) => reconstruct(a),
+        ModelCommand::Suggest(a) => suggest(a),
     }
+}
+
+fn suggest(a: SuggestArgs) -> Result<()> {
+    let model = load_model(&a.model)?;
+    let options = a.tracking.options(None)?;
+    let (bar, progress) = progress_bar();
+    let chosen =
+        facespace::model::suggest(&model, &a.input, a.count, &a.output, &options, progress)
+            .with_context(|| format!("suggesting frames of {}", a.input.display()))?;
+    bar.finish_and_clear();
+    for s in &chosen {
+        println!(
+            "  frame {:6}: residual {:.2} grey levels, largest parameter {:.1} σ",
+            s.index, s.residual, s.largest_sd
+        );
+    }
+    println!(
+        "{} frames with their fitted landmarks → {} (correct the .pts, add them to the training images, rebuild)",
+        chosen.len(),
+        a.output.display()
+    );
+    Ok(())
 }
 
 fn build(a: BuildArgs) -> Result<()> {
