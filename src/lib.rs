@@ -97,6 +97,7 @@
 
 #![warn(missing_docs)]
 
+pub mod annotate;
 pub mod appearance;
 pub mod atomic;
 pub mod codebook;

@@ -1,6 +1,7 @@
 //! Subcommands: each parses its arguments, makes one library call with a progress bar, and
 //! prints what came back. No library logic lives here.
 
+mod annotate;
 mod codebook;
 mod codec;
 mod corpus;
@@ -49,6 +50,8 @@ enum Command {
     Corpus(corpus::CorpusCommand),
     /// Export frames spread over a video (PNG), to mark landmarks on for a model of your own.
     Frames(frames::FramesArgs),
+    /// Mark or correct the 68 landmarks of a folder of frames in a local web page.
+    Annotate(annotate::AnnotateArgs),
     /// Track faces through a video or frame folder by AAM search.
     Track(track::TrackArgs),
     /// Encode a video through face-space: track + project every frame → a clip folder.
@@ -76,6 +79,7 @@ pub fn run() -> Result<()> {
         Command::Codebook(c) => codebook::run(c),
         Command::Corpus(c) => corpus::run(c),
         Command::Frames(a) => frames::run(a),
+        Command::Annotate(a) => annotate::run(a),
         Command::Track(a) => track::run(a),
         Command::Encode(a) => codec::encode(a),
         Command::Decode(a) => codec::decode(a),

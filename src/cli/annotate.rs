@@ -1,0 +1,46 @@
+//! `facespace annotate`: the landmark page for a folder of frames.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use clap::Args;
+use facespace::annotate::{Annotator, Event};
+
+use super::{DEMO_MODEL, load_model};
+
+#[derive(Args)]
+pub struct AnnotateArgs {
+    /// Folder of frames (png, jpg); NAME.pts is written beside each.
+    dir: PathBuf,
+    /// Model for the mean shape (and, with --fit, the starting fit).
+    #[arg(long, default_value = DEMO_MODEL)]
+    model: PathBuf,
+    /// Start unmarked frames from the model's fit (else: the mean shape from two eye clicks).
+    #[arg(long)]
+    fit: bool,
+    /// Address to listen on.
+    #[arg(long, default_value = "127.0.0.1:8017")]
+    listen: String,
+    /// Allow a non-loopback address (the page has no login: anyone who can reach it can edit).
+    #[arg(long)]
+    allow_remote: bool,
+}
+
+pub fn run(a: AnnotateArgs) -> Result<()> {
+    let model = load_model(&a.model)?;
+    let annotator = Annotator::bind(&a.dir, model, a.fit, &a.listen, a.allow_remote)
+        .with_context(|| format!("annotating {}", a.dir.display()))?;
+    println!(
+        "annotating {} at {} (Ctrl+C to stop; every change is saved at once)",
+        a.dir.display(),
+        annotator.url()
+    );
+    annotator.run(
+        |event| match event {
+            Event::Saved(path) => println!("saved {}", path.display()),
+            Event::Refused(path, why) => eprintln!("refused {path}: {why}"),
+        },
+        || false,
+    );
+    Ok(())
+}
