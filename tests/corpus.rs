@@ -190,3 +190,56 @@ fn corpus_from_recordings_builds_a_codebook_that_synthesises() {
     assert!(t.contains(&p(&clip)) && t.contains(&p(&lab)), "{t}");
     assert!(!other.exists());
 }
+
+/// Issue 15: a quantised clip folder from `encode` (`NAME.fsp/` beside `NAME.lab`) is read as
+/// a corpus sentence; a clip of another model is refused by its hash.
+#[test]
+fn quantised_clips_are_corpus_sentences() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("corpus");
+    std::fs::create_dir(&dir).unwrap();
+    let p = |x: &std::path::Path| x.to_str().unwrap().to_owned();
+    let clip = common::root().join("tests/data/clip");
+    let o = common::facespace(&[
+        "encode",
+        &p(&clip),
+        "--init",
+        &p(&clip.join("01000.pts")),
+        "--bits",
+        "8",
+        "-o",
+        &p(&dir.join("s1.fsp")),
+    ]);
+    assert!(o.status.success(), "{}", common::text(&o));
+    std::fs::write(
+        dir.join("s1.lab"),
+        "0 5000000 sil\n5000000 15000000 m\n15000000 20000000 sil\n",
+    )
+    .unwrap();
+    let model = FaceModel::load(&common::root().join("models/demo/model")).unwrap();
+    let sentences = facespace::corpus::load_checked(
+        &dir,
+        25.0,
+        model.layout(),
+        Some(&model.hash()),
+        None,
+        &facespace::phonemes::PhoneMap::default(),
+    )
+    .unwrap();
+    assert_eq!(sentences.len(), 1);
+    assert_eq!(sentences[0].frames.len(), 50);
+    let err = facespace::corpus::load_checked(
+        &dir,
+        25.0,
+        model.layout(),
+        Some("0000000000000000"),
+        None,
+        &facespace::phonemes::PhoneMap::default(),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        err.contains("s1.fsp") && err.contains("encoded with model"),
+        "{err}"
+    );
+}

@@ -247,7 +247,8 @@ impl Codebook {
         options: SimilarityOptions,
         progress: &mut dyn FnMut(Progress),
     ) -> Result<Self, CodebookError> {
-        let sentences = crate::corpus::load(dir, fps, model.layout(), tier, map)?;
+        let sentences =
+            crate::corpus::load_checked(dir, fps, model.layout(), Some(&model.hash()), tier, map)?;
         Codebook::build(
             sentences,
             fps,

@@ -206,6 +206,12 @@ impl Clip {
     /// Loads a clip folder and checks it against `model` (hash, layout) and itself (format,
     /// frame count, frame rate, finite values, codes within their bits).
     pub fn load(dir: &Path, model: &FaceModel) -> Result<Clip, CodecError> {
+        Self::load_for(dir, Some(&model.hash()), model.layout())
+    }
+
+    /// [`Clip::load`] against a model known by its hash (`None`: not checked, only the
+    /// layout) and layout — for readers that hold a codebook rather than the model.
+    pub fn load_for(dir: &Path, hash: Option<&str>, layout: Layout) -> Result<Clip, CodecError> {
         let meta_path = dir.join(META);
         let (mut meta, version): (ClipMeta, u32) =
             manifest::read_versions(&meta_path, FORMAT, 1..=VERSION)?;
@@ -213,14 +219,16 @@ impl Clip {
             path: meta_path.clone(),
             message,
         };
-        if meta.model_hash != model.hash() {
+        if let Some(hash) = hash
+            && meta.model_hash != hash
+        {
             return Err(CodecError::HashMismatch {
                 path: dir.into(),
                 clip: meta.model_hash,
-                model: model.hash(),
+                model: hash.into(),
             });
         }
-        model.layout().expect(meta.layout)?;
+        layout.expect(meta.layout)?;
         crate::facespace::check_fps(meta.fps).map_err(|e| invalid(e.to_string()))?;
         for (name, side) in [("width", meta.width), ("height", meta.height)] {
             crate::options::count_in(name, side as usize, 1, video::y4m::MAX_SIDE)

@@ -119,11 +119,31 @@ pub fn load(
     tier: Option<&str>,
     map: &PhoneMap,
 ) -> Result<Vec<Sentence>, CorpusError> {
-    let files =
-        crate::video::files_with_extension(dir, "npy").map_err(|source| CorpusError::Io {
-            path: dir.into(),
-            source,
-        })?;
+    load_checked(dir, fps, layout, None, tier, map)
+}
+
+/// [`load`], also reading encoded clip folders (`NAME.fsp/`, float or quantised, from
+/// `facespace encode`) in place of `NAME.npy`; `model_hash` (when given) must be theirs.
+pub fn load_checked(
+    dir: &Path,
+    fps: f64,
+    layout: Layout,
+    model_hash: Option<&str>,
+    tier: Option<&str>,
+    map: &PhoneMap,
+) -> Result<Vec<Sentence>, CorpusError> {
+    let io = |source| CorpusError::Io {
+        path: dir.into(),
+        source,
+    };
+    let mut files = crate::video::files_with_extension(dir, "npy").map_err(io)?;
+    for e in std::fs::read_dir(dir).map_err(io)? {
+        let p = e.map_err(io)?.path();
+        if p.is_dir() && p.extension().is_some_and(|x| x == "fsp") {
+            files.push(p);
+        }
+    }
+    files.sort();
     if files.is_empty() {
         return Err(CorpusError::Empty { dir: dir.into() });
     }
@@ -136,7 +156,30 @@ pub fn load(
             .ok_or_else(|| CorpusError::MissingLabels {
                 npy: npy_path.clone(),
             })?;
-        let frames = read_frames(&npy_path, layout, fps)?;
+        let frames = if npy_path.is_dir() {
+            let clip =
+                crate::codec::Clip::load_for(&npy_path, model_hash, layout).map_err(|source| {
+                    CorpusError::Encode {
+                        path: npy_path.clone(),
+                        source: Box::new(source),
+                    }
+                })?;
+            if (clip.frames.fps() - fps).abs() > 1e-9 {
+                return Err(CorpusError::Encode {
+                    path: npy_path.clone(),
+                    source: Box::new(crate::codec::CodecError::Invalid {
+                        path: npy_path.join("meta.json"),
+                        message: format!(
+                            "the clip is at {} fps, the corpus is read at {fps}",
+                            clip.frames.fps()
+                        ),
+                    }),
+                });
+            }
+            clip.frames
+        } else {
+            read_frames(&npy_path, layout, fps)?
+        };
         let segments = phonemes::read_labels(&labels, tier, map)?;
         let (frames_s, labels_s) = (frames.duration(), segments[segments.len() - 1].end);
         if (frames_s - labels_s).abs() > 2.0 / fps {
