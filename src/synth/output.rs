@@ -115,7 +115,7 @@ fn video_path(dir: &Path, stem: &str, (w, h): (u32, u32)) -> PathBuf {
     dir.join(format!("{stem}.{ext}"))
 }
 
-/// [`write`] into a staging folder swapped in for `dir` when everything is written: a
+/// [`write()`] into a staging folder swapped in for `dir` when everything is written: a
 /// killed or failed run leaves `dir` as it was (and its staging is cleaned by the next run),
 /// and a folder facespace did not write, or one holding files it did not write, is never
 /// replaced or mixed into.
