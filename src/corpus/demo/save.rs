@@ -17,6 +17,28 @@ impl Corpus {
         options: &CorpusOptions,
         still_frame_name: &str,
         frames: Option<(&dyn crate::render::Renderer, &image::RgbImage)>,
+        progress: impl FnMut(crate::Progress),
+    ) -> Result<(), SaveError> {
+        // Built whole beside `dir` and swapped in: a killed run leaves no partial train/, and
+        // a folder facespace did not write is never replaced.
+        crate::atomic::replace_dir(
+            dir,
+            "demo corpus",
+            |staged| self.save_into(staged, model, options, still_frame_name, frames, progress),
+            |source| SaveError::Io {
+                path: dir.into(),
+                source,
+            },
+        )
+    }
+
+    fn save_into(
+        &self,
+        dir: &std::path::Path,
+        model: &FaceModel,
+        options: &CorpusOptions,
+        still_frame_name: &str,
+        frames: Option<(&dyn crate::render::Renderer, &image::RgbImage)>,
         mut progress: impl FnMut(crate::Progress),
     ) -> Result<(), SaveError> {
         for g in &self.sentences {
