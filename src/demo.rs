@@ -132,9 +132,35 @@ pub struct DemoReport {
     pub files: Vec<(&'static str, PathBuf)>,
 }
 
-/// Runs the demo (see the module docs).
+/// Runs the demo (see the module docs). Everything is built in a staging folder beside
+/// `options.output` and swapped in at the end: a killed run leaves the previous demo whole,
+/// and a folder facespace did not write is never replaced.
 pub fn run(
     options: &DemoOptions,
+    progress: impl FnMut(Progress),
+) -> Result<DemoReport, DemoError> {
+    let mut report = None;
+    crate::atomic::replace_dir(
+        &options.output,
+        "demo",
+        |staged| {
+            report = Some(run_into(options, staged, progress)?);
+            Ok(())
+        },
+        |source| {
+            DemoError::from(OutputError::Io {
+                path: options.output.clone(),
+                source,
+            })
+        },
+    )?;
+    Ok(report.expect("the demo ran"))
+}
+
+/// [`run`] writing into `w`; the report names the files where they will be (`options.output`).
+fn run_into(
+    options: &DemoOptions,
+    w: &std::path::Path,
     mut progress: impl FnMut(Progress),
 ) -> Result<DemoReport, DemoError> {
     let normalise = |s: &str| {
@@ -162,7 +188,7 @@ pub fn run(
         },
         &mut crate::no_progress,
     )?;
-    region.save(&o.join("model"))?;
+    region.save(&w.join("model"))?;
     let generated = generator::generate(&region, &frames, &CorpusOptions::default())?;
     let train = generated.part(Split::Train);
     let sentences = train.len();
@@ -174,7 +200,7 @@ pub fn run(
         SimilarityOptions::default(),
         &mut crate::no_progress,
     )?;
-    cb.save(&o.join("codebook"))?;
+    cb.save(&w.join("codebook"))?;
     let target = phonemes::text_to_segments(&options.text, &cb.mean_durations())?;
     // Frames at the background's own rate, so its motion plays at the recorded speed.
     let fps = crate::video::Source::open(&options.background)
@@ -204,7 +230,7 @@ pub fn run(
     let mut utterance = synthesise(&Blend::default(), &cb, request.clone())?;
     backdrop.anchor_region(&region, &mut utterance)?;
     let report = output::write(
-        o,
+        w,
         renderer,
         &utterance,
         backdrop.background()?,
@@ -214,14 +240,14 @@ pub fn run(
     let mut unit = synthesise(&UnitSelection::default(), &cb, request)?;
     backdrop.anchor_region(&region, &mut unit)?;
     let unit_report = output::write(
-        &o.join("unit"),
+        &w.join("unit"),
         renderer,
         &unit,
         backdrop.background()?,
         &output_options,
         &mut progress,
     )?;
-    phonemes::write_labels(&o.join("utterance.lab"), &utterance.target)?;
+    phonemes::write_labels(&w.join("utterance.lab"), &utterance.target)?;
     Ok(DemoReport {
         shape_params: model.shape.n_params(),
         appearance_params: model.appearance.n_params(),
