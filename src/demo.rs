@@ -135,10 +135,7 @@ pub struct DemoReport {
 /// Runs the demo (see the module docs). Everything is built in a staging folder beside
 /// `options.output` and swapped in at the end: a killed run leaves the previous demo whole,
 /// and a folder facespace did not write is never replaced.
-pub fn run(
-    options: &DemoOptions,
-    progress: impl FnMut(Progress),
-) -> Result<DemoReport, DemoError> {
+pub fn run(options: &DemoOptions, progress: impl FnMut(Progress)) -> Result<DemoReport, DemoError> {
     let mut report = None;
     crate::atomic::replace_dir(
         &options.output,
