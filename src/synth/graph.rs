@@ -19,7 +19,6 @@ use super::unit::{CodebookFrame, TargetCost, UnitConstants, selection_stats, vis
 use super::viterbi::cheapest_path;
 use super::{Chosen, PhoneReport, SynthError, Synthesis, Synthesiser, validate_request};
 use crate::codebook::Codebook;
-use crate::facespace::Frames;
 use crate::options::{self, InvalidOption};
 use crate::phonemes::{Phone, Segment};
 use crate::rng::Rng;
@@ -420,15 +419,6 @@ impl Synthesiser for Graph {
             };
             selection.push(frame);
         }
-        let rows: Vec<f32> = selection
-            .iter()
-            .flat_map(|u| {
-                codebook.sentences[u.sentence as usize]
-                    .frames
-                    .row(u.frame as usize)
-                    .to_vec()
-            })
-            .collect();
         let tc = TargetCost::for_target(codebook, &UnitConstants::default(), &target, fps);
         let k = visual_weights(codebook);
         let stats = selection_stats(codebook, &k, &selection, |i| tc.at(i, selection[i]), cost);
@@ -452,7 +442,7 @@ impl Synthesiser for Graph {
             })
             .collect();
         Ok(Synthesis {
-            frames: Frames::from_rows(codebook.layout, fps, rows)?,
+            frames: super::unit::selected_frames(codebook, &selection, fps)?,
             phones,
             warnings,
             selection: Some(stats),
@@ -490,7 +480,7 @@ mod tests {
                 Sentence {
                     name: format!("s{k}"),
                     source: "random".into(),
-                    frames: Frames::from_rows(layout, 25.0, rows).unwrap(),
+                    frames: crate::facespace::Frames::from_rows(layout, 25.0, rows).unwrap(),
                     segments,
                 }
             })

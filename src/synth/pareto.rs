@@ -17,7 +17,6 @@ use crate::Progress;
 use crate::codebook::Codebook;
 use crate::corpus::Sentence;
 use crate::eval;
-use crate::facespace::Frames;
 use crate::model::FaceModel;
 use crate::options;
 use crate::rng::Rng;
@@ -376,7 +375,7 @@ pub fn train(
         let (mut r_pca, mut r_h) = (0.0, 0.0);
         for (p, s) in prepared.iter().zip(sentences) {
             let (selection, _) = unit.solve(codebook, p)?;
-            let mut frames = selected_frames(codebook, &selection, fps)?;
+            let mut frames = super::unit::selected_frames(codebook, &selection, fps)?;
             for t in 0..frames.len().min(s.frames.len()) {
                 frames.set_pose(t, s.frames.params(t).pose);
             }
@@ -398,24 +397,6 @@ pub fn train(
         generations,
         options: *options,
     })
-}
-
-/// The frames of a selection, in order.
-fn selected_frames(
-    codebook: &Codebook,
-    selection: &[super::unit::CodebookFrame],
-    fps: f64,
-) -> Result<Frames, SynthError> {
-    let rows = selection
-        .iter()
-        .flat_map(|u| {
-            codebook.sentences[u.sentence as usize]
-                .frames
-                .row(u.frame as usize)
-                .to_vec()
-        })
-        .collect();
-    Ok(Frames::from_rows(codebook.layout, fps, rows)?)
 }
 
 impl Training {

@@ -249,15 +249,6 @@ impl Synthesiser for UnitSelection {
         self.constants.validate()?;
         validate_request(target, fps)?;
         let (selection, stats, warnings) = self.select(codebook, target, fps)?;
-        let rows: Vec<f32> = selection
-            .iter()
-            .flat_map(|u| {
-                codebook.sentences[u.sentence as usize]
-                    .frames
-                    .row(u.frame as usize)
-                    .to_vec()
-            })
-            .collect();
         let start = target[0].start;
         let phones = target
             .iter()
@@ -295,7 +286,7 @@ impl Synthesiser for UnitSelection {
             })
             .collect();
         Ok(Synthesis {
-            frames: Frames::from_rows(codebook.layout, fps, rows)?,
+            frames: selected_frames(codebook, &selection, fps)?,
             phones,
             warnings,
             selection: Some(stats),
@@ -543,6 +534,25 @@ impl<'a> TargetCost<'a> {
             .sum::<f64>()
             / self.v_sum
     }
+}
+
+/// The frames of a selection, in order: the synthesised trajectory of unit selection and the
+/// graph.
+pub(crate) fn selected_frames(
+    codebook: &Codebook,
+    selection: &[CodebookFrame],
+    fps: f64,
+) -> Result<Frames, SynthError> {
+    let rows = selection
+        .iter()
+        .flat_map(|u| {
+            codebook.sentences[u.sentence as usize]
+                .frames
+                .row(u.frame as usize)
+                .to_vec()
+        })
+        .collect();
+    Ok(Frames::from_rows(codebook.layout, fps, rows)?)
 }
 
 /// TC_avg, SL_avg and VC_avg of a selection (eq. 12–15); `tc(i)` is frame i's target cost.
