@@ -8,6 +8,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use facespace::annotate::{AnnotateError, Annotator};
+use facespace::http::HttpError;
 use facespace::model::FaceModel;
 
 /// A folder with two test-clip frames, the first with its `.pts`.
@@ -96,7 +97,7 @@ fn server_serves_saves_and_refuses() {
     let err = Annotator::bind(dir.path(), demo_model(), false, "0.0.0.0:0", false)
         .err()
         .unwrap();
-    assert!(matches!(err, AnnotateError::NotLoopback(_)), "{err}");
+    assert!(matches!(err, AnnotateError::Http(HttpError::NotLoopback(_))), "{err}");
     assert!(Annotator::bind(dir.path(), demo_model(), false, "0.0.0.0:0", true).is_ok());
 }
 

@@ -4,14 +4,13 @@
 //! every change. Starting points: the frame's own `.pts`; else the model's fit; else the
 //! model's mean shape, which the page places from two clicks on the eye centres.
 
-use std::io::Read;
-use std::net::{SocketAddr, ToSocketAddrs};
 use std::path::{Path, PathBuf};
 
 use serde_json::{Value, json};
 use thiserror::Error;
 
 use crate::fit::{FitOptions, Fitter};
+use crate::http::{self, HttpError, Reply, Request, Server};
 use crate::model::FaceModel;
 use crate::shape::{self, Landmarks};
 use crate::video;
@@ -31,24 +30,14 @@ pub enum AnnotateError {
         /// What is wrong.
         reason: String,
     },
-    /// A non-loopback address without permission.
-    #[error(
-        "{0} is not a loopback address: the page would be reachable from other machines; pass --allow-remote if that is meant"
-    )]
-    NotLoopback(SocketAddr),
-    /// The address cannot be bound.
-    #[error("cannot listen on {addr}: {reason}")]
-    Bind {
-        /// The address.
-        addr: String,
-        /// Why.
-        reason: String,
-    },
+    /// The server could not start.
+    #[error(transparent)]
+    Http(#[from] HttpError),
 }
 
 /// A running annotation server.
 pub struct Annotator {
-    server: tiny_http::Server,
+    server: Server,
     dir: PathBuf,
     frames: Vec<String>,
     model: FaceModel,
@@ -86,21 +75,7 @@ impl Annotator {
         if frames.is_empty() {
             return Err(folder("no images (png, jpg) to annotate".into()));
         }
-        let bind = |reason: String| AnnotateError::Bind {
-            addr: addr.into(),
-            reason,
-        };
-        let resolved: Vec<SocketAddr> = addr
-            .to_socket_addrs()
-            .map_err(|e| bind(e.to_string()))?
-            .collect();
-        let first = *resolved.first().ok_or_else(|| bind("no address".into()))?;
-        if let Some(a) = resolved.iter().find(|a| !a.ip().is_loopback())
-            && !allow_remote
-        {
-            return Err(AnnotateError::NotLoopback(*a));
-        }
-        let server = tiny_http::Server::http(first).map_err(|e| bind(e.to_string()))?;
+        let server = Server::bind(addr, allow_remote)?;
         Ok(Annotator {
             server,
             dir: dir.into(),
@@ -112,81 +87,61 @@ impl Annotator {
 
     /// The page's address.
     pub fn url(&self) -> String {
-        match self.server.server_addr().to_ip() {
-            Some(a) => format!("http://{a}/"),
-            None => "http://localhost/".into(),
-        }
+        self.server.url()
     }
 
     /// Serves requests until `stop` returns true (checked between requests and every 100 ms).
     pub fn run(&self, mut on_event: impl FnMut(Event), stop: impl Fn() -> bool) {
-        while !stop() {
-            match self
-                .server
-                .recv_timeout(std::time::Duration::from_millis(100))
-            {
-                Ok(Some(request)) => self.answer(request, &mut on_event),
-                Ok(None) => {}
-                Err(_) => break,
-            }
-        }
+        self.server.serve(
+            |request| {
+                let reply = self.answer(request, &mut on_event);
+                if !reply.is_ok() {
+                    let why = String::from_utf8_lossy(&reply.body).into_owned();
+                    on_event(Event::Refused(request.path.clone(), why));
+                }
+                reply
+            },
+            stop,
+        )
     }
 
-    fn answer(&self, mut request: tiny_http::Request, on_event: &mut impl FnMut(Event)) {
-        let url = request.url().to_owned();
-        let path = url.split('?').next().unwrap_or("").to_owned();
-        let method = request.method().clone();
-        let reply = match (method, path.as_str()) {
-            (tiny_http::Method::Get, "/") => Ok(Reply::new(
+    fn answer(&self, request: &Request, on_event: &mut impl FnMut(Event)) -> Reply {
+        let path = request.path.as_str();
+        let reply = match (request.post, path) {
+            (false, "/") => Ok(Reply::ok(
                 PAGE.as_bytes().to_vec(),
                 "text/html; charset=utf-8",
             )),
-            (tiny_http::Method::Get, "/api/frames") => Ok(Reply::json(json!({
+            (false, "/api/frames") => Ok(Reply::json(json!({
                 "frames": self.frames,
                 "mean": self.model.shape.mean(),
                 "eyes": [[36, 37, 38, 39, 40, 41], [42, 43, 44, 45, 46, 47]],
             }))),
-            (tiny_http::Method::Get, p) if p.starts_with("/frames/") => {
+            (false, p) if p.starts_with("/frames/") => {
                 self.frame(&p["/frames/".len()..]).and_then(|name| {
                     let bytes =
                         std::fs::read(self.dir.join(&name)).map_err(|e| (500, e.to_string()))?;
-                    Ok(Reply::new(bytes, mime(&name)))
+                    Ok(Reply::ok(bytes, http::mime(&name)))
                 })
             }
-            (tiny_http::Method::Get, p) if p.starts_with("/api/points/") => self
+            (false, p) if p.starts_with("/api/points/") => self
                 .frame(&p["/api/points/".len()..])
                 .and_then(|name| self.points(&name).map(Reply::json)),
-            (tiny_http::Method::Post, p) if p.starts_with("/api/points/") => {
-                let mut body = String::new();
-                let read = request
-                    .as_reader()
-                    .take(1 << 20)
-                    .read_to_string(&mut body)
-                    .map_err(|e| (400, e.to_string()));
-                read.and_then(|_| self.frame(&p["/api/points/".len()..]))
-                    .and_then(|name| self.save(&name, &body))
-                    .map(|saved| {
-                        on_event(Event::Saved(saved.clone()));
-                        Reply::json(json!({"saved": saved.display().to_string()}))
-                    })
-            }
+            (true, p) if p.starts_with("/api/points/") => self
+                .frame(&p["/api/points/".len()..])
+                .and_then(|name| self.save(&name, &request.body))
+                .map(|saved| {
+                    on_event(Event::Saved(saved.clone()));
+                    Reply::json(json!({"saved": saved.display().to_string()}))
+                }),
             _ => Err((404, "not found".into())),
         };
-        let response = match reply {
-            Ok(r) => tiny_http::Response::from_data(r.body).with_header(
-                tiny_http::Header::from_bytes("Content-Type", r.mime).expect("valid header"),
-            ),
-            Err((code, why)) => {
-                on_event(Event::Refused(path.clone(), why.clone()));
-                tiny_http::Response::from_data(why.into_bytes()).with_status_code(code)
-            }
-        };
-        let _ = request.respond(response);
+        reply.unwrap_or_else(|(code, why)| Reply::error(code, why))
     }
 
-    /// The frame named (URL-encoded) `raw`, if it is one of the listed images.
-    fn frame(&self, raw: &str) -> Result<String, (u16, String)> {
-        let name = percent_decode(raw).ok_or((400, "bad name encoding".to_owned()))?;
+    /// The frame named `name`, if it is one of the listed images.
+    fn frame(&self, name: &str) -> Result<String, (u16, String)> {
+        let name = name.to_owned();
         if self.frames.contains(&name) {
             Ok(name)
         } else {
@@ -235,49 +190,4 @@ impl Annotator {
         shape::write_pts(&path, &landmarks).map_err(|e| (500, e.to_string()))?;
         Ok(path)
     }
-}
-
-struct Reply {
-    body: Vec<u8>,
-    mime: &'static str,
-}
-
-impl Reply {
-    fn new(body: Vec<u8>, mime: &'static str) -> Self {
-        Reply { body, mime }
-    }
-    fn json(v: Value) -> Self {
-        Reply::new(v.to_string().into_bytes(), "application/json")
-    }
-}
-
-fn mime(name: &str) -> &'static str {
-    match Path::new(name)
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase)
-        .as_deref()
-    {
-        Some("png") => "image/png",
-        Some("jpg" | "jpeg") => "image/jpeg",
-        _ => "application/octet-stream",
-    }
-}
-
-/// Decodes `%XX` escapes (UTF-8); `None` for a malformed escape or invalid UTF-8.
-fn percent_decode(s: &str) -> Option<String> {
-    let bytes = s.as_bytes();
-    let mut out = Vec::with_capacity(bytes.len());
-    let mut i = 0;
-    while i < bytes.len() {
-        if bytes[i] == b'%' {
-            let hex = std::str::from_utf8(bytes.get(i + 1..i + 3)?).ok()?;
-            out.push(u8::from_str_radix(hex, 16).ok()?);
-            i += 3;
-        } else {
-            out.push(bytes[i]);
-            i += 1;
-        }
-    }
-    String::from_utf8(out).ok()
 }
