@@ -232,6 +232,26 @@ impl Axes {
 
     /// Title, axes, ticks at 1-2-5 steps, and the axis labels.
     fn draw(&self, img: &mut RgbImage, title: &str, x_label: &str, y_label: &str) {
+        self.draw_frame(img, title, x_label, y_label);
+        let (top, ph) = (self.top, self.ph);
+        let (x_ticks, x_decimals) = nice_ticks(self.x_min, self.x_min + self.x_span);
+        for x in x_ticks {
+            let label = format!("{x:.x_decimals$}");
+            let px = self.px(x);
+            text(
+                img,
+                px - 0.5 * text_width(10.0, &label),
+                top + ph + 4.0,
+                10.0,
+                &label,
+                BLACK,
+            );
+            line(img, (px, top + ph), (px, top + ph + 3.0), BLACK);
+        }
+    }
+
+    /// Title, axes, the y ticks and the axis labels (the x ticks are the caller's).
+    fn draw_frame(&self, img: &mut RgbImage, title: &str, x_label: &str, y_label: &str) {
         let (left, top, pw, ph) = (self.left, self.top, self.pw, self.ph);
         text(img, left, 6.0, 14.0, title, BLACK);
         line(img, (left, top + ph), (left + pw, top + ph), BLACK);
@@ -249,20 +269,6 @@ impl Axes {
                 BLACK,
             );
             line(img, (left - 3.0, py), (left, py), BLACK);
-        }
-        let (x_ticks, x_decimals) = nice_ticks(self.x_min, self.x_min + self.x_span);
-        for x in x_ticks {
-            let label = format!("{x:.x_decimals$}");
-            let px = self.px(x);
-            text(
-                img,
-                px - 0.5 * text_width(10.0, &label),
-                top + ph + 4.0,
-                10.0,
-                &label,
-                BLACK,
-            );
-            line(img, (px, top + ph), (px, top + ph + 3.0), BLACK);
         }
         text(
             img,
@@ -446,6 +452,88 @@ pub fn parameter_plot(
     stack(&panels)
 }
 
+/// The `p`-quantile (0 ≤ p ≤ 1) of sorted values by linear interpolation between order
+/// statistics (numpy's default, Hyndman & Fan type 7).
+pub fn quantile(sorted: &[f64], p: f64) -> f64 {
+    if sorted.is_empty() {
+        return f64::NAN;
+    }
+    let h = (sorted.len() - 1) as f64 * p.clamp(0.0, 1.0);
+    let lo = h.floor() as usize;
+    let hi = (lo + 1).min(sorted.len() - 1);
+    sorted[lo] + (h - lo as f64) * (sorted[hi] - sorted[lo])
+}
+
+/// Box plots of `groups` side by side: the box spans the quartiles with the median across it,
+/// whiskers reach the furthest values within 1.5 IQR of the box, values beyond are dots, and
+/// a diamond marks the mean.
+pub fn box_plot(title: &str, y_label: &str, labels: &[&str], groups: &[Vec<f64>]) -> RgbImage {
+    let (width, height) = ((120 + 110 * groups.len()) as u32, 360u32);
+    let mut img = RgbImage::from_pixel(width, height, Rgb([255, 255, 255]));
+    let k = groups.len() as f64;
+    let axes = Axes::new(
+        (width, height),
+        [-0.5, k - 0.5].into_iter(),
+        groups.iter().flatten().copied().chain([0.0, 5.0]),
+        40.0,
+    );
+    axes.draw_frame(&mut img, title, "", y_label);
+    for (i, (g, label)) in groups.iter().zip(labels).enumerate() {
+        let x = axes.px(i as f64);
+        text(
+            &mut img,
+            x - 0.5 * text_width(10.0, label),
+            axes.top + axes.ph + 6.0,
+            10.0,
+            label,
+            BLACK,
+        );
+        let mut v: Vec<f64> = g.iter().copied().filter(|x| x.is_finite()).collect();
+        if v.is_empty() {
+            continue;
+        }
+        v.sort_by(f64::total_cmp);
+        let (q1, q2, q3) = (quantile(&v, 0.25), quantile(&v, 0.5), quantile(&v, 0.75));
+        let reach = 1.5 * (q3 - q1);
+        // As matplotlib: a whisker never ends inside the box.
+        let low = v.iter().copied().find(|&x| x >= q1 - reach).unwrap_or(q1).min(q1);
+        let high = v.iter().rev().copied().find(|&x| x <= q3 + reach).unwrap_or(q3).max(q3);
+        let color = PALETTE[i % PALETTE.len()];
+        let half = 0.3 * axes.pw / k as f32;
+        let (top, bottom) = (axes.py(q3), axes.py(q1));
+        let rect = Rect::at((x - half) as i32, top as i32)
+            .of_size((2.0 * half) as u32, ((bottom - top) as u32).max(1));
+        draw_filled_rect_mut(&mut img, rect, interpolate(color, Rgb([255, 255, 255]), 0.35));
+        for (a, b) in [
+            ((x - half, top), (x + half, top)),
+            ((x - half, bottom), (x + half, bottom)),
+            ((x - half, top), (x - half, bottom)),
+            ((x + half, top), (x + half, bottom)),
+            ((x - half, axes.py(q2)), (x + half, axes.py(q2))),
+            ((x, top), (x, axes.py(high))),
+            ((x, bottom), (x, axes.py(low))),
+            ((x - 0.4 * half, axes.py(high)), (x + 0.4 * half, axes.py(high))),
+            ((x - 0.4 * half, axes.py(low)), (x + 0.4 * half, axes.py(low))),
+        ] {
+            line(&mut img, a, b, BLACK);
+        }
+        for &o in v.iter().filter(|&&o| o < low || o > high) {
+            draw_filled_circle_mut(&mut img, (x as i32, axes.py(o) as i32), 2, BLACK);
+        }
+        let m = v.iter().sum::<f64>() / v.len() as f64;
+        let (mx, my) = (x, axes.py(m));
+        for (a, b) in [
+            ((mx - 4.0, my), (mx, my - 4.0)),
+            ((mx, my - 4.0), (mx + 4.0, my)),
+            ((mx + 4.0, my), (mx, my + 4.0)),
+            ((mx, my + 4.0), (mx - 4.0, my)),
+        ] {
+            line(&mut img, a, b, BLACK);
+        }
+    }
+    img
+}
+
 /// Images one above the other (as wide as the widest).
 pub fn stack(panels: &[RgbImage]) -> RgbImage {
     let w = panels.iter().map(|p| p.width()).max().unwrap_or(0);
@@ -461,7 +549,20 @@ pub fn stack(panels: &[RgbImage]) -> RgbImage {
 
 #[cfg(test)]
 mod tests {
-    use super::nice_ticks;
+    use super::{nice_ticks, quantile};
+
+    /// numpy.percentile(x, [0, 25, 50, 75, 100]) for x = [1, 2, 4, 7, 11] and [3, 1] (linear).
+    #[test]
+    fn quantiles_match_numpy() {
+        let x = [1.0, 2.0, 4.0, 7.0, 11.0];
+        let want = [1.0, 2.0, 4.0, 7.0, 11.0];
+        for (p, w) in [0.0, 0.25, 0.5, 0.75, 1.0].iter().zip(want) {
+            assert_eq!(quantile(&x, *p), w);
+        }
+        assert_eq!(quantile(&[1.0, 2.0, 4.0, 7.0], 0.25), 1.75);
+        assert_eq!(quantile(&[1.0, 3.0], 0.5), 2.0);
+        assert!(quantile(&[], 0.5).is_nan());
+    }
 
     #[test]
     fn ticks_fall_on_round_steps() {

@@ -9,6 +9,7 @@ mod demo;
 mod eval;
 mod frames;
 mod model;
+mod study;
 mod synth;
 mod track;
 mod weights;
@@ -67,6 +68,9 @@ enum Command {
     TrainWeights(weights::TrainWeightsArgs),
     /// Score synthesis against held-out sentences (r_pca, r_h, RMSE, DTW) with baselines.
     Eval(eval::EvalArgs),
+    /// Subjective evaluation: A/B rating and Turing tests in the browser, with their statistics.
+    #[command(subcommand)]
+    Study(study::StudyCommand),
     /// The whole pipeline on the demo model: a lower-face region model, the generated corpus,
     /// a codebook, and an unseen sentence by blending and by unit selection, smoothed and
     /// unsmoothed, over a real stretch of the talker's video.
@@ -87,6 +91,7 @@ pub fn run() -> Result<()> {
         Command::Synth(a) => synth::run(a),
         Command::TrainWeights(a) => weights::run(a),
         Command::Eval(a) => eval::run(a),
+        Command::Study(c) => study::run(c),
         Command::Demo(a) => demo::run(a),
     }
 }

@@ -50,7 +50,8 @@ pub fn wilcoxon(a: &[f64], b: &[f64]) -> Option<Wilcoxon> {
         .zip(&ranks)
         .filter(|(x, _)| **x > 0.0)
         .map(|(_, r)| r)
-        .sum();
+        .sum::<f64>()
+        + 0.0; // an empty sum is −0.0
     let total = (m * (m + 1)) as f64 / 2.0;
     let w_minus = total - w_plus;
     let mf = m as f64;

@@ -1,0 +1,177 @@
+//! `facespace study create | serve | analyse`: the subjective evaluation kit.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use clap::{Args, Subcommand, ValueEnum};
+use facespace::codebook::Codebook;
+use facespace::study::analyse::write_report;
+use facespace::study::create::load_heldout;
+use facespace::study::serve::Event;
+use facespace::study::{self, Condition, CreateOptions, StudyServer, Task};
+use facespace::synth::DEFAULT_SMOOTHING;
+use facespace::synth::unit::{UnitSelection, WeightsFile};
+
+use super::{DEMO_MODEL, RendererArg, load_model, progress_bar};
+
+#[derive(Subcommand)]
+pub enum StudyCommand {
+    /// Render the stimuli of held-out sentences under each condition, with each viewer's
+    /// randomised, counter-balanced order → a study folder.
+    Create(CreateArgs),
+    /// Serve the study to viewers on a local page; answers are stored as they are given.
+    Serve(ServeArgs),
+    /// Wilcoxon, Kruskal–Wallis and Turing-test tables and a box plot from the answers.
+    Analyse(AnalyseArgs),
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum TaskArg {
+    /// A/B rating of pairs (DSCQS, 1–50).
+    Rating,
+    /// Real or synthetic? (needs the original).
+    Turing,
+    /// The Turing test first, then the ratings.
+    Both,
+}
+
+#[derive(Args)]
+pub struct CreateArgs {
+    #[arg(long, default_value = DEMO_MODEL)]
+    model: PathBuf,
+    #[arg(long)]
+    codebook: PathBuf,
+    /// Held-out sentences (NAME.npy or NAME.fsp/ with NAME.lab; NAME.m4a is muxed in), none
+    /// of them in the codebook.
+    #[arg(long)]
+    heldout: PathBuf,
+    /// Conditions: original, blend-nN, random-lips, unit, smoothed, unsmoothed (the default
+    /// blend C=1 N=3 with and without smoothing).
+    #[arg(long, value_delimiter = ',', default_value = "original,blend-n1,blend-n3,blend-n5,random-lips,unit,smoothed,unsmoothed")]
+    conditions: Vec<String>,
+    /// Viewers, each with their own order and link.
+    #[arg(long, default_value_t = 10)]
+    viewers: usize,
+    /// Which tests.
+    #[arg(long, value_enum, default_value_t = TaskArg::Both)]
+    task: TaskArg,
+    /// Smoothing weight λ of every smoothed condition (choose it with `eval --validation`).
+    #[arg(long, default_value_t = DEFAULT_SMOOTHING)]
+    smoothing: f64,
+    /// Unit-selection weights (a `train-weights` file; default: all weights 1).
+    #[arg(long)]
+    weights: Option<PathBuf>,
+    /// Seed of the orders.
+    #[arg(long, default_value_t = 16)]
+    seed: u64,
+    /// Which renderer draws the stimuli.
+    #[arg(long, value_enum, default_value_t)]
+    renderer: RendererArg,
+    #[arg(short, long)]
+    output: PathBuf,
+}
+
+#[derive(Args)]
+pub struct ServeArgs {
+    /// The study folder.
+    dir: PathBuf,
+    /// Address to listen on.
+    #[arg(long, default_value = "127.0.0.1:8018")]
+    listen: String,
+    /// Allow a non-loopback address (viewers on other machines; each still needs their link).
+    #[arg(long)]
+    allow_remote: bool,
+}
+
+#[derive(Args)]
+pub struct AnalyseArgs {
+    /// The study folder.
+    dir: PathBuf,
+    /// Report folder: report.json, report.md, scores.png.
+    #[arg(short, long)]
+    output: PathBuf,
+}
+
+pub fn run(c: StudyCommand) -> Result<()> {
+    match c {
+        StudyCommand::Create(a) => create(a),
+        StudyCommand::Serve(a) => serve(a),
+        StudyCommand::Analyse(a) => analyse(a),
+    }
+}
+
+fn create(a: CreateArgs) -> Result<()> {
+    let model = load_model(&a.model)?;
+    let cb = Codebook::load(&a.codebook)
+        .with_context(|| format!("loading codebook {}", a.codebook.display()))?;
+    cb.check_model(&model)?;
+    let conditions = a
+        .conditions
+        .iter()
+        .map(|s| s.parse::<Condition>().map_err(anyhow::Error::msg))
+        .collect::<Result<Vec<_>>>()?;
+    let heldout = load_heldout(&a.heldout, &cb, &model.hash())?;
+    let unit = match &a.weights {
+        Some(p) => WeightsFile::read(p)?.unit_selection(),
+        None => UnitSelection::default(),
+    };
+    let options = CreateOptions {
+        conditions,
+        viewers: a.viewers,
+        task: match a.task {
+            TaskArg::Rating => Task::Rating,
+            TaskArg::Turing => Task::Turing,
+            TaskArg::Both => Task::Both,
+        },
+        smoothing: a.smoothing,
+        unit,
+        seed: a.seed,
+    };
+    let renderer = a.renderer.make(&model, None)?;
+    let (bar, progress) = progress_bar();
+    let manifest = study::create(&a.output, &model, &cb, &heldout, renderer.as_ref(), &options, progress)
+        .with_context(|| format!("creating study {}", a.output.display()))?;
+    bar.finish_and_clear();
+    let with_sound = manifest.stimuli.iter().filter(|s| s.audio).count();
+    println!(
+        "{}: {} stimuli ({} sentences × {} conditions, {with_sound} with sound), {} viewers × {} trials",
+        a.output.display(),
+        manifest.stimuli.len(),
+        manifest.sentences.len(),
+        manifest.conditions.len(),
+        manifest.viewers.len(),
+        manifest.viewers.first().map_or(0, |v| v.trials.len()),
+    );
+    println!("serve it with: facespace study serve {}", a.output.display());
+    Ok(())
+}
+
+fn serve(a: ServeArgs) -> Result<()> {
+    let (mut server, note) = StudyServer::bind(&a.dir, &a.listen, a.allow_remote)
+        .with_context(|| format!("serving study {}", a.dir.display()))?;
+    if let Some(note) = note {
+        eprintln!("note: {note}");
+    }
+    println!("study {} at {} — each viewer's link:", a.dir.display(), server.url());
+    for (viewer, link) in server.links() {
+        println!("  {viewer}: {link}");
+    }
+    println!("(Ctrl+C to stop; every answer is on disk before the page moves on)");
+    server.run(
+        |event| match event {
+            Event::Stored(viewer, trial) => println!("stored {viewer} trial {trial}"),
+            Event::Refused(path, why) => eprintln!("refused {path}: {why}"),
+        },
+        || false,
+    );
+    Ok(())
+}
+
+fn analyse(a: AnalyseArgs) -> Result<()> {
+    let report = study::analyse(&a.dir).with_context(|| format!("analysing {}", a.dir.display()))?;
+    write_report(&a.output, &report)
+        .with_context(|| format!("writing report {}", a.output.display()))?;
+    print!("{}", report.markdown());
+    println!("\nwritten: {}/report.{{json,md}}, scores.png", a.output.display());
+    Ok(())
+}
