@@ -496,14 +496,29 @@ pub fn box_plot(title: &str, y_label: &str, labels: &[&str], groups: &[Vec<f64>]
         let (q1, q2, q3) = (quantile(&v, 0.25), quantile(&v, 0.5), quantile(&v, 0.75));
         let reach = 1.5 * (q3 - q1);
         // As matplotlib: a whisker never ends inside the box.
-        let low = v.iter().copied().find(|&x| x >= q1 - reach).unwrap_or(q1).min(q1);
-        let high = v.iter().rev().copied().find(|&x| x <= q3 + reach).unwrap_or(q3).max(q3);
+        let low = v
+            .iter()
+            .copied()
+            .find(|&x| x >= q1 - reach)
+            .unwrap_or(q1)
+            .min(q1);
+        let high = v
+            .iter()
+            .rev()
+            .copied()
+            .find(|&x| x <= q3 + reach)
+            .unwrap_or(q3)
+            .max(q3);
         let color = PALETTE[i % PALETTE.len()];
         let half = 0.3 * axes.pw / k as f32;
         let (top, bottom) = (axes.py(q3), axes.py(q1));
         let rect = Rect::at((x - half) as i32, top as i32)
             .of_size((2.0 * half) as u32, ((bottom - top) as u32).max(1));
-        draw_filled_rect_mut(&mut img, rect, interpolate(color, Rgb([255, 255, 255]), 0.35));
+        draw_filled_rect_mut(
+            &mut img,
+            rect,
+            interpolate(color, Rgb([255, 255, 255]), 0.35),
+        );
         for (a, b) in [
             ((x - half, top), (x + half, top)),
             ((x - half, bottom), (x + half, bottom)),
@@ -512,8 +527,14 @@ pub fn box_plot(title: &str, y_label: &str, labels: &[&str], groups: &[Vec<f64>]
             ((x - half, axes.py(q2)), (x + half, axes.py(q2))),
             ((x, top), (x, axes.py(high))),
             ((x, bottom), (x, axes.py(low))),
-            ((x - 0.4 * half, axes.py(high)), (x + 0.4 * half, axes.py(high))),
-            ((x - 0.4 * half, axes.py(low)), (x + 0.4 * half, axes.py(low))),
+            (
+                (x - 0.4 * half, axes.py(high)),
+                (x + 0.4 * half, axes.py(high)),
+            ),
+            (
+                (x - 0.4 * half, axes.py(low)),
+                (x + 0.4 * half, axes.py(low)),
+            ),
         ] {
             line(&mut img, a, b, BLACK);
         }

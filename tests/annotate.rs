@@ -97,7 +97,10 @@ fn server_serves_saves_and_refuses() {
     let err = Annotator::bind(dir.path(), demo_model(), false, "0.0.0.0:0", false)
         .err()
         .unwrap();
-    assert!(matches!(err, AnnotateError::Http(HttpError::NotLoopback(_))), "{err}");
+    assert!(
+        matches!(err, AnnotateError::Http(HttpError::NotLoopback(_))),
+        "{err}"
+    );
     assert!(Annotator::bind(dir.path(), demo_model(), false, "0.0.0.0:0", true).is_ok());
 }
 

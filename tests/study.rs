@@ -31,9 +31,18 @@ fn wilcoxon_matches_scipy() {
     let mut methods = std::collections::BTreeSet::new();
     for c in cases {
         let r = stats::wilcoxon(&floats(&c["x"]), &floats(&c["y"])).unwrap();
-        let (w, p) = (c["statistic"].as_f64().unwrap(), c["pvalue"].as_f64().unwrap());
+        let (w, p) = (
+            c["statistic"].as_f64().unwrap(),
+            c["pvalue"].as_f64().unwrap(),
+        );
         assert!(close(r.w, w, 1e-12), "{}: W {} vs {w}", c["name"], r.w);
-        assert!(close(r.p, p, 1e-9), "{}: p {} vs {p} ({})", c["name"], r.p, r.method);
+        assert!(
+            close(r.p, p, 1e-9),
+            "{}: p {} vs {p} ({})",
+            c["name"],
+            r.p,
+            r.method
+        );
         methods.insert(r.method);
     }
     assert_eq!(methods.len(), 3, "{methods:?}");
@@ -45,12 +54,20 @@ fn kruskal_matches_scipy() {
     for c in reference()["kruskal"].as_array().unwrap() {
         let groups: Vec<Vec<f64>> = c["groups"].as_array().unwrap().iter().map(floats).collect();
         let r = stats::kruskal(&groups).unwrap();
-        let (h, p) = (c["statistic"].as_f64().unwrap(), c["pvalue"].as_f64().unwrap());
+        let (h, p) = (
+            c["statistic"].as_f64().unwrap(),
+            c["pvalue"].as_f64().unwrap(),
+        );
         assert!(close(r.h, h, 1e-10), "{}: H {} vs {h}", c["name"], r.h);
         assert!(close(r.p, p, 1e-8), "{}: p {} vs {p}", c["name"], r.p);
         // Mean ranks average to (N + 1) / 2, weighted by group size.
         let n: usize = r.groups.iter().map(|g| g.n).sum();
-        let mean: f64 = r.groups.iter().map(|g| g.mean_rank * g.n as f64).sum::<f64>() / n as f64;
+        let mean: f64 = r
+            .groups
+            .iter()
+            .map(|g| g.mean_rank * g.n as f64)
+            .sum::<f64>()
+            / n as f64;
         assert!(close(mean, (n as f64 + 1.0) / 2.0, 1e-12));
     }
 }
@@ -59,7 +76,10 @@ fn kruskal_matches_scipy() {
 #[test]
 fn binomial_matches_scipy() {
     for c in reference()["binomtest"].as_array().unwrap() {
-        let (k, n) = (c["k"].as_u64().unwrap() as usize, c["n"].as_u64().unwrap() as usize);
+        let (k, n) = (
+            c["k"].as_u64().unwrap() as usize,
+            c["n"].as_u64().unwrap() as usize,
+        );
         let r = stats::binomial(k, n).unwrap();
         for (got, key) in [(r.p, "pvalue"), (r.low, "low"), (r.high, "high")] {
             let want = c[key].as_f64().unwrap();
@@ -67,4 +87,703 @@ fn binomial_matches_scipy() {
         }
     }
     assert!(stats::binomial(3, 2).is_none() && stats::binomial(0, 0).is_none());
+}
+
+// ---------------------------------------------------------------------------------------
+// The study folder: design, answer log, refusals, crash safety, the browser.
+
+use std::io::Read;
+use std::path::Path;
+
+use facespace::codebook::{Codebook, SimilarityOptions};
+use facespace::corpus::demo::{self as corpus, CorpusOptions, Split};
+use facespace::model::{FaceModel, load_training_set};
+use facespace::render::CpuRenderer;
+use facespace::rng::Rng;
+use facespace::study::create::{Heldout, pairs, trials};
+use facespace::study::{
+    ANSWERS, AnswerLog, Condition, CreateOptions, Manifest, Response, StudyError, Task, Trial,
+};
+
+fn conditions(s: &str) -> Vec<Condition> {
+    s.split(',').map(|c| c.parse().unwrap()).collect()
+}
+
+/// A study of one held-out demo sentence (the codebook from the demo corpus's training split)
+/// with `viewers` viewers, written to `dir`.
+fn make_study(dir: &Path, conds: &str, viewers: usize, task: Task) -> Manifest {
+    let model = FaceModel::load(&common::root().join("models/demo/model")).unwrap();
+    let frames = load_training_set(&common::root().join("models/demo/training"), None).unwrap();
+    let generated = corpus::generate(&model, &frames, &CorpusOptions::default()).unwrap();
+    let cb = Codebook::build(
+        generated.part(Split::Train),
+        25.0,
+        model.layout(),
+        Some(model.hash()),
+        SimilarityOptions::default(),
+        &mut facespace::no_progress,
+    )
+    .unwrap();
+    let mut test = generated.part(Split::Test);
+    test.truncate(1);
+    let heldout: Vec<Heldout> = test
+        .into_iter()
+        .map(|sentence| Heldout {
+            sentence,
+            audio: None,
+        })
+        .collect();
+    let options = CreateOptions {
+        conditions: conditions(conds),
+        viewers,
+        task,
+        smoothing: facespace::synth::DEFAULT_SMOOTHING,
+        unit: Default::default(),
+        seed: 16,
+    };
+    facespace::study::create(
+        dir,
+        &model,
+        &cb,
+        &heldout,
+        &CpuRenderer::new(&model),
+        &options,
+        facespace::no_progress,
+    )
+    .unwrap()
+}
+
+#[test]
+fn pairs_put_the_original_against_every_condition_and_smoothing_against_none() {
+    let p = pairs(&conditions("original,blend-n3,smoothed,unsmoothed"));
+    let name = |(a, b): &(Condition, Condition)| format!("{a}/{b}");
+    let names: Vec<String> = p.iter().map(name).collect();
+    assert_eq!(
+        names,
+        [
+            "original/blend-n3",
+            "original/smoothed",
+            "original/unsmoothed",
+            "smoothed/unsmoothed"
+        ]
+    );
+    // Without the original, the first condition is the reference.
+    let names: Vec<String> = pairs(&conditions("smoothed,unsmoothed,unit"))
+        .iter()
+        .map(name)
+        .collect();
+    assert_eq!(names, ["smoothed/unsmoothed", "smoothed/unit"]);
+}
+
+/// Every viewer sees every stimulus once in the Turing block (first), every sentence × pair in
+/// both orders in the rating block, never a pair right after its mirror, in an order of
+/// their own.
+#[test]
+fn each_viewer_gets_a_counterbalanced_order_of_their_own() {
+    let conds = conditions("original,blend-n1,random-lips,smoothed,unsmoothed");
+    let sentences: Vec<String> = (0..3).map(|i| format!("s{i}")).collect();
+    let stimuli: Vec<facespace::study::Stimulus> = sentences
+        .iter()
+        .flat_map(|s| conds.iter().map(move |&c| (s.clone(), c)))
+        .enumerate()
+        .map(|(i, (sentence, condition))| facespace::study::Stimulus {
+            id: format!("id{i}"),
+            sentence,
+            condition,
+            frames: 10,
+            audio: false,
+        })
+        .collect();
+    let p = pairs(&conds);
+    let mut rng = Rng::new(1);
+    let a = trials(&stimuli, &sentences, &p, Task::Both, &mut rng);
+    let b = trials(&stimuli, &sentences, &p, Task::Both, &mut rng);
+    assert_ne!(a, b, "two viewers, two orders");
+    for t in [&a, &b] {
+        let judged: Vec<&str> = t[..stimuli.len()]
+            .iter()
+            .map(|x| match x {
+                Trial::Judge { stimulus } => stimulus.as_str(),
+                Trial::Rate { .. } => panic!("the Turing block comes first"),
+            })
+            .collect();
+        let mut sorted = judged.clone();
+        sorted.sort();
+        sorted.dedup();
+        assert_eq!(sorted.len(), stimuli.len());
+        let rated = &t[stimuli.len()..];
+        assert_eq!(rated.len(), sentences.len() * p.len() * 2);
+        for x in rated {
+            let Trial::Rate { first, second } = x else {
+                panic!("judge trial in the rating block")
+            };
+            let mirror = Trial::Rate {
+                first: second.clone(),
+                second: first.clone(),
+            };
+            assert_eq!(rated.iter().filter(|y| **y == mirror).count(), 1);
+        }
+        for w in rated.windows(2) {
+            let (mut x, mut y) = (w[0].stimuli(), w[1].stimuli());
+            x.sort();
+            y.sort();
+            assert_ne!(x, y, "a pair right after its mirror");
+        }
+    }
+}
+
+fn submit(log: &mut AnswerLog, body: serde_json::Value) -> Result<usize, (u16, String)> {
+    log.submit(&body.to_string())
+        .map(|a| a.trial)
+        .map_err(|r| (r.status, r.message))
+}
+
+/// Forged, replayed, skipped and out-of-range submissions are refused with a reason and
+/// store nothing; good ones are stored in order and survive reopening.
+#[test]
+fn the_answer_log_refuses_bad_submissions_and_stores_nothing_for_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let study = dir.path().join("study");
+    let manifest = make_study(&study, "original,smoothed,unsmoothed", 2, Task::Both);
+    let (v1, v2) = (&manifest.viewers[0], &manifest.viewers[1]);
+    let (mut log, note) = AnswerLog::open(&study, manifest.clone()).unwrap();
+    assert!(note.is_none());
+    let first_rate = v1
+        .trials
+        .iter()
+        .position(|t| matches!(t, Trial::Rate { .. }))
+        .unwrap();
+    let body = |trial: usize, extra: serde_json::Value| {
+        let mut b = serde_json::json!({"viewer": v1.id, "token": v1.token, "trial": trial});
+        b.as_object_mut()
+            .unwrap()
+            .extend(extra.as_object().unwrap().clone());
+        b
+    };
+    // Answer the judge block, then check refusals on the first rating trial.
+    for t in 0..first_rate {
+        assert_eq!(
+            submit(&mut log, body(t, serde_json::json!({"real": t % 2 == 0}))),
+            Ok(t)
+        );
+    }
+    let log_path = study.join(ANSWERS);
+    let before = std::fs::read(&log_path).unwrap();
+    let cases: Vec<(serde_json::Value, u16, &str)> = vec![
+        (
+            body(first_rate, serde_json::json!({"scores": [0, 20]})),
+            422,
+            "outside the scale",
+        ),
+        (
+            body(first_rate, serde_json::json!({"scores": [20, 51]})),
+            422,
+            "outside the scale",
+        ),
+        (
+            body(first_rate, serde_json::json!({"scores": [-3.5, 20]})),
+            422,
+            "outside the scale",
+        ),
+        (
+            body(first_rate, serde_json::json!({"real": true})),
+            422,
+            "two scores",
+        ),
+        (
+            body(first_rate, serde_json::json!({"scores": ["x", 20]})),
+            400,
+            "not an answer",
+        ),
+        (
+            body(first_rate, serde_json::json!({"scores": [20]})),
+            400,
+            "not an answer",
+        ),
+        (
+            body(first_rate, serde_json::json!({})),
+            400,
+            "not an answer",
+        ),
+        // A replay of an answered trial, and a skip ahead.
+        (
+            body(0, serde_json::json!({"real": true})),
+            409,
+            "already answered",
+        ),
+        (
+            body(first_rate + 1, serde_json::json!({"scores": [20, 20]})),
+            409,
+            "not the next",
+        ),
+        // Forged: viewer 1's answer with viewer 2's secret, another viewer's id, no secret.
+        (
+            serde_json::json!({"viewer": v1.id, "token": v2.token, "trial": first_rate, "scores": [20, 20]}),
+            403,
+            "wrong secret",
+        ),
+        (
+            serde_json::json!({"viewer": v2.id, "token": v1.token, "trial": 0, "real": true}),
+            403,
+            "wrong secret",
+        ),
+        (
+            serde_json::json!({"viewer": "v99", "token": v1.token, "trial": 0, "real": true}),
+            404,
+            "not in this study",
+        ),
+    ];
+    for (b, status, why) in cases {
+        let (code, message) = submit(&mut log, b.clone()).unwrap_err();
+        assert_eq!(code, status, "{b}: {message}");
+        assert!(message.contains(why), "{b}: {message}");
+    }
+    for raw in [
+        "",
+        "{",
+        "null",
+        "[1,2]",
+        "{\"viewer\": 1}",
+        "{\"scores\": [1e400, 2]}",
+    ] {
+        assert_eq!(log.submit(raw).unwrap_err().status, 400, "{raw}");
+    }
+    assert_eq!(
+        std::fs::read(&log_path).unwrap(),
+        before,
+        "a refusal stored something"
+    );
+    // A good answer, fractional scores at the ends of the scale.
+    assert_eq!(
+        submit(
+            &mut log,
+            body(first_rate, serde_json::json!({"scores": [1.0, 50.0]}))
+        ),
+        Ok(first_rate)
+    );
+    drop(log);
+    let (log, _) = AnswerLog::open(&study, manifest.clone()).unwrap();
+    assert_eq!(log.next_trial(&v1.id, &v1.token), Ok(first_rate + 1));
+    assert_eq!(log.next_trial(&v2.id, &v2.token), Ok(0));
+    assert_eq!(log.next_trial(&v2.id, &v1.token).unwrap_err().status, 403);
+}
+
+/// A torn last line (a crash in mid-write, never acknowledged) is left out by the analysis
+/// and cut off by the server; a damaged line in the middle is an error naming its line.
+#[test]
+fn a_torn_last_line_is_dropped_and_a_damaged_log_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let study = dir.path().join("study");
+    let manifest = make_study(&study, "original,unsmoothed", 1, Task::Turing);
+    let v = &manifest.viewers[0];
+    let (mut log, _) = AnswerLog::open(&study, manifest.clone()).unwrap();
+    for t in 0..2 {
+        let b = serde_json::json!({"viewer": v.id, "token": v.token, "trial": t, "real": true});
+        log.submit(&b.to_string()).unwrap();
+    }
+    drop(log);
+    let path = study.join(ANSWERS);
+    let whole = std::fs::read_to_string(&path).unwrap();
+    std::fs::write(&path, format!("{whole}{{\"viewer\":\"v01\",\"tri")).unwrap();
+    let report = facespace::study::analyse(&study).unwrap();
+    assert_eq!(report.answers, 2);
+    assert!(
+        report.notes.iter().any(|n| n.contains("torn last line")),
+        "{:?}",
+        report.notes
+    );
+    let (mut log, note) = AnswerLog::open(&study, manifest.clone()).unwrap();
+    assert!(note.is_some());
+    assert_eq!(
+        std::fs::read_to_string(&path).unwrap(),
+        whole,
+        "the torn line is cut off"
+    );
+    // Both trials are answered: a third answer is refused, and the log is whole lines.
+    let b = serde_json::json!({"viewer": v.id, "token": v.token, "trial": 2, "real": false});
+    let refusal = log.submit(&b.to_string()).unwrap_err();
+    assert!(
+        refusal.status == 409 && refusal.message.contains("every trial"),
+        "{refusal:?}"
+    );
+    drop(log);
+    assert_eq!(facespace::study::analyse(&study).unwrap().answers, 2);
+    // A damaged middle line.
+    let lines: Vec<&str> = whole.lines().collect();
+    std::fs::write(&path, format!("{}\n{{oops\n{}\n", lines[0], lines[1])).unwrap();
+    let err = facespace::study::analyse(&study).unwrap_err().to_string();
+    assert!(err.contains("answers.jsonl: line 2"), "{err}");
+}
+
+/// A study folder of another version, or not a study, is refused with a clear message.
+#[test]
+fn a_study_of_another_version_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let study = dir.path().join("study");
+    make_study(&study, "original,smoothed", 1, Task::Rating);
+    let path = study.join("study.json");
+    let text = std::fs::read_to_string(&path).unwrap();
+    std::fs::write(&path, text.replacen("\"version\": 1", "\"version\": 2", 1)).unwrap();
+    let err = Manifest::load(&study).unwrap_err().to_string();
+    assert!(
+        err.contains("version 2") && err.contains("reads version 1"),
+        "{err}"
+    );
+    assert!(facespace::study::StudyServer::bind(&study, "127.0.0.1:0", false).is_err());
+    std::fs::write(&path, "{\"format\": \"something else\"}").unwrap();
+    let err = Manifest::load(&study).unwrap_err().to_string();
+    assert!(err.contains("not a facespace study"), "{err}");
+    std::fs::remove_file(&path).unwrap();
+    assert!(matches!(Manifest::load(&study), Err(StudyError::Io { .. })));
+}
+
+/// Studies that cannot be made are refused before any rendering; a study with answers is
+/// never replaced.
+#[test]
+fn bad_designs_are_refused_and_answers_are_never_overwritten() {
+    assert!("blend-n0".parse::<Condition>().is_err());
+    assert!(
+        "lips"
+            .parse::<Condition>()
+            .unwrap_err()
+            .contains("unknown condition")
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let study = dir.path().join("study");
+    let manifest = make_study(&study, "original,smoothed", 1, Task::Turing);
+    let v = &manifest.viewers[0];
+    let (mut log, _) = AnswerLog::open(&study, manifest.clone()).unwrap();
+    let b = serde_json::json!({"viewer": v.id, "token": v.token, "trial": 0, "real": true});
+    log.submit(&b.to_string()).unwrap();
+    drop(log);
+    let answers = std::fs::read(study.join(ANSWERS)).unwrap();
+    let again =
+        std::panic::catch_unwind(|| make_study(&study, "original,smoothed", 1, Task::Turing));
+    assert!(again.is_err(), "a study holding answers was replaced");
+    assert_eq!(std::fs::read(study.join(ANSWERS)).unwrap(), answers);
+}
+
+/// One HTTP/1.0 request; returns (status, body).
+fn http(url: &str, method: &str, path: &str, body: &str) -> (u16, String) {
+    let host = url.trim_start_matches("http://").trim_end_matches('/');
+    let mut s = std::net::TcpStream::connect(host).unwrap();
+    std::io::Write::write_all(
+        &mut s,
+        format!(
+            "{method} {path} HTTP/1.0\r\nHost: {host}\r\nContent-Length: {}\r\n\r\n{body}",
+            body.len()
+        )
+        .as_bytes(),
+    )
+    .unwrap();
+    let mut bytes = Vec::new();
+    s.read_to_end(&mut bytes).unwrap();
+    let reply = String::from_utf8_lossy(&bytes).into_owned();
+    let status = reply[9..12].parse().unwrap();
+    let body = reply.split("\r\n\r\n").nth(1).unwrap_or("").to_owned();
+    (status, body)
+}
+
+/// The server serves only listed stimuli, answers `next` only with the viewer's secret, and
+/// refuses over HTTP what the log refuses; nothing refused reaches the disk.
+#[test]
+fn the_server_serves_only_the_study_and_refuses_forged_requests() {
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let dir = tempfile::tempdir().unwrap();
+    let study = dir.path().join("study");
+    let manifest = make_study(&study, "original,unsmoothed", 1, Task::Both);
+    let (mut server, _) =
+        facespace::study::StudyServer::bind(&study, "127.0.0.1:0", false).unwrap();
+    assert!(facespace::study::StudyServer::bind(&study, "0.0.0.0:0", false).is_err());
+    let url = server.url();
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    let handle =
+        std::thread::spawn(move || server.run(|_| {}, move || flag.load(Ordering::Relaxed)));
+    let v = &manifest.viewers[0];
+    let (code, body) = http(
+        &url,
+        "GET",
+        &format!("/api/next?viewer={}&token={}", v.id, v.token),
+        "",
+    );
+    assert_eq!(code, 200, "{body}");
+    let next: serde_json::Value = serde_json::from_str(&body).unwrap();
+    assert_eq!(
+        (next["trial"].as_u64(), next["done"].as_bool()),
+        (Some(0), Some(false))
+    );
+    let clip = next["stimuli"][0].as_str().unwrap();
+    let (code, bytes) = http(&url, "GET", clip, "");
+    assert!(code == 200 && bytes.len() > 1000);
+    for path in [
+        "/stimuli/../study.json",
+        "/stimuli/%2e%2e/study.json",
+        "/stimuli/deadbeef.mp4",
+        "/study.json",
+        "/answers.jsonl",
+    ] {
+        assert_eq!(http(&url, "GET", path, "").0, 404, "{path}");
+    }
+    assert_eq!(
+        http(
+            &url,
+            "GET",
+            &format!("/api/next?viewer={}&token=x", v.id),
+            ""
+        )
+        .0,
+        403
+    );
+    assert_eq!(http(&url, "GET", "/api/next", "").0, 404);
+    let forged =
+        serde_json::json!({"viewer": v.id, "token": "0".repeat(32), "trial": 0, "real": true});
+    assert_eq!(
+        http(&url, "POST", "/api/answer", &forged.to_string()).0,
+        403
+    );
+    assert_eq!(
+        http(&url, "POST", "/api/answer", &"x".repeat(2 << 20)).0,
+        400
+    );
+    assert!(
+        !study.join(ANSWERS).exists() || std::fs::read(study.join(ANSWERS)).unwrap().is_empty()
+    );
+    let good = serde_json::json!({"viewer": v.id, "token": v.token, "trial": 0, "real": true});
+    assert_eq!(http(&url, "POST", "/api/answer", &good.to_string()).0, 200);
+    assert_eq!(
+        http(&url, "POST", "/api/answer", &good.to_string()).0,
+        409,
+        "a replay"
+    );
+    stop.store(true, Ordering::Relaxed);
+    handle.join().unwrap();
+    assert_eq!(
+        std::fs::read_to_string(study.join(ANSWERS))
+            .unwrap()
+            .lines()
+            .count(),
+        1
+    );
+}
+
+// --- The whole study through the real binary and a headless Chromium. -------------------
+
+fn chromium() -> Option<&'static str> {
+    ["chromium", "chromium-browser", "google-chrome"]
+        .into_iter()
+        .find(|b| {
+            std::process::Command::new(b)
+                .arg("--version")
+                .output()
+                .is_ok_and(|o| o.status.success())
+        })
+}
+
+/// `facespace study serve DIR` on a free port; returns the child and each viewer's link.
+fn serve(study: &Path) -> (std::process::Child, Vec<String>) {
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_facespace"))
+        .args([
+            "study",
+            "serve",
+            study.to_str().unwrap(),
+            "--listen",
+            "127.0.0.1:0",
+        ])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut out = child.stdout.take().unwrap();
+    let mut text = String::new();
+    let mut byte = [0u8; 1];
+    while !text.contains("(Ctrl+C") {
+        assert_eq!(
+            out.read(&mut byte).unwrap(),
+            1,
+            "the server stopped: {text}"
+        );
+        text.push(byte[0] as char);
+    }
+    // Keep reading (and dropping) its log so the pipe never fills.
+    std::thread::spawn(move || std::io::copy(&mut out, &mut std::io::sink()));
+    let links = text
+        .lines()
+        .filter_map(|l| {
+            l.trim()
+                .split_once(": http")
+                .map(|(_, u)| format!("http{u}"))
+        })
+        .collect();
+    (child, links)
+}
+
+/// Runs the page at `link&auto=K`; returns its report line.
+fn browse(browser: &str, link: &str, auto: &str) -> String {
+    let profile = tempfile::tempdir().unwrap();
+    let out = std::process::Command::new(browser)
+        .args([
+            "--headless=new",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--autoplay-policy=no-user-gesture-required",
+            "--virtual-time-budget=60000",
+            &format!("--user-data-dir={}", profile.path().display()),
+            "--dump-dom",
+            &format!("{link}&auto={auto}"),
+        ])
+        .output()
+        .unwrap();
+    let dom = String::from_utf8_lossy(&out.stdout);
+    dom.split("<pre id=\"auto\">")
+        .nth(1)
+        .and_then(|s| s.split("</pre>").next())
+        .unwrap_or_else(|| {
+            panic!(
+                "the page did not finish: {dom}\n{}",
+                String::from_utf8_lossy(&out.stderr)
+            )
+        })
+        .to_owned()
+}
+
+/// What the page's `?auto` mode answers at trial `i` (page.html: `auto`).
+fn auto_answer(trial: &Trial, i: usize) -> Response {
+    match trial {
+        Trial::Rate { .. } => Response::Scores {
+            scores: [
+                (1 + (7 * i + 3) % 50) as f64,
+                (1 + (11 * i + 20) % 50) as f64,
+            ],
+        },
+        Trial::Judge { .. } => Response::Judgement {
+            real: i.is_multiple_of(3),
+        },
+    }
+}
+
+/// A short study answered in a real browser by two viewers, the server killed (-9) and
+/// restarted after viewer 1's fifth answer: the page resumes at trial 5, every answer is
+/// stored once and in order, and `study analyse` gives the statistics of those answers.
+#[test]
+fn headless_chromium_answers_a_study_across_a_server_crash() {
+    let Some(browser) = chromium() else {
+        eprintln!("skipped: no Chromium on PATH (.ci/run installs the distribution's package)");
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let study = dir.path().join("study");
+    let manifest = make_study(
+        &study,
+        "original,smoothed,unsmoothed,random-lips",
+        2,
+        Task::Both,
+    );
+    let (mut server, links) = serve(&study);
+    assert_eq!(links.len(), 2, "{links:?}");
+    assert_eq!(
+        browse(browser, &links[0], "5"),
+        "AUTO DONE start=0 answered=5 done=false"
+    );
+    server.kill().unwrap();
+    server.wait().unwrap();
+    let (mut server, links) = serve(&study);
+    let total = manifest.viewers[0].trials.len();
+    assert_eq!(
+        browse(browser, &links[0], "all"),
+        format!("AUTO DONE start=5 answered={} done=true", total - 5)
+    );
+    let total2 = manifest.viewers[1].trials.len();
+    assert_eq!(
+        browse(browser, &links[1], "all"),
+        format!("AUTO DONE start=0 answered={total2} done=true")
+    );
+    server.kill().unwrap();
+    server.wait().unwrap();
+
+    // Every trial answered once, in order, with what the page gave.
+    let (stored, note) = facespace::study::answers::read(&study, &manifest).unwrap();
+    assert!(note.is_none());
+    assert_eq!(stored.len(), total + total2);
+    for v in &manifest.viewers {
+        let mine: Vec<_> = stored.iter().filter(|a| a.viewer == v.id).collect();
+        assert_eq!(mine.len(), v.trials.len());
+        for (i, (a, t)) in mine.iter().zip(&v.trials).enumerate() {
+            assert_eq!(a.trial, i);
+            assert_eq!(a.response, auto_answer(t, i), "{} trial {i}", v.id);
+        }
+    }
+
+    // The analysis, checked against the statistics computed here from the same answers.
+    let report_dir = dir.path().join("report");
+    let out = common::facespace(&[
+        "study",
+        "analyse",
+        study.to_str().unwrap(),
+        "-o",
+        report_dir.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", common::text(&out));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(report_dir.join("report.json")).unwrap())
+            .unwrap();
+    assert!(report_dir.join("scores.png").is_file() && report_dir.join("report.md").is_file());
+    assert_eq!(report["answers"], total + total2);
+    assert_eq!(report["complete_viewers"], 2);
+    let condition = |id: &str| manifest.stimulus(id).unwrap().condition;
+    // smoothed vs unsmoothed, pooled: score of smoothed − score of unsmoothed per trial.
+    let (mut a, mut b) = (Vec::new(), Vec::new());
+    let (mut correct, mut judged) = (0, 0);
+    for v in &manifest.viewers {
+        for (i, t) in v.trials.iter().enumerate() {
+            match (t, auto_answer(t, i)) {
+                (Trial::Rate { first, second }, Response::Scores { scores }) => {
+                    match (condition(first), condition(second)) {
+                        (Condition::Smoothed, Condition::Unsmoothed) => {
+                            a.push(scores[0] / 10.0);
+                            b.push(scores[1] / 10.0);
+                        }
+                        (Condition::Unsmoothed, Condition::Smoothed) => {
+                            a.push(scores[1] / 10.0);
+                            b.push(scores[0] / 10.0);
+                        }
+                        _ => {}
+                    }
+                }
+                (Trial::Judge { stimulus }, Response::Judgement { real }) => {
+                    judged += 1;
+                    correct += usize::from(condition(stimulus).is_real() == real);
+                }
+                _ => unreachable!(),
+            }
+        }
+    }
+    let expected = stats::wilcoxon(&a, &b).unwrap();
+    let pair = report["pairs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|p| p["first"] == "smoothed" && p["second"] == "unsmoothed")
+        .unwrap();
+    assert_eq!(pair["pooled"]["n"], a.len());
+    assert!(close(
+        pair["pooled"]["w"].as_f64().unwrap(),
+        expected.w,
+        1e-12
+    ));
+    assert!(close(
+        pair["pooled"]["p"].as_f64().unwrap(),
+        expected.p,
+        1e-12
+    ));
+    assert_eq!(pair["per_viewer"].as_array().unwrap().len(), 2);
+    let turing = &report["turing"]["overall"];
+    assert_eq!(
+        (turing["k"].as_u64(), turing["n"].as_u64()),
+        (Some(correct as u64), Some(judged as u64))
+    );
+    let expected = stats::binomial(correct, judged).unwrap();
+    assert!(close(turing["low"].as_f64().unwrap(), expected.low, 1e-12));
+    assert!(report["kruskal"]["h"].as_f64().unwrap() >= 0.0);
 }

@@ -47,7 +47,11 @@ pub struct CreateArgs {
     heldout: PathBuf,
     /// Conditions: original, blend-nN, random-lips, unit, smoothed, unsmoothed (the default
     /// blend C=1 N=3 with and without smoothing).
-    #[arg(long, value_delimiter = ',', default_value = "original,blend-n1,blend-n3,blend-n5,random-lips,unit,smoothed,unsmoothed")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "original,blend-n1,blend-n3,blend-n5,random-lips,unit,smoothed,unsmoothed"
+    )]
     conditions: Vec<String>,
     /// Viewers, each with their own order and link.
     #[arg(long, default_value_t = 10)]
@@ -129,8 +133,16 @@ fn create(a: CreateArgs) -> Result<()> {
     };
     let renderer = a.renderer.make(&model, None)?;
     let (bar, progress) = progress_bar();
-    let manifest = study::create(&a.output, &model, &cb, &heldout, renderer.as_ref(), &options, progress)
-        .with_context(|| format!("creating study {}", a.output.display()))?;
+    let manifest = study::create(
+        &a.output,
+        &model,
+        &cb,
+        &heldout,
+        renderer.as_ref(),
+        &options,
+        progress,
+    )
+    .with_context(|| format!("creating study {}", a.output.display()))?;
     bar.finish_and_clear();
     let with_sound = manifest.stimuli.iter().filter(|s| s.audio).count();
     println!(
@@ -142,7 +154,10 @@ fn create(a: CreateArgs) -> Result<()> {
         manifest.viewers.len(),
         manifest.viewers.first().map_or(0, |v| v.trials.len()),
     );
-    println!("serve it with: facespace study serve {}", a.output.display());
+    println!(
+        "serve it with: facespace study serve {}",
+        a.output.display()
+    );
     Ok(())
 }
 
@@ -152,7 +167,11 @@ fn serve(a: ServeArgs) -> Result<()> {
     if let Some(note) = note {
         eprintln!("note: {note}");
     }
-    println!("study {} at {} — each viewer's link:", a.dir.display(), server.url());
+    println!(
+        "study {} at {} — each viewer's link:",
+        a.dir.display(),
+        server.url()
+    );
     for (viewer, link) in server.links() {
         println!("  {viewer}: {link}");
     }
@@ -168,10 +187,14 @@ fn serve(a: ServeArgs) -> Result<()> {
 }
 
 fn analyse(a: AnalyseArgs) -> Result<()> {
-    let report = study::analyse(&a.dir).with_context(|| format!("analysing {}", a.dir.display()))?;
+    let report =
+        study::analyse(&a.dir).with_context(|| format!("analysing {}", a.dir.display()))?;
     write_report(&a.output, &report)
         .with_context(|| format!("writing report {}", a.output.display()))?;
     print!("{}", report.markdown());
-    println!("\nwritten: {}/report.{{json,md}}, scores.png", a.output.display());
+    println!(
+        "\nwritten: {}/report.{{json,md}}, scores.png",
+        a.output.display()
+    );
     Ok(())
 }

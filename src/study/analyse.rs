@@ -149,9 +149,11 @@ pub fn report(manifest: &Manifest, answers: &[Answer]) -> Report {
                         by_condition[i].push(s * TO_ITU);
                     }
                 }
-                if let Some(p) = manifest.pairs.iter().position(|&(f, g)| {
-                    (f, g) == (*x, *y) || (f, g) == (*y, *x)
-                }) {
+                if let Some(p) = manifest
+                    .pairs
+                    .iter()
+                    .position(|&(f, g)| (f, g) == (*x, *y) || (f, g) == (*y, *x))
+                {
                     let (first, second) = if manifest.pairs[p].0 == *x {
                         (scores[0], scores[1])
                     } else {
@@ -200,7 +202,11 @@ pub fn report(manifest: &Manifest, answers: &[Answer]) -> Report {
             }
         })
         .collect();
-    let rated: Vec<Vec<f64>> = by_condition.iter().filter(|g| !g.is_empty()).cloned().collect();
+    let rated: Vec<Vec<f64>> = by_condition
+        .iter()
+        .filter(|g| !g.is_empty())
+        .cloned()
+        .collect();
     let kruskal = if rated.len() == by_condition.len() {
         stats::kruskal(&rated)
     } else {
@@ -283,7 +289,12 @@ impl Report {
             "# Subjective study\n\n{} answers of {} expected; {} of {} viewers complete. Scores on the ITU 1–5 scale (the 1–50 slider ÷ 10).\n",
             self.answers, self.expected, self.complete_viewers, self.viewers
         );
-        let p = |w: &Wilcoxon| format!("{} | {} | {} | {:.4} | {:.2} | {}", w.n, w.nonzero, w.w, w.p, w.z, w.method);
+        let p = |w: &Wilcoxon| {
+            format!(
+                "{} | {} | {} | {:.4} | {:.2} | {}",
+                w.n, w.nonzero, w.w, w.p, w.z, w.method
+            )
+        };
         if !self.pairs.is_empty() {
             let _ = writeln!(
                 s,
@@ -323,9 +334,9 @@ impl Report {
                 "| condition | n | mean | median | mean rank | Z |\n|---|---|---|---|---|---|"
             );
             for c in &self.conditions {
-                let (rank, z) = c
-                    .rank
-                    .map_or(("–".into(), "–".into()), |r| (format!("{:.1}", r.mean_rank), format!("{:.2}", r.z)));
+                let (rank, z) = c.rank.map_or(("–".into(), "–".into()), |r| {
+                    (format!("{:.1}", r.mean_rank), format!("{:.2}", r.z))
+                });
                 let _ = writeln!(
                     s,
                     "| {} | {} | {:.2} | {:.2} | {rank} | {z} |",
@@ -349,10 +360,19 @@ impl Report {
                 let _ = writeln!(
                     s,
                     "{}",
-                    row(&r.condition.to_string(), r.n, r.judged_real.to_string(), &r.correct)
+                    row(
+                        &r.condition.to_string(),
+                        r.n,
+                        r.judged_real.to_string(),
+                        &r.correct
+                    )
                 );
             }
-            let _ = writeln!(s, "{}\n", row("**all**", t.overall.n, "".into(), &t.overall));
+            let _ = writeln!(
+                s,
+                "{}\n",
+                row("**all**", t.overall.n, "".into(), &t.overall)
+            );
         }
         let _ = writeln!(s, "## Notes\n");
         for n in &self.notes {

@@ -224,19 +224,23 @@ impl AnswerLog {
     /// Checks and stores a submission (`{"viewer", "token", "trial", "scores": [a, b]}` or
     /// `{…, "real": bool}`); returns the stored answer once it is on disk.
     pub fn submit(&mut self, body: &str) -> Result<Answer, Refusal> {
-        let s: Submission = serde_json::from_str(body)
-            .map_err(|e| refuse(400, format!("not an answer: {e}")))?;
+        let s: Submission =
+            serde_json::from_str(body).map_err(|e| refuse(400, format!("not an answer: {e}")))?;
         let v = self.viewer_index(&s.viewer, &s.token)?;
         let viewer = &self.manifest.viewers[v];
         let next = self.next[v];
+        if next == viewer.trials.len() {
+            return Err(refuse(
+                409,
+                format!("viewer {} has answered every trial", viewer.id),
+            ));
+        }
         if s.trial != next {
             let why = if s.trial < next {
                 format!(
                     "trial {} of viewer {} is already answered (answers are final)",
                     s.trial, viewer.id
                 )
-            } else if next == viewer.trials.len() {
-                format!("viewer {} has answered every trial", viewer.id)
             } else {
                 format!(
                     "trial {} of viewer {} is not the next one ({next})",

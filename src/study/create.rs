@@ -235,7 +235,7 @@ fn condition_frames(
     let synth_error = |source| StudyError::Synth {
         sentence: sentence.name.clone(),
         condition: c,
-        source,
+        source: Box::new(source),
     };
     let u = synthesise(synth.as_ref(), codebook, request).map_err(synth_error)?;
     Ok(u.variants()[0].1.clone())
@@ -246,7 +246,10 @@ fn check(options: &CreateOptions, heldout: &[Heldout]) -> Result<(), StudyError>
     let design = |m: String| Err(StudyError::Design(m));
     let c = &options.conditions;
     if c.len() < 2 {
-        return design(format!("{} condition(s): a study compares at least two", c.len()));
+        return design(format!(
+            "{} condition(s): a study compares at least two",
+            c.len()
+        ));
     }
     if let Some(dup) = c.iter().find(|x| c.iter().filter(|y| y == x).count() > 1) {
         return design(format!("condition {dup} given twice"));
@@ -347,8 +350,12 @@ pub fn create(
                     total: planned.len(),
                 });
                 let path = folder.join(stimulus.file_name());
-                render_clip(&path, renderer, frames, (width, height), *audio)
-                    .map_err(|source| StudyError::Render { path, source })?;
+                render_clip(&path, renderer, frames, (width, height), *audio).map_err(
+                    |source| StudyError::Render {
+                        path,
+                        source: Box::new(source),
+                    },
+                )?;
             }
             let json = serde_json::to_vec_pretty(&manifest).expect("the manifest serialises");
             atomic::write_file(&staged.join(MANIFEST), &json).map_err(io)

@@ -6,8 +6,8 @@
 //!   smoothed with unsmoothed. Every pair is shown both ways round to every viewer.
 //! * Turing test (\[unitsel\]): one clip at a time, "real or synthetic?".
 //!
-//! [`create`] renders the stimuli and each viewer's randomised order into a study folder,
-//! [`serve`] collects answers into an append-only log (fsync per answer), [`analyse`] tests
+//! [`create()`] renders the stimuli and each viewer's randomised order into a study folder,
+//! [`serve`] collects answers into an append-only log (fsync per answer), [`analyse()`] tests
 //! them ([`stats`]: Wilcoxon signed-rank, Kruskal–Wallis, exact binomial).
 
 pub mod analyse;
@@ -72,7 +72,7 @@ pub enum StudyError {
         /// The condition.
         condition: Condition,
         /// The cause.
-        source: crate::synth::SynthError,
+        source: Box<crate::synth::SynthError>,
     },
     /// Rendering or writing a stimulus failed.
     #[error("rendering {path}: {source}")]
@@ -80,7 +80,7 @@ pub enum StudyError {
         /// The stimulus file.
         path: PathBuf,
         /// The cause.
-        source: crate::synth::output::OutputError,
+        source: Box<crate::synth::output::OutputError>,
     },
     /// The report's plot could not be written.
     #[error(transparent)]
@@ -299,9 +299,11 @@ impl Manifest {
                 ),
             ));
         }
-        let manifest: Manifest = serde_json::from_value(value)
-            .map_err(|e| StudyError::invalid(&path, e.to_string()))?;
-        manifest.check().map_err(|m| StudyError::invalid(&path, m))?;
+        let manifest: Manifest =
+            serde_json::from_value(value).map_err(|e| StudyError::invalid(&path, e.to_string()))?;
+        manifest
+            .check()
+            .map_err(|m| StudyError::invalid(&path, m))?;
         Ok(manifest)
     }
 

@@ -109,7 +109,10 @@ fn sign_flip_p(ranks: &[f64], w_plus: f64) -> f64 {
     let gamma = (100.0 * f64::EPSILON * w_plus).abs();
     let (mut less, mut greater) = (0u64, 0u64);
     for mask in 0u64..(1 << m) {
-        let s: f64 = (0..m).filter(|i| mask >> i & 1 == 1).map(|i| ranks[i]).sum();
+        let s: f64 = (0..m)
+            .filter(|i| mask >> i & 1 == 1)
+            .map(|i| ranks[i])
+            .sum();
         less += u64::from(s <= w_plus + gamma);
         greater += u64::from(s >= w_plus - gamma);
     }
@@ -232,7 +235,11 @@ pub fn binomial(k: usize, n: usize) -> Option<Binomial> {
     }
     let pmf = binomial_pmf(n, 0.5);
     let threshold = pmf[k] * (1.0 + 1e-7);
-    let p = pmf.iter().filter(|&&q| q <= threshold).sum::<f64>().min(1.0);
+    let p = pmf
+        .iter()
+        .filter(|&&q| q <= threshold)
+        .sum::<f64>()
+        .min(1.0);
     let alpha = 0.025;
     // P(X ≥ k | q) rises with q; P(X ≤ k | q) falls with it.
     let low = if k == 0 {
