@@ -112,6 +112,25 @@ fn conditions(s: &str) -> Vec<Condition> {
 /// A study of one held-out demo sentence (the codebook from the demo corpus's training split)
 /// with `viewers` viewers, written to `dir`.
 fn make_study(dir: &Path, conds: &str, viewers: usize, task: Task) -> Manifest {
+    make_study_with(dir, conds, viewers, task, None)
+}
+
+fn make_study_with(
+    dir: &Path,
+    conds: &str,
+    viewers: usize,
+    task: Task,
+    audio: Option<&Path>,
+) -> Manifest {
+    let (model, cb, mut heldout) = fixture();
+    for h in &mut heldout {
+        h.audio = audio.map(Path::to_path_buf);
+    }
+    create(dir, &model, &cb, &heldout, conds, viewers, task).unwrap()
+}
+
+/// The demo model, a codebook of the demo corpus's training split, one test sentence.
+fn fixture() -> (FaceModel, Codebook, Vec<Heldout>) {
     let model = FaceModel::load(&common::root().join("models/demo/model")).unwrap();
     let frames = load_training_set(&common::root().join("models/demo/training"), None).unwrap();
     let generated = corpus::generate(&model, &frames, &CorpusOptions::default()).unwrap();
@@ -126,13 +145,25 @@ fn make_study(dir: &Path, conds: &str, viewers: usize, task: Task) -> Manifest {
     .unwrap();
     let mut test = generated.part(Split::Test);
     test.truncate(1);
-    let heldout: Vec<Heldout> = test
+    let heldout = test
         .into_iter()
         .map(|sentence| Heldout {
             sentence,
             audio: None,
         })
         .collect();
+    (model, cb, heldout)
+}
+
+fn create(
+    dir: &Path,
+    model: &FaceModel,
+    cb: &Codebook,
+    heldout: &[Heldout],
+    conds: &str,
+    viewers: usize,
+    task: Task,
+) -> Result<Manifest, StudyError> {
     let options = CreateOptions {
         conditions: conditions(conds),
         viewers,
@@ -143,14 +174,13 @@ fn make_study(dir: &Path, conds: &str, viewers: usize, task: Task) -> Manifest {
     };
     facespace::study::create(
         dir,
-        &model,
-        &cb,
-        &heldout,
-        &CpuRenderer::new(&model),
+        model,
+        cb,
+        heldout,
+        &CpuRenderer::new(model),
         &options,
         facespace::no_progress,
     )
-    .unwrap()
 }
 
 #[test]
@@ -415,6 +445,29 @@ fn a_torn_last_line_is_dropped_and_a_damaged_log_is_refused() {
     assert!(err.contains("answers.jsonl: line 2"), "{err}");
 }
 
+/// A sentence with sound gets it muxed into every stimulus; a study without answers is not
+/// analysed (most likely the wrong folder).
+#[test]
+fn stimuli_carry_the_sentence_sound_and_an_unanswered_study_is_not_analysed() {
+    let dir = tempfile::tempdir().unwrap();
+    let sound = dir.path().join("demo.m4a");
+    let input = common::root().join("tests/data/video/high_bframes_aac.mp4");
+    assert!(facespace::video::extract_audio(&input, &sound).unwrap());
+    let study = dir.path().join("study");
+    let manifest = make_study_with(&study, "original,unsmoothed", 1, Task::Rating, Some(&sound));
+    for s in &manifest.stimuli {
+        assert!(s.audio);
+        let bytes = std::fs::read(study.join("stimuli").join(s.file_name())).unwrap();
+        assert!(
+            bytes.windows(4).any(|w| w == b"soun"),
+            "no sound track in {}",
+            s.id
+        );
+    }
+    let err = facespace::study::analyse(&study).unwrap_err().to_string();
+    assert!(err.contains("no answers stored yet"), "{err}");
+}
+
 /// A study folder of another version, or not a study, is refused with a clear message.
 #[test]
 fn a_study_of_another_version_is_refused() {
@@ -457,10 +510,43 @@ fn bad_designs_are_refused_and_answers_are_never_overwritten() {
     log.submit(&b.to_string()).unwrap();
     drop(log);
     let answers = std::fs::read(study.join(ANSWERS)).unwrap();
-    let again =
-        std::panic::catch_unwind(|| make_study(&study, "original,smoothed", 1, Task::Turing));
+    let (model, cb, heldout) = fixture();
+    let again = create(
+        &study,
+        &model,
+        &cb,
+        &heldout,
+        "original,smoothed",
+        1,
+        Task::Turing,
+    );
     assert!(again.is_err(), "a study holding answers was replaced");
     assert_eq!(std::fs::read(study.join(ANSWERS)).unwrap(), answers);
+    // Designs refused before any rendering (the folder is never created).
+    let fresh = dir.path().join("fresh");
+    for (conds, viewers, task, why) in [
+        ("smoothed,unsmoothed", 1, Task::Turing, "needs the original"),
+        ("smoothed,unsmoothed", 1, Task::Both, "needs the original"),
+        ("original", 1, Task::Rating, "at least two"),
+        ("original,unit,original", 1, Task::Rating, "given twice"),
+        ("original,unit", 0, Task::Rating, "viewers"),
+    ] {
+        let err = create(&fresh, &model, &cb, &heldout, conds, viewers, task)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains(why), "{conds}: {err}");
+        assert!(!fresh.exists());
+    }
+    let err = create(&fresh, &model, &cb, &[], "original,unit", 1, Task::Rating).unwrap_err();
+    assert!(err.to_string().contains("no held-out"), "{err}");
+    // A held-out sentence that is also in the codebook.
+    let held = dir.path().join("held");
+    std::fs::create_dir(&held).unwrap();
+    let s = &cb.sentences[0];
+    facespace::npy::write(&held.join(format!("{}.npy", s.name)), s.frames.values()).unwrap();
+    facespace::phonemes::write_labels(&held.join(format!("{}.lab", s.name)), &s.segments).unwrap();
+    let err = facespace::study::create::load_heldout(&held, &cb, &model.hash()).unwrap_err();
+    assert!(err.to_string().contains("also in the codebook"), "{err}");
 }
 
 /// One HTTP/1.0 request; returns (status, body).

@@ -127,6 +127,12 @@ fn median(v: &[f64]) -> f64 {
 pub fn analyse(dir: &Path) -> Result<Report, StudyError> {
     let manifest = Manifest::load(dir)?;
     let (stored, note) = answers::read(dir, &manifest)?;
+    if stored.is_empty() {
+        return Err(StudyError::invalid(
+            &dir.join(super::ANSWERS),
+            "no answers stored yet: serve the study (facespace study serve) and send the viewers their links first",
+        ));
+    }
     let mut report = report(&manifest, &stored);
     report.notes.extend(note);
     Ok(report)
