@@ -40,7 +40,15 @@ pub fn staging_file(path: &Path) -> io::Result<tempfile::NamedTempFile> {
     std::fs::create_dir_all(dir)?;
     clean_stale(dir);
     let _creating = CREATING.lock().unwrap_or_else(|e| e.into_inner());
-    let tmp = tempfile::Builder::new().prefix(STAGING).tempfile_in(dir)?;
+    // The destination's extension kept: a tool writing it (ffmpeg) picks its format by it.
+    let suffix = path
+        .extension()
+        .map(|e| format!(".{}", e.to_string_lossy()))
+        .unwrap_or_default();
+    let tmp = tempfile::Builder::new()
+        .prefix(STAGING)
+        .suffix(&suffix)
+        .tempfile_in(dir)?;
     lock(tmp.as_file());
     Ok(tmp)
 }

@@ -29,7 +29,7 @@ enum SinkKind {
     Ffmpeg(
         Child,
         y4m::Writer<BufWriter<ChildStdin>>,
-        tempfile::TempPath,
+        tempfile::NamedTempFile,
     ),
 }
 
@@ -80,14 +80,11 @@ impl Sink {
                 })?;
                 SinkKind::Mp4(Box::new(w), track)
             }
-            ext => {
+            _ => {
                 let ffmpeg = system_ffmpeg().ok_or_else(|| VideoError::NeedsFfmpeg(path.into()))?;
-                let tmp = tempfile::Builder::new()
-                    .prefix(".tmp-")
-                    .suffix(&format!(".{ext}"))
-                    .tempfile_in(parent)
-                    .map_err(io_error(parent))?
-                    .into_temp_path();
+                // Staged and locked like every other output: a killed run's file is ours
+                // to clean, and it is renamed into place only once ffmpeg succeeds.
+                let tmp = crate::atomic::staging_file(path).map_err(io_error(parent))?;
                 let mut cmd = Command::new(ffmpeg);
                 cmd.args(["-v", "error", "-y", "-f", "yuv4mpegpipe", "-i", "-"]);
                 if let Some(a) = audio {
@@ -97,7 +94,7 @@ impl Sink {
                 }
                 let mut child = cmd
                     .args(["-pix_fmt", "yuv420p"])
-                    .arg(&tmp)
+                    .arg(tmp.path())
                     .stdin(Stdio::piped())
                     .stderr(Stdio::null())
                     .spawn()
@@ -216,7 +213,7 @@ impl Sink {
                         status: status.to_string(),
                     });
                 }
-                tmp.persist(&path).map_err(|e| io(e.error))?;
+                crate::atomic::persist(tmp, &path).map_err(&io)?;
             }
         }
         Ok(frames)
