@@ -537,3 +537,27 @@ fn fuzz_study_folder() {
         }),
     });
 }
+
+/// The cases the long runs found, kept in `tests/data/fuzz/` (named `READER-what.ext`): each
+/// must now be a typed error within the time limit.
+#[test]
+fn found_cases_are_errors() {
+    let dir = common::root().join("tests/data/fuzz");
+    let mut found = 0;
+    for e in std::fs::read_dir(&dir).unwrap() {
+        let path = e.unwrap().path();
+        let (tx, rx) = mpsc::channel();
+        let p = path.clone();
+        std::thread::spawn(move || {
+            let _ = tx.send(decode_some(&p));
+        });
+        let outcome = rx.recv_timeout(CASE_LIMIT);
+        assert!(
+            matches!(outcome, Ok(Err(_))),
+            "{}: {outcome:?}",
+            path.display()
+        );
+        found += 1;
+    }
+    assert!(found >= 1);
+}

@@ -113,8 +113,15 @@ fn children(body: &[u8], parent: &str, depth: usize) -> Result<(), Mp4Error> {
         let (size, header, kind) =
             box_header(&body[at..(at + 16).min(body.len())], room as u64, false)?;
         let content = &body[at + header as usize..at + size as usize];
-        if CONTAINERS.contains(&&kind) {
-            children(content, &String::from_utf8_lossy(&kind), depth + 1)?;
+        let name = String::from_utf8_lossy(&kind);
+        // Metadata the crate also walks (udta → meta → ilst → items → data): a zero-sized
+        // box there made it loop forever (found by the fuzz suite).
+        if CONTAINERS.contains(&&kind) || parent == "ilst" || &kind == b"udta" || &kind == b"ilst" {
+            children(content, &name, depth + 1)?;
+        } else if &kind == b"meta" {
+            // ISO meta is a full box (4 bytes of version and flags); QuickTime's is not.
+            let full = content.len() >= 4 && content[..4] == [0, 0, 0, 0];
+            children(&content[if full { 4 } else { 0 }..], &name, depth + 1)?;
         } else {
             leaf(&kind, content)?;
         }
