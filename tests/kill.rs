@@ -89,3 +89,155 @@ fn killed_model_builds_and_encodes_leave_whole_outputs() {
         },
     );
 }
+
+/// Frames in a video or frame folder.
+fn frame_count(path: &Path) -> usize {
+    facespace::video::Source::open(path)
+        .unwrap_or_else(|e| panic!("damaged video: {e}"))
+        .map(|f| f.unwrap_or_else(|e| panic!("damaged frame: {e}")))
+        .count()
+}
+
+#[test]
+fn killed_decodes_tracks_and_synthesis_leave_whole_outputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |name: &str| dir.path().join(name).to_str().unwrap().to_owned();
+    let clip = common::root().join("tests/data/clip");
+    let init = clip.join("01000.pts");
+    let run = |args: &[&str]| {
+        let o = common::facespace(args);
+        assert!(o.status.success(), "{}", common::text(&o));
+    };
+    run(&[
+        "encode",
+        clip.to_str().unwrap(),
+        "--init",
+        init.to_str().unwrap(),
+        "-o",
+        &p("clip.fsp"),
+    ]);
+    for out in ["decoded.mp4", "decoded"] {
+        let target = dir.path().join(out);
+        killed_runs(
+            &["decode", &p("clip.fsp"), "-o", &p(out), "--renderer", "cpu"],
+            &target,
+            |v| {
+                assert_eq!(frame_count(v), 50);
+            },
+        );
+    }
+    let tracked = dir.path().join("tracked");
+    killed_runs(
+        &[
+            "track",
+            clip.to_str().unwrap(),
+            "--init",
+            init.to_str().unwrap(),
+            "-o",
+            &p("tracked"),
+        ],
+        &tracked,
+        |t| {
+            let n = std::fs::read_dir(t).unwrap().filter(|e| {
+                e.as_ref()
+                    .unwrap()
+                    .path()
+                    .extension()
+                    .is_some_and(|x| x == "pts")
+            });
+            assert_eq!(n.count(), 50);
+        },
+    );
+    let corpus = dir.path().join("corpus");
+    killed_runs(&["corpus", "demo", "-o", &p("corpus")], &corpus, |c| {
+        for split in ["train", "validation", "heldout"] {
+            assert!(c.join(split).is_dir(), "no {split}/");
+        }
+        let train = std::fs::read_dir(c.join("train")).unwrap().count();
+        assert_eq!(train, 48 * 3, "train/ holds {train} files");
+    });
+    let model = common::root().join("models/demo/model");
+    let cb = dir.path().join("cb");
+    killed_runs(
+        &[
+            "codebook",
+            "build",
+            "--model",
+            model.to_str().unwrap(),
+            "--corpus",
+            &p("corpus/train"),
+            "-o",
+            &p("cb"),
+        ],
+        &cb,
+        |c| {
+            let loaded = facespace::codebook::Codebook::load(c)
+                .unwrap_or_else(|e| panic!("damaged codebook: {e}"));
+            assert_eq!(loaded.sentences.len(), 48);
+        },
+    );
+    let labels = dir.path().join("corpus/heldout/demo55.lab");
+    let synth = dir.path().join("synth");
+    killed_runs(
+        &[
+            "synth",
+            "--codebook",
+            &p("cb"),
+            "--labels",
+            labels.to_str().unwrap(),
+            "--renderer",
+            "cpu",
+            "-o",
+            &p("synth"),
+        ],
+        &synth,
+        |s| {
+            let report: serde_json::Value =
+                serde_json::from_str(&std::fs::read_to_string(s.join("report.json")).unwrap())
+                    .unwrap();
+            let n = report["frames"].as_u64().unwrap() as usize;
+            assert_eq!(frame_count(&s.join("video.mp4")), n);
+            assert_eq!(frame_count(&s.join("frames")), n);
+        },
+    );
+    let held = dir.path().join("held");
+    std::fs::create_dir(&held).unwrap();
+    for ext in ["npy", "lab"] {
+        std::fs::copy(
+            dir.path().join(format!("corpus/heldout/demo55.{ext}")),
+            held.join(format!("demo55.{ext}")),
+        )
+        .unwrap();
+    }
+    let study = dir.path().join("study");
+    killed_runs(
+        &[
+            "study",
+            "create",
+            "--codebook",
+            &p("cb"),
+            "--heldout",
+            &p("held"),
+            "--conditions",
+            "original,smoothed,unsmoothed",
+            "--viewers",
+            "2",
+            "--renderer",
+            "cpu",
+            "-o",
+            &p("study"),
+        ],
+        &study,
+        |s| {
+            let m = facespace::study::Manifest::load(s)
+                .unwrap_or_else(|e| panic!("damaged study: {e}"));
+            assert_eq!(m.stimuli.len(), 3);
+            for st in &m.stimuli {
+                assert_eq!(
+                    frame_count(&s.join("stimuli").join(st.file_name())),
+                    st.frames
+                );
+            }
+        },
+    );
+}
