@@ -174,6 +174,18 @@ fn leaf(kind: &[u8; 4], content: &[u8]) -> Result<(), Mp4Error> {
                 content.len()
             )));
         }
+        if kind == b"stsc" {
+            // Each entry: first chunk (1-based), samples per chunk, description index; a zero
+            // samples-per-chunk made the crate divide by zero (found by the fuzz suite).
+            for e in 0..count as usize {
+                let at = fixed + 12 * e;
+                if u32_at(at) == Some(0) || u32_at(at + 4) == Some(0) {
+                    return Err(malformed(format!(
+                        "stsc entry {e} has a zero first chunk or samples per chunk"
+                    )));
+                }
+            }
+        }
         if kind == b"stts" && count == 0 {
             return Err(malformed(
                 "stts box has no entries (no sample timing)".into(),
