@@ -83,7 +83,7 @@ pub fn read_versions<T: DeserializeOwned>(
     if !meta.is_file() {
         return Err(invalid("not a regular file".into()));
     }
-    let text = std::fs::read_to_string(path).map_err(|source| ManifestError::Io {
+    let text = read_regular_string(path).map_err(|source| ManifestError::Io {
         path: path.into(),
         source,
     })?;
@@ -128,6 +128,45 @@ pub fn member(dir: &Path, name: &str) -> Result<PathBuf, ManifestError> {
             name: name.into(),
         })
     }
+}
+
+/// Opens `path` for reading only if it is a regular file (symbolic links followed): a FIFO
+/// would block the open forever, a device (`/dev/zero`) never ends. The open itself does not
+/// block (`O_NONBLOCK`, no effect on regular files) and the type is checked again on the
+/// opened file, so a FIFO swapped in between is refused too.
+pub fn open_regular(path: &Path) -> std::io::Result<std::fs::File> {
+    let not_regular = || {
+        std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "not a regular file (a FIFO, device or folder)",
+        )
+    };
+    if !std::fs::metadata(path)?.is_file() {
+        return Err(not_regular());
+    }
+    let mut options = std::fs::OpenOptions::new();
+    options.read(true);
+    #[cfg(unix)]
+    std::os::unix::fs::OpenOptionsExt::custom_flags(&mut options, libc::O_NONBLOCK);
+    let file = options.open(path)?;
+    if !file.metadata()?.is_file() {
+        return Err(not_regular());
+    }
+    Ok(file)
+}
+
+/// The bytes of a regular file ([`open_regular`]).
+pub fn read_regular(path: &Path) -> std::io::Result<Vec<u8>> {
+    let mut bytes = Vec::new();
+    std::io::Read::read_to_end(&mut open_regular(path)?, &mut bytes)?;
+    Ok(bytes)
+}
+
+/// The text of a regular UTF-8 file ([`open_regular`]).
+pub fn read_regular_string(path: &Path) -> std::io::Result<String> {
+    let mut text = String::new();
+    std::io::Read::read_to_string(&mut open_regular(path)?, &mut text)?;
+    Ok(text)
 }
 
 /// Reads the array `name` of folder `dir` (see [`npy::read_checked`]).

@@ -314,7 +314,7 @@ pub fn read<T: Element>(path: &Path) -> Result<ArrayD<T>, NpyError> {
         path: path.to_owned(),
         source,
     };
-    let mut file = std::fs::File::open(path).map_err(io)?;
+    let mut file = crate::manifest::open_regular(path).map_err(io)?;
     let meta = file.metadata().map_err(io)?;
     if !meta.is_file() {
         return Err(NpyError::NotAFile {

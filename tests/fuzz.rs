@@ -6,7 +6,7 @@
 //!
 //! `cargo test --release --test fuzz` runs a short budget per reader (CI). The long run of
 //! RELIABILITY.md: `FACESPACE_FUZZ_SECONDS=600 cargo test --release --test fuzz -- --test-threads 1`
-//! (`FACESPACE_FUZZ_READER=mp4` for one reader). A failing case is kept under
+//! (`FACESPACE_FUZZ_READER=mp4` for one reader, `FACESPACE_FUZZ_START=N` to begin at case N). A failing case is kept under
 //! `target/fuzz-failures/READER-SEED/` to replay.
 mod common;
 
@@ -45,6 +45,15 @@ fn budget() -> (Duration, usize) {
         Some(s) => (Duration::from_secs_f64(s), usize::MAX),
         None => (Duration::from_secs(3), 400),
     }
+}
+
+/// The first case (`FACESPACE_FUZZ_START`, default 0): a long run can go on past the cases
+/// an earlier one covered.
+fn first_case() -> u64 {
+    std::env::var("FACESPACE_FUZZ_START")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(0)
 }
 
 const NUMBERS: [&str; 16] = [
@@ -175,7 +184,7 @@ fn fuzz(target: Target) {
     let work = tempfile::tempdir().unwrap();
     let (mut cases, mut errors) = (0usize, 0usize);
     while cases < max_cases && start.elapsed() < time {
-        let seed = 0x5eed_0000 + cases as u64;
+        let seed = 0x5eed_0000 + first_case() + cases as u64;
         let mut rng = Rng::new(seed);
         let dir = work.path().join(format!("case{cases}"));
         copy_dir(&target.seed, &dir);

@@ -110,6 +110,8 @@ pub fn encode(a: EncodeArgs) -> Result<()> {
 }
 
 pub fn decode(a: DecodeArgs) -> Result<()> {
+    // Checked even without --background: a nonsense value is an error, not silently unused.
+    facespace::options::in_range("--feather", a.feather, 0.0, 1000.0)?;
     let model = load_model(&a.model)?;
     let clip = Clip::load(&a.clip, &model)
         .with_context(|| format!("loading clip {}", a.clip.display()))?;

@@ -183,7 +183,22 @@ struct TrackingArgs {
 impl TrackingArgs {
     fn options(&self, bits: Option<u32>) -> Result<EncodeOptions> {
         let init = match &self.init {
-            Some(p) => Some(shape::read_landmarks(p)?),
+            Some(p) => {
+                let l = shape::read_landmarks(p)?;
+                // A face has extent: points that coincide (or lie so far out that adding their
+                // offsets changes nothing) are refused here, naming the file.
+                let (lo, hi) = l.bounds();
+                let extent = (hi[0] - lo[0]).min(hi[1] - lo[1]);
+                if !(extent.is_finite() && extent >= 1.0 && lo[0].abs().max(hi[0].abs()) < 1e6) {
+                    anyhow::bail!(
+                        "{}: the landmarks span {extent} px from ({}, {}): not a face in an image",
+                        p.display(),
+                        lo[0],
+                        lo[1]
+                    );
+                }
+                Some(l)
+            }
             None => None,
         };
         Ok(EncodeOptions {

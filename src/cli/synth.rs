@@ -140,6 +140,13 @@ pub fn run(a: SynthArgs) -> Result<()> {
         (None, Some(text)) => phonemes::text_to_segments(text, &cb.mean_durations())?,
         (None, None) => anyhow::bail!("give --labels or --text"),
     };
+    // Checked here, before any work, so the message names where the phones came from.
+    let source = a
+        .labels
+        .as_ref()
+        .map_or_else(|| "--text".to_owned(), |p| p.display().to_string());
+    synth::validate_request(&target, a.fps)
+        .with_context(|| format!("the phones of {source} at {} fps", a.fps))?;
     let real = match &a.real {
         Some(p) => Some(corpus::read_frames(p, model.layout(), a.fps)?),
         None => None,

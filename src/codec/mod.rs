@@ -42,6 +42,21 @@ pub enum CodecError {
     /// Rendering failed.
     #[error(transparent)]
     Render(#[from] RenderError),
+    /// Initial landmarks that do not touch the first frame.
+    #[error(
+        "the initial landmarks (--init) span ({:.0}, {:.0})–({:.0}, {:.0}), wholly outside the first frame ({width}×{height}): landmarks of another video?",
+        lo[0], lo[1], hi[0], hi[1]
+    )]
+    InitOutside {
+        /// Top-left corner of their bounding box.
+        lo: [f64; 2],
+        /// Bottom-right corner.
+        hi: [f64; 2],
+        /// The frame's width.
+        width: u32,
+        /// The frame's height.
+        height: u32,
+    },
     /// An array could not be written.
     #[error(transparent)]
     Npy(#[from] NpyError),
@@ -194,7 +209,23 @@ pub fn track(
             .next()
             .ok_or_else(|| CodecError::NoFrames(path.clone()))??;
         let start = match &options.init {
-            Some(l) => l.clone(),
+            Some(l) => {
+                let (lo, hi) = l.bounds();
+                let (width, height) = first.dimensions();
+                if hi[0] < 0.0
+                    || hi[1] < 0.0
+                    || lo[0] > f64::from(width)
+                    || lo[1] > f64::from(height)
+                {
+                    return Err(CodecError::InitOutside {
+                        lo,
+                        hi,
+                        width,
+                        height,
+                    });
+                }
+                l.clone()
+            }
             None => fitter.search_start(&first)?,
         };
         let mut tracker = Tracker::new(fitter, start, options.reinit_error)?;

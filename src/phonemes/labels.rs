@@ -10,7 +10,7 @@ pub use super::textgrid::{parse_textgrid, read_textgrid};
 
 /// A file's text: UTF-8 (a byte-order mark dropped) or, as Praat may write, UTF-16.
 pub(super) fn read_text(path: &Path) -> Result<String, PhonemeError> {
-    let bytes = std::fs::read(path).map_err(|source| PhonemeError::Io {
+    let bytes = crate::manifest::read_regular(path).map_err(|source| PhonemeError::Io {
         path: path.into(),
         source,
     })?;
@@ -98,7 +98,16 @@ pub(super) fn finish(
             .ok_or_else(|| PhonemeError::UnknownLabel {
                 path: path.into(),
                 line: r.line,
-                label: r.label.clone(),
+                // A label is quoted whole only when short: a 3 MB "label" is not echoed.
+                label: if r.label.chars().count() > 40 {
+                    format!(
+                        "{}… ({} bytes)",
+                        r.label.chars().take(40).collect::<String>(),
+                        r.label.len()
+                    )
+                } else {
+                    r.label.clone()
+                },
             })?;
         out.push(Segment {
             start: r.start,

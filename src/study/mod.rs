@@ -278,10 +278,11 @@ impl Manifest {
     /// Reads and checks `dir/study.json`: format, version, and every trial naming a stimulus.
     pub fn load(dir: &Path) -> Result<Manifest, StudyError> {
         let path = dir.join(MANIFEST);
-        let text = std::fs::read_to_string(&path).map_err(|source| StudyError::Io {
-            path: path.clone(),
-            source,
-        })?;
+        let text =
+            crate::manifest::read_regular_string(&path).map_err(|source| StudyError::Io {
+                path: path.clone(),
+                source,
+            })?;
         let value: serde_json::Value = serde_json::from_str(&text)
             .map_err(|e| StudyError::invalid(&path, format!("not JSON: {e}")))?;
         if value["format"] != FORMAT {

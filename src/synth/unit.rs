@@ -643,10 +643,11 @@ pub enum WeightsError {
 impl WeightsFile {
     /// Reads and checks a weights file.
     pub fn read(path: &std::path::Path) -> Result<Self, WeightsError> {
-        let text = std::fs::read_to_string(path).map_err(|source| WeightsError::Io {
-            path: path.into(),
-            source,
-        })?;
+        let text =
+            crate::manifest::read_regular_string(path).map_err(|source| WeightsError::Io {
+                path: path.into(),
+                source,
+            })?;
         let file: WeightsFile = serde_json::from_str(&text).map_err(|e| WeightsError::Invalid {
             path: path.into(),
             reason: e.to_string(),

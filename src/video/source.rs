@@ -59,12 +59,13 @@ impl Source {
                 frames: Some(files.len()),
             };
             (info, SourceKind::Frames(files, Some(first)))
-        } else if !path.is_file() {
-            return Err(io_error(path)(std::io::ErrorKind::NotFound.into()));
+        } else if let Err(e) = crate::manifest::open_regular(path) {
+            // Missing, or a FIFO or device (which would block or never end).
+            return Err(io_error(path)(e));
         } else {
             match extension(path).as_str() {
                 "y4m" => {
-                    let file = std::fs::File::open(path).map_err(io_error(path))?;
+                    let file = crate::manifest::open_regular(path).map_err(io_error(path))?;
                     let r = y4m::Reader::new(BufReader::new(file)).map_err(y4m_error)?;
                     (r.info(), SourceKind::Y4m(r))
                 }

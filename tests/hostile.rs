@@ -1,0 +1,458 @@
+//! Issue 17's reproducers, one by one, against the release binary: each gives a clear error
+//! (exit 1, naming the problem) or completes — never a panic (101), a signal, a hang or a
+//! memory bomb. Every run has an address-space limit (3 GiB) and a time limit (60 s).
+//! (Reproducers tested elsewhere: user files kept — `cli.rs`; kills — `kill.rs`; MP4 box
+//! sizes — `video.rs`; codebook layout overflow and `/dev/zero` — `codebook.rs`; negative
+//! variances and placement — `model.rs`; every reader mutated — `fuzz.rs`.)
+mod common;
+
+use std::os::unix::process::CommandExt;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+const TIME_LIMIT: Duration = Duration::from_secs(60);
+const MEMORY_LIMIT: u64 = 3 << 30;
+
+/// Runs the binary with the limits; returns the exit code (None: killed by a signal or the
+/// time limit) and stdout + stderr.
+fn run(args: &[&str]) -> (Option<i32>, String) {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_facespace"));
+    cmd.args(args).stdout(Stdio::piped()).stderr(Stdio::piped());
+    // SAFETY: setrlimit is async-signal-safe; nothing else runs between fork and exec.
+    unsafe {
+        cmd.pre_exec(|| {
+            let limit = libc::rlimit {
+                rlim_cur: MEMORY_LIMIT,
+                rlim_max: MEMORY_LIMIT,
+            };
+            libc::setrlimit(libc::RLIMIT_AS, &limit);
+            Ok(())
+        });
+    }
+    let mut child = cmd.spawn().unwrap();
+    let start = Instant::now();
+    loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            let out = child.wait_with_output().unwrap();
+            let text = format!(
+                "{}{}",
+                String::from_utf8_lossy(&out.stdout),
+                String::from_utf8_lossy(&out.stderr)
+            );
+            return (status.code(), text);
+        }
+        if start.elapsed() > TIME_LIMIT {
+            let _ = child.kill();
+            let _ = child.wait();
+            return (None, format!("over {TIME_LIMIT:?}: {args:?}"));
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// The run fails cleanly (exit 1) and its message contains every one of `words`.
+#[track_caller]
+fn refused(args: &[&str], words: &[&str]) {
+    let (code, text) = run(args);
+    assert_eq!(code, Some(1), "{args:?} → {code:?}\n{text}");
+    for w in words {
+        assert!(text.contains(w), "{args:?}: no {w:?} in\n{text}");
+    }
+    assert!(text.len() < 4000, "{args:?}: a {} byte message", text.len());
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// The shared inputs: a clip folder of the demo talker and a codebook of the demo corpus.
+struct Fixture {
+    dir: tempfile::TempDir,
+    clip: PathBuf,
+    cb: PathBuf,
+    lab: PathBuf,
+}
+
+fn fixture() -> Fixture {
+    let dir = tempfile::tempdir().unwrap();
+    let frames = common::root().join("tests/data/clip");
+    let clip = dir.path().join("clip.fsp");
+    let corpus = dir.path().join("corpus");
+    let cb = dir.path().join("cb");
+    let model = common::root().join("models/demo/model");
+    for args in [
+        vec![
+            "encode",
+            s(&frames),
+            "--init",
+            &format!("{}/01000.pts", s(&frames)),
+            "-o",
+            s(&clip),
+        ],
+        vec!["corpus", "demo", "-o", s(&corpus)],
+        vec![
+            "codebook",
+            "build",
+            "--model",
+            s(&model),
+            "--corpus",
+            &format!("{}/train", s(&corpus)),
+            "-o",
+            s(&cb),
+        ],
+    ] {
+        let (code, text) = run(&args);
+        assert_eq!(code, Some(0), "{text}");
+    }
+    let lab = corpus.join("heldout/demo55.lab");
+    Fixture { dir, clip, cb, lab }
+}
+
+/// A copy of folder `from` at `to` with `edit` applied to its JSON file `name`.
+fn edited(from: &Path, to: &Path, name: &str, edit: impl FnOnce(&mut serde_json::Value)) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let e = e.unwrap();
+        if e.file_type().unwrap().is_file() {
+            std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
+        }
+    }
+    let path = to.join(name);
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    edit(&mut v);
+    std::fs::write(&path, serde_json::to_string(&v).unwrap()).unwrap();
+}
+
+/// Reproducers 5–10 on clip folders and decoding.
+#[test]
+fn clip_folders_and_decoding() {
+    let f = fixture();
+    let d = f.dir.path();
+    let out = d.join("out.mp4");
+    // 5: an audio name outside the folder is never followed.
+    std::fs::create_dir(d.join("outside")).unwrap();
+    std::fs::copy(
+        common::root().join("tests/data/video/high_bframes_aac.mp4"),
+        d.join("outside/secret_voice.m4a"),
+    )
+    .unwrap();
+    for (i, audio) in ["../outside/secret_voice.m4a", "/etc/passwd", "/dev/zero"]
+        .iter()
+        .enumerate()
+    {
+        let c = d.join(format!("audio{i}.fsp"));
+        edited(&f.clip, &c, "meta.json", |m| m["audio"] = (*audio).into());
+        refused(
+            &["decode", s(&c), "-o", s(&out)],
+            &["not a plain file name"],
+        );
+        assert!(!out.exists());
+    }
+    // 6, 7, 9: absurd sizes and rates are blamed on meta.json, before any allocation.
+    let cases: Vec<(&str, serde_json::Value, &str)> = vec![
+        ("fps", 1e-300.into(), "frame rate"),
+        ("fps", 0.into(), "frame rate"),
+        ("width", 4294967295u64.into(), "width"),
+        ("height", 65536.into(), "height"),
+        ("version", "1".into(), "version"),
+    ];
+    for (i, (key, value, word)) in cases.into_iter().enumerate() {
+        let c = d.join(format!("meta{i}.fsp"));
+        edited(&f.clip, &c, "meta.json", |m| m[key] = value.clone());
+        let (code, text) = run(&["decode", s(&c), "-o", s(&out)]);
+        assert_eq!(code, Some(1), "{key}={value}: {text}");
+        assert!(
+            text.contains("meta.json") && text.contains(word),
+            "{key}={value}: {text}"
+        );
+        assert!(!text.contains("version 0"), "{text}");
+    }
+    // 10: quantisation min > max.
+    let q = d.join("q.fsp");
+    let frames = common::root().join("tests/data/clip");
+    let (code, text) = run(&[
+        "encode",
+        s(&frames),
+        "--init",
+        &format!("{}/01000.pts", s(&frames)),
+        "--bits",
+        "8",
+        "-o",
+        s(&q),
+    ]);
+    assert_eq!(code, Some(0), "{text}");
+    let bad = d.join("qbad.fsp");
+    edited(&q, &bad, "meta.json", |m| {
+        let min = m["quantisation"]["min"].clone();
+        m["quantisation"]["min"] = m["quantisation"]["max"].clone();
+        m["quantisation"]["max"] = min;
+    });
+    refused(&["decode", s(&bad), "-o", s(&out)], &["meta.json"]);
+    // 10: a clip without its model hash is not decoded with another model.
+    let other = d.join("other");
+    let (code, text) = run(&[
+        "model",
+        "build",
+        "--images",
+        s(&common::faces_dir()),
+        "--pixels",
+        "6000",
+        "-o",
+        s(&other),
+    ]);
+    assert_eq!(code, Some(0), "{text}");
+    let nohash = d.join("nohash.fsp");
+    edited(&f.clip, &nohash, "meta.json", |m| {
+        m["model_hash"] = serde_json::Value::Null
+    });
+    let (code, text) = run(&["decode", s(&nohash), "--model", s(&other), "-o", s(&out)]);
+    assert_eq!(code, Some(1), "{text}");
+    // 10: feather values.
+    for feather in ["--feather=NaN", "--feather=inf", "--feather=-5"] {
+        refused(
+            &["decode", s(&f.clip), feather, "-o", s(&out)],
+            &["feather"],
+        );
+    }
+}
+
+/// Reproducers 6–9 on synthesis options and label files.
+#[test]
+fn synthesis_options_and_labels() {
+    let f = fixture();
+    let d = f.dir.path();
+    let out = d.join("syn");
+    let synth = |extra: &[&str]| {
+        let mut a = vec![
+            "synth",
+            "--codebook",
+            s(&f.cb),
+            "--renderer",
+            "cpu",
+            "-o",
+            s(&out),
+        ];
+        a.extend_from_slice(extra);
+        a.iter().map(|x| x.to_string()).collect::<Vec<_>>()
+    };
+    let refused_synth = |extra: &[&str], words: &[&str]| {
+        let args = synth(extra);
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        refused(&args, words);
+        assert!(!out.exists(), "{extra:?} wrote output");
+    };
+    for fps in ["0.0001", "1e9", "1e4", "NaN"] {
+        refused_synth(&["--labels", s(&f.lab), "--fps", fps], &["frame rate"]);
+    }
+    refused_synth(
+        &["--labels", s(&f.lab), "--context", "1000000000"],
+        &["context"],
+    );
+    // Label files: a 2^63 end time, an end of 1e300, overlaps, a 3 MB line.
+    let write = |name: &str, text: &str| {
+        let p = d.join(name);
+        std::fs::write(&p, text).unwrap();
+        p
+    };
+    let huge = write("huge.lab", "0 9223372036854775807 sil\n");
+    refused_synth(&["--labels", s(&huge)], &["huge.lab"]);
+    let far = write("far.tsv", "0\t0.5\tsil\n0.5\t1e300\tah\n");
+    let (code, text) = run(&synth(&["--labels", s(&far)])
+        .iter()
+        .map(String::as_str)
+        .collect::<Vec<_>>());
+    assert_eq!(code, Some(1), "{text}");
+    assert!(!text.contains("0×0"), "{text}");
+    let overlap = write(
+        "overlap.lab",
+        "0 5000000 sil\n3000000 9000000 ah\n9000000 12000000 sil\n",
+    );
+    refused_synth(&["--labels", s(&overlap)], &["overlap.lab"]);
+    let long = write("long.lab", &format!("0 5000000 {}\n", "x".repeat(3 << 20)));
+    refused_synth(&["--labels", s(&long)], &["long.lab"]);
+    let tg = write(
+        "bomb.TextGrid",
+        "File type = \"ooTextFile\"\nObject class = \"TextGrid\"\nxmin = 0\nxmax = 1\ntiers? <exists>\nsize = 1\nitem []:\n    item [1]:\n        class = \"IntervalTier\"\n        name = \"phones\"\n        xmin = 0\n        xmax = 1\n        intervals: size = 10000000\n        intervals [1]:\n            xmin = 0\n            xmax = 1\n            text = \"sil\"\n",
+    );
+    refused_synth(&["--labels", s(&tg)], &["bomb.TextGrid"]);
+    // 7: a 6 000-word text is synthesised within the limits (at 1 fps, to keep the test
+    // short: rendering streams, so memory does not grow with the frames).
+    let text = vec!["hello world"; 3000].join(" ");
+    let args = synth(&["--text", &text, "--fps", "1"]);
+    let (code, msg) = run(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert_eq!(code, Some(0), "{}", &msg[..msg.len().min(2000)]);
+}
+
+/// Reproducers 5–10 on codebooks, models, videos and options.
+#[test]
+fn codebooks_models_videos_and_options() {
+    let f = fixture();
+    let d = f.dir.path();
+    // 5: sentence files outside the folder, or not regular files.
+    let fifo = d.join("cbfifo");
+    edited(&f.cb, &fifo, "codebook.json", |_| {});
+    std::fs::remove_file(fifo.join("sentence_0000.npy")).unwrap();
+    let name = std::ffi::CString::new(s(&fifo.join("sentence_0000.npy"))).unwrap();
+    // SAFETY: a plain mkfifo call on a NUL-terminated path.
+    assert_eq!(unsafe { libc::mkfifo(name.as_ptr(), 0o644) }, 0);
+    refused(&["codebook", "info", s(&fifo)], &["sentence_0000.npy"]);
+    for (i, file) in ["/abs/secret.npy", "../../x.npy"].iter().enumerate() {
+        let c = d.join(format!("cbpath{i}"));
+        edited(&f.cb, &c, "codebook.json", |v| {
+            v["sentences"][0][0] = (*file).into()
+        });
+        refused(&["codebook", "info", s(&c)], &[file]);
+    }
+    // 6, 7: sample counts.
+    for samples in [
+        serde_json::json!(18446744073709551615u64),
+        serde_json::json!(10000000),
+        serde_json::json!(1e12),
+    ] {
+        let c = d.join("cbsamples");
+        let _ = std::fs::remove_dir_all(&c);
+        edited(&f.cb, &c, "codebook.json", |v| {
+            v["options"]["samples"] = samples.clone()
+        });
+        refused(&["codebook", "info", s(&c)], &["samples"]);
+    }
+    // 9: a codebook whose layout differs from the model's with the same total is named as such.
+    let c = d.join("cblayout");
+    edited(&f.cb, &c, "codebook.json", |v| {
+        let shape = v["layout"]["shape"].as_u64().unwrap();
+        let app = v["layout"]["appearance"].as_u64().unwrap();
+        v["layout"]["shape"] = (shape + 1).into();
+        v["layout"]["appearance"] = (app - 1).into();
+        v["model_hash"] = serde_json::Value::Null;
+    });
+    let (code, text) = run(&[
+        "synth",
+        "--codebook",
+        s(&c),
+        "--labels",
+        s(&f.lab),
+        "-o",
+        s(&d.join("x")),
+    ]);
+    assert_eq!(code, Some(1), "{text}");
+    assert!(text.contains("layout") || text.contains("shape"), "{text}");
+    // 6, 7: model sizes.
+    for pixels in ["18446744073709551615", "100000000", "10000000000"] {
+        refused(
+            &[
+                "model",
+                "build",
+                "--images",
+                s(&common::faces_dir()),
+                "--pixels",
+                pixels,
+                "-o",
+                s(&d.join("m")),
+            ],
+            &["pixels"],
+        );
+    }
+    let model = common::root().join("models/demo/model");
+    for (i, (key, value)) in [
+        ("scale", serde_json::json!(491238.0)),
+        ("offset", serde_json::json!([1e6, 1e6])),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let m = d.join(format!("model{i}"));
+        edited(&model, &m, "model.json", |v| {
+            v["reference"]["placement"][key] = value.clone()
+        });
+        refused(&["model", "info", s(&m)], &["model.json"]);
+    }
+    // 6: a Y4M header with a non-ASCII tag; 8: a FIFO as input.
+    let y4m = d.join("tag.y4m");
+    std::fs::write(&y4m, b"YUV4MPEG2 W360 H288 F25:1 \xc3\xa9 C444\n").unwrap();
+    refused(&["track", s(&y4m), "-o", s(&d.join("t.npy"))], &["tag.y4m"]);
+    let pipe = d.join("pipe.mp4");
+    let name = std::ffi::CString::new(s(&pipe)).unwrap();
+    // SAFETY: as above.
+    assert_eq!(unsafe { libc::mkfifo(name.as_ptr(), 0o644) }, 0);
+    refused(
+        &["track", s(&pipe), "-o", s(&d.join("t.npy"))],
+        &["pipe.mp4"],
+    );
+    // 6, 7, 10: MP4 tables — stts without entries, stsz declaring 2^32 − 1 samples, mdhd
+    // timescale 0 (fps 0).
+    let mp4 = std::fs::read(common::root().join("tests/data/video/high_bframes_aac.mp4")).unwrap();
+    let at = |tag: &[u8]| mp4.windows(4).position(|w| w == tag).unwrap();
+    for (name, offset, value) in [
+        ("stts", at(b"stts") + 8, 0u32),
+        ("stsz", at(b"stsz") + 12, u32::MAX),
+        ("mdhd", at(b"mdhd") + 16, 0),
+    ] {
+        let mut bytes = mp4.clone();
+        bytes[offset..offset + 4].copy_from_slice(&value.to_be_bytes());
+        let p = d.join(format!("{name}.mp4"));
+        std::fs::write(&p, bytes).unwrap();
+        refused(
+            &["encode", s(&p), "-o", s(&d.join("e.fsp"))],
+            &[&format!("{name}.mp4")],
+        );
+    }
+    // 10: landmarks far away, tracking thresholds, bits.
+    let frames = common::root().join("tests/data/clip");
+    let real = facespace::shape::read_pts(&frames.join("01000.pts")).unwrap();
+    for (i, shift) in [1e300, -5000.0].iter().enumerate() {
+        let pts = d.join(format!("far{i}.pts"));
+        let moved = facespace::shape::Landmarks {
+            points: real
+                .points
+                .iter()
+                .map(|p| [p[0] + shift, p[1] + shift])
+                .collect(),
+        };
+        facespace::shape::write_pts(&pts, &moved).unwrap();
+        refused(
+            &[
+                "track",
+                s(&frames),
+                "--init",
+                s(&pts),
+                "-o",
+                s(&d.join("t.npy")),
+            ],
+            &[if i == 0 {
+                "far0.pts"
+            } else {
+                "outside the first frame"
+            }],
+        );
+    }
+    refused(
+        &[
+            "track",
+            s(&frames),
+            "--reinit-error",
+            "NaN",
+            "-o",
+            s(&d.join("t.npy")),
+        ],
+        &["re-initialisation error"],
+    );
+    let start = Instant::now();
+    refused(
+        &[
+            "encode",
+            s(&frames),
+            "--bits",
+            "12",
+            "-o",
+            s(&d.join("b.fsp")),
+        ],
+        &["bits"],
+    );
+    assert!(
+        start.elapsed() < Duration::from_secs(5),
+        "--bits 12 refused only after {:?}",
+        start.elapsed()
+    );
+}
