@@ -314,6 +314,11 @@ pub fn read<T: Element>(path: &Path) -> Result<ArrayD<T>, NpyError> {
         path: path.to_owned(),
         source,
     };
+    if !std::fs::metadata(path).map_err(io)?.is_file() {
+        return Err(NpyError::NotAFile {
+            path: path.to_owned(),
+        });
+    }
     let mut file = crate::manifest::open_regular(path).map_err(io)?;
     let meta = file.metadata().map_err(io)?;
     if !meta.is_file() {
