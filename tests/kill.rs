@@ -245,3 +245,222 @@ fn killed_decodes_tracks_and_synthesis_leave_whole_outputs() {
         },
     );
 }
+
+/// A JSON file that parses.
+fn json(path: &Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("damaged {}: {e}", path.display()))
+}
+
+/// A PNG that decodes.
+fn png(path: &Path) {
+    image::open(path).unwrap_or_else(|e| panic!("damaged {}: {e}", path.display()));
+}
+
+#[test]
+fn killed_exports_reports_and_the_demo_leave_whole_outputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |name: &str| dir.path().join(name).to_str().unwrap().to_owned();
+    let clip = common::root().join("tests/data/clip");
+    let clip_s = clip.to_str().unwrap();
+    let init = clip.join("01000.pts");
+    let init_s = init.to_str().unwrap();
+    let video = common::root().join("tests/data/video/high_bframes_aac.mp4");
+    let model = common::root().join("models/demo/model");
+    let model_s = model.to_str().unwrap();
+    let run = |args: &[&str]| {
+        let o = common::facespace(args);
+        assert!(o.status.success(), "{}", common::text(&o));
+    };
+    run(&["encode", clip_s, "--init", init_s, "-o", &p("clip.fsp")]);
+    run(&["corpus", "demo", "-o", &p("corpus")]);
+    run(&[
+        "codebook",
+        "build",
+        "--model",
+        model_s,
+        "--corpus",
+        &p("corpus/train"),
+        "-o",
+        &p("cb"),
+    ]);
+
+    killed_runs(
+        &[
+            "frames",
+            video.to_str().unwrap(),
+            "--count",
+            "6",
+            "-o",
+            &p("frames"),
+        ],
+        &dir.path().join("frames"),
+        |f| {
+            let n = std::fs::read_dir(f)
+                .unwrap()
+                .filter(|e| {
+                    e.as_ref()
+                        .unwrap()
+                        .path()
+                        .extension()
+                        .is_some_and(|x| x == "png")
+                })
+                .count();
+            assert_eq!(n, 6);
+        },
+    );
+    killed_runs(
+        &["track", clip_s, "--init", init_s, "-o", &p("lm.npy")],
+        &dir.path().join("lm.npy"),
+        |f| {
+            let a: ndarray::Array3<f32> =
+                facespace::npy::read_checked(f, &[Some(50), Some(68), Some(2)])
+                    .unwrap_or_else(|e| panic!("{e}"));
+            assert!(a.iter().all(|v| v.is_finite()));
+        },
+    );
+    killed_runs(
+        &[
+            "codec-report",
+            clip_s,
+            &p("clip.fsp"),
+            "-o",
+            &p("report.json"),
+        ],
+        &dir.path().join("report.json"),
+        |f| {
+            assert!(json(f).is_object());
+        },
+    );
+    killed_runs(
+        &[
+            "model",
+            "suggest",
+            clip_s,
+            "--init",
+            init_s,
+            "-n",
+            "3",
+            "-o",
+            &p("suggest"),
+        ],
+        &dir.path().join("suggest"),
+        |f| {
+            let n = std::fs::read_dir(f)
+                .unwrap()
+                .filter(|e| {
+                    e.as_ref()
+                        .unwrap()
+                        .path()
+                        .extension()
+                        .is_some_and(|x| x == "pts")
+                })
+                .count();
+            assert_eq!(n, 3);
+        },
+    );
+    killed_runs(
+        &[
+            "model",
+            "reconstruct",
+            model_s,
+            "--image",
+            clip.join("01000.jpg").to_str().unwrap(),
+            "-o",
+            &p("rec.png"),
+        ],
+        &dir.path().join("rec.png"),
+        png,
+    );
+    killed_runs(
+        &["codebook", "similarity", &p("cb"), "--png", &p("s.png")],
+        &dir.path().join("s.png"),
+        png,
+    );
+    killed_runs(
+        &[
+            "train-weights",
+            "--codebook",
+            &p("cb"),
+            "--validation",
+            &p("corpus/validation"),
+            "--generations",
+            "6",
+            "-o",
+            &p("w.json"),
+        ],
+        &dir.path().join("w.json"),
+        |f| {
+            facespace::synth::unit::WeightsFile::read(f)
+                .unwrap_or_else(|e| panic!("damaged weights: {e}"));
+        },
+    );
+    killed_runs(
+        &[
+            "eval",
+            "--codebook",
+            &p("cb"),
+            "--heldout",
+            &p("corpus/heldout"),
+            "-o",
+            &p("table.json"),
+        ],
+        &dir.path().join("table.json"),
+        |f| {
+            assert!(json(f)["table"].is_array());
+        },
+    );
+    // A study with one answer, analysed.
+    let held = dir.path().join("held");
+    std::fs::create_dir(&held).unwrap();
+    for ext in ["npy", "lab"] {
+        std::fs::copy(
+            dir.path().join(format!("corpus/heldout/demo55.{ext}")),
+            held.join(format!("demo55.{ext}")),
+        )
+        .unwrap();
+    }
+    run(&[
+        "study",
+        "create",
+        "--codebook",
+        &p("cb"),
+        "--heldout",
+        &p("held"),
+        "--conditions",
+        "original,unsmoothed",
+        "--viewers",
+        "1",
+        "--task",
+        "turing",
+        "--renderer",
+        "cpu",
+        "-o",
+        &p("study"),
+    ]);
+    let manifest = facespace::study::Manifest::load(&dir.path().join("study")).unwrap();
+    let v = &manifest.viewers[0];
+    let (mut log, _) =
+        facespace::study::AnswerLog::open(&dir.path().join("study"), manifest.clone()).unwrap();
+    log.submit(
+        &serde_json::json!({"viewer": v.id, "token": v.token, "trial": 0, "real": true})
+            .to_string(),
+    )
+    .unwrap();
+    drop(log);
+    killed_runs(
+        &["study", "analyse", &p("study"), "-o", &p("analysis")],
+        &dir.path().join("analysis"),
+        |f| {
+            assert_eq!(json(&f.join("report.json"))["answers"], 1);
+        },
+    );
+    killed_runs(
+        &["demo", "--renderer", "cpu", "-o", &p("demo")],
+        &dir.path().join("demo"),
+        |f| {
+            let n = json(&f.join("report.json"))["frames"].as_u64().unwrap() as usize;
+            assert_eq!(frame_count(&f.join("smoothed/video.mp4")), n);
+        },
+    );
+}
