@@ -203,6 +203,40 @@ fn clip_folders_and_decoding() {
         s(&other),
     ]);
     assert_eq!(code, Some(0), "{text}");
+    // 2: synthesis into a model folder, tracking into its own input folder: refused, intact.
+    let before = std::fs::read(other.join("model.json")).unwrap();
+    refused(
+        &[
+            "synth",
+            "--codebook",
+            s(&f.cb),
+            "--labels",
+            s(&f.lab),
+            "-o",
+            s(&other),
+        ],
+        &["refusing"],
+    );
+    assert_eq!(std::fs::read(other.join("model.json")).unwrap(), before);
+    let input = d.join("input");
+    std::fs::create_dir(&input).unwrap();
+    for e in std::fs::read_dir(&frames).unwrap() {
+        let e = e.unwrap();
+        std::fs::copy(e.path(), input.join(e.file_name())).unwrap();
+    }
+    let truth = std::fs::read(input.join("01000.pts")).unwrap();
+    refused(
+        &[
+            "track",
+            s(&input),
+            "--init",
+            s(&input.join("01000.pts")),
+            "-o",
+            s(&input),
+        ],
+        &["refusing"],
+    );
+    assert_eq!(std::fs::read(input.join("01000.pts")).unwrap(), truth);
     let nohash = d.join("nohash.fsp");
     edited(&f.clip, &nohash, "meta.json", |m| {
         m["model_hash"] = serde_json::Value::Null
