@@ -2,7 +2,6 @@
 //! a headless Chromium (skipped, saying so, where none is installed; `.ci/run` installs it).
 mod common;
 
-use std::io::{Read, Write};
 use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -33,30 +32,12 @@ fn start(dir: &Path) -> (String, Arc<AtomicBool>) {
     (url, stop)
 }
 
-/// One HTTP/1.0 request; returns (status, body).
-fn http(url: &str, method: &str, path: &str, body: &str) -> (u16, String) {
-    let host = url.trim_start_matches("http://").trim_end_matches('/');
-    let mut s = std::net::TcpStream::connect(host).unwrap();
-    write!(
-        s,
-        "{method} {path} HTTP/1.0\r\nHost: {host}\r\nContent-Length: {}\r\n\r\n{body}",
-        body.len()
-    )
-    .unwrap();
-    let mut bytes = Vec::new();
-    s.read_to_end(&mut bytes).unwrap();
-    let reply = String::from_utf8_lossy(&bytes).into_owned();
-    let status = reply[9..12].parse().unwrap();
-    let body = reply.split("\r\n\r\n").nth(1).unwrap_or("").to_owned();
-    (status, body)
-}
-
 #[test]
 fn server_serves_saves_and_refuses() {
     let dir = tempfile::tempdir().unwrap();
     frames(dir.path());
     let (url, stop) = start(dir.path());
-    let (code, body) = http(&url, "GET", "/api/frames", "");
+    let (code, body) = common::http(&url, "GET", "/api/frames", "");
     assert_eq!(code, 200);
     assert!(
         body.contains("01000.jpg") && body.contains("01001.jpg"),
@@ -68,18 +49,18 @@ fn server_serves_saves_and_refuses() {
         "/frames/01000.pts",
         "/api/points/..%2Fx.jpg",
     ] {
-        assert_eq!(http(&url, "GET", p, "").0, 404, "{p}");
+        assert_eq!(common::http(&url, "GET", p, "").0, 404, "{p}");
     }
-    assert_eq!(http(&url, "GET", "/frames/01000.jpg", "").0, 200);
+    assert_eq!(common::http(&url, "GET", "/frames/01000.jpg", "").0, 200);
     // The marked frame starts from its .pts; the other has none (the page asks for eye clicks).
-    let (_, marked) = http(&url, "GET", "/api/points/01000.jpg", "");
+    let (_, marked) = common::http(&url, "GET", "/api/points/01000.jpg", "");
     assert!(marked.contains("\"source\":\"pts\""), "{marked}");
-    let (_, unmarked) = http(&url, "GET", "/api/points/01001.jpg", "");
+    let (_, unmarked) = common::http(&url, "GET", "/api/points/01001.jpg", "");
     assert!(unmarked.contains("\"points\":null"), "{unmarked}");
     // Bad landmarks are refused and nothing is written.
     for bad in ["{\"points\": [[1, 2]]}", "not json", "{\"points\": \"x\"}"] {
         assert_eq!(
-            http(&url, "POST", "/api/points/01001.jpg", bad).0,
+            common::http(&url, "POST", "/api/points/01001.jpg", bad).0,
             400,
             "{bad}"
         );
@@ -89,7 +70,10 @@ fn server_serves_saves_and_refuses() {
         .map(|k| [100.0 + k as f64, 120.0 + 0.5 * k as f64])
         .collect();
     let body = serde_json::json!({ "points": points }).to_string();
-    assert_eq!(http(&url, "POST", "/api/points/01001.jpg", &body).0, 200);
+    assert_eq!(
+        common::http(&url, "POST", "/api/points/01001.jpg", &body).0,
+        200
+    );
     let saved = facespace::shape::read_pts(&dir.path().join("01001.pts")).unwrap();
     assert_eq!(saved.points, points);
     stop.store(true, Ordering::Relaxed);
@@ -109,15 +93,7 @@ fn server_serves_saves_and_refuses() {
 /// on disk holds the moved point.
 #[test]
 fn headless_chromium_drags_a_point_and_it_is_saved() {
-    let Some(chromium) = ["chromium", "chromium-browser", "google-chrome"]
-        .iter()
-        .find(|b| {
-            std::process::Command::new(b)
-                .arg("--version")
-                .output()
-                .is_ok_and(|o| o.status.success())
-        })
-    else {
+    let Some(chromium) = common::chromium() else {
         eprintln!("skipped: no Chromium on PATH (.ci/run installs the distribution's package)");
         return;
     };

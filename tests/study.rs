@@ -93,6 +93,8 @@ fn binomial_matches_scipy() {
 // The study folder: design, answer log, refusals, crash safety, the browser.
 
 use std::io::Read;
+
+use common::http;
 use std::path::Path;
 
 use facespace::codebook::{Codebook, SimilarityOptions};
@@ -549,27 +551,6 @@ fn bad_designs_are_refused_and_answers_are_never_overwritten() {
     assert!(err.to_string().contains("also in the codebook"), "{err}");
 }
 
-/// One HTTP/1.0 request; returns (status, body).
-fn http(url: &str, method: &str, path: &str, body: &str) -> (u16, String) {
-    let host = url.trim_start_matches("http://").trim_end_matches('/');
-    let mut s = std::net::TcpStream::connect(host).unwrap();
-    std::io::Write::write_all(
-        &mut s,
-        format!(
-            "{method} {path} HTTP/1.0\r\nHost: {host}\r\nContent-Length: {}\r\n\r\n{body}",
-            body.len()
-        )
-        .as_bytes(),
-    )
-    .unwrap();
-    let mut bytes = Vec::new();
-    s.read_to_end(&mut bytes).unwrap();
-    let reply = String::from_utf8_lossy(&bytes).into_owned();
-    let status = reply[9..12].parse().unwrap();
-    let body = reply.split("\r\n\r\n").nth(1).unwrap_or("").to_owned();
-    (status, body)
-}
-
 /// The server serves only listed stimuli, answers `next` only with the viewer's secret, and
 /// refuses over HTTP what the log refuses; nothing refused reaches the disk.
 #[test]
@@ -655,17 +636,6 @@ fn the_server_serves_only_the_study_and_refuses_forged_requests() {
 }
 
 // --- The whole study through the real binary and a headless Chromium. -------------------
-
-fn chromium() -> Option<&'static str> {
-    ["chromium", "chromium-browser", "google-chrome"]
-        .into_iter()
-        .find(|b| {
-            std::process::Command::new(b)
-                .arg("--version")
-                .output()
-                .is_ok_and(|o| o.status.success())
-        })
-}
 
 /// `facespace study serve DIR` on a free port; returns the child and each viewer's link.
 fn serve(study: &Path) -> (std::process::Child, Vec<String>) {
@@ -754,7 +724,7 @@ fn auto_answer(trial: &Trial, i: usize) -> Response {
 /// stored once and in order, and `study analyse` gives the statistics of those answers.
 #[test]
 fn headless_chromium_answers_a_study_across_a_server_crash() {
-    let Some(browser) = chromium() else {
+    let Some(browser) = common::chromium() else {
         eprintln!("skipped: no Chromium on PATH (.ci/run installs the distribution's package)");
         return;
     };
