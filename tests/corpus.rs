@@ -1,7 +1,6 @@
 //! The generated demo corpus: determinism, split, labels, and S on it.
 mod common;
 
-use facespace::codebook::{Codebook, SimilarityOptions};
 use facespace::corpus::demo::{
     self as corpus, CorpusOptions, HELD_OUT, SENTENCES, Split, VALIDATION,
 };
@@ -73,18 +72,7 @@ fn generation_is_deterministic_and_split() {
 /// printed, not asserted: here they hold only as far as the generator's targets put them so.
 #[test]
 fn similarity_recovers_the_generators_phone_geometry() {
-    let model = FaceModel::load(&common::root().join("models/demo/model")).unwrap();
-    let frames = load_training_set(&common::root().join("models/demo/training"), None).unwrap();
-    let generated = corpus::generate(&model, &frames, &CorpusOptions::default()).unwrap();
-    let cb = Codebook::build(
-        generated.part(Split::Train),
-        25.0,
-        model.layout(),
-        Some(model.hash()),
-        SimilarityOptions::default(),
-        &mut facespace::no_progress,
-    )
-    .unwrap();
+    let (model, generated, cb) = common::demo_corpus_codebook();
     let w = facespace::codebook::parameter_weights(&cb);
     let range = model.layout().params_range();
     let target_distance = |a: Phone, b: Phone| -> f64 {

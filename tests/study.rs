@@ -97,9 +97,9 @@ use std::io::Read;
 use common::http;
 use std::path::Path;
 
-use facespace::codebook::{Codebook, SimilarityOptions};
-use facespace::corpus::demo::{self as corpus, CorpusOptions, Split};
-use facespace::model::{FaceModel, load_training_set};
+use facespace::codebook::Codebook;
+use facespace::corpus::demo::Split;
+use facespace::model::FaceModel;
 use facespace::render::CpuRenderer;
 use facespace::rng::Rng;
 use facespace::study::create::{Heldout, pairs, trials};
@@ -133,18 +133,7 @@ fn make_study_with(
 
 /// The demo model, a codebook of the demo corpus's training split, one test sentence.
 fn fixture() -> (FaceModel, Codebook, Vec<Heldout>) {
-    let model = FaceModel::load(&common::root().join("models/demo/model")).unwrap();
-    let frames = load_training_set(&common::root().join("models/demo/training"), None).unwrap();
-    let generated = corpus::generate(&model, &frames, &CorpusOptions::default()).unwrap();
-    let cb = Codebook::build(
-        generated.part(Split::Train),
-        25.0,
-        model.layout(),
-        Some(model.hash()),
-        SimilarityOptions::default(),
-        &mut facespace::no_progress,
-    )
-    .unwrap();
+    let (model, generated, cb) = common::demo_corpus_codebook();
     let mut test = generated.part(Split::Test);
     test.truncate(1);
     let heldout = test

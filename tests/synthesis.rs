@@ -2,27 +2,14 @@
 //! every system scored on the test split with the same smoothing (DESIGN §9).
 mod common;
 
-use facespace::codebook::{Codebook, SimilarityOptions};
-use facespace::corpus::demo::{self as corpus, CorpusOptions, Split};
+use facespace::corpus::demo::Split;
 use facespace::eval::systems::{LAMBDA_GRID, choose_smoothing};
 use facespace::eval::{System, evaluate};
-use facespace::model::{FaceModel, load_training_set};
 use facespace::synth::blend::Blend;
 
 #[test]
 fn blend_beats_fair_baselines_on_the_test_split() {
-    let model = FaceModel::load(&common::root().join("models/demo/model")).unwrap();
-    let frames = load_training_set(&common::root().join("models/demo/training"), None).unwrap();
-    let generated = corpus::generate(&model, &frames, &CorpusOptions::default()).unwrap();
-    let cb = Codebook::build(
-        generated.part(Split::Train),
-        25.0,
-        model.layout(),
-        Some(model.hash()),
-        SimilarityOptions::default(),
-        &mut facespace::no_progress,
-    )
-    .unwrap();
+    let (model, generated, cb) = common::demo_corpus_codebook();
     let validation = generated.part(Split::Validation);
     let test = generated.part(Split::Test);
     assert!(

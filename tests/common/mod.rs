@@ -127,3 +127,26 @@ pub fn chromium() -> Option<&'static str> {
                 .is_ok_and(|o| o.status.success())
         })
 }
+
+/// The demo model, the generated demo corpus (default options) and a codebook of its
+/// training split at 25 fps.
+pub fn demo_corpus_codebook() -> (
+    FaceModel,
+    facespace::corpus::demo::Corpus,
+    facespace::codebook::Codebook,
+) {
+    use facespace::corpus::demo::{CorpusOptions, Split, generate};
+    let model = FaceModel::load(&root().join("models/demo/model")).unwrap();
+    let frames = load_training_set(&root().join("models/demo/training"), None).unwrap();
+    let generated = generate(&model, &frames, &CorpusOptions::default()).unwrap();
+    let cb = facespace::codebook::Codebook::build(
+        generated.part(Split::Train),
+        25.0,
+        model.layout(),
+        Some(model.hash()),
+        facespace::codebook::SimilarityOptions::default(),
+        &mut facespace::no_progress,
+    )
+    .unwrap();
+    (model, generated, cb)
+}
