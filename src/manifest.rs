@@ -133,7 +133,8 @@ pub fn member(dir: &Path, name: &str) -> Result<PathBuf, ManifestError> {
 /// Opens `path` for reading only if it is a regular file (symbolic links followed): a FIFO
 /// would block the open forever, a device (`/dev/zero`) never ends. The open itself does not
 /// block (`O_NONBLOCK`, no effect on regular files) and the type is checked again on the
-/// opened file, so a FIFO swapped in between is refused too.
+/// opened file, so a FIFO swapped in between is refused too. Refusal is an error of kind
+/// `InvalidInput`.
 pub fn open_regular(path: &Path) -> std::io::Result<std::fs::File> {
     let not_regular = || {
         std::io::Error::new(

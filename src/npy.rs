@@ -314,18 +314,16 @@ pub fn read<T: Element>(path: &Path) -> Result<ArrayD<T>, NpyError> {
         path: path.to_owned(),
         source,
     };
-    if !std::fs::metadata(path).map_err(io)?.is_file() {
-        return Err(NpyError::NotAFile {
-            path: path.to_owned(),
-        });
-    }
-    let mut file = crate::manifest::open_regular(path).map_err(io)?;
+    let mut file = crate::manifest::open_regular(path).map_err(|e| {
+        if e.kind() == std::io::ErrorKind::InvalidInput {
+            NpyError::NotAFile {
+                path: path.to_owned(),
+            }
+        } else {
+            io(e)
+        }
+    })?;
     let meta = file.metadata().map_err(io)?;
-    if !meta.is_file() {
-        return Err(NpyError::NotAFile {
-            path: path.to_owned(),
-        });
-    }
     let mut head = Vec::new();
     (&mut file)
         .take((MAGIC.len() + 6 + MAX_HEADER) as u64)
