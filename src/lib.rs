@@ -97,9 +97,11 @@
 
 #![warn(missing_docs)]
 
+pub mod align;
 pub mod annotate;
 pub mod appearance;
 pub mod atomic;
+pub mod audio;
 pub mod codebook;
 pub mod codec;
 pub mod corpus;

@@ -1,6 +1,7 @@
 //! Subcommands: each parses its arguments, makes one library call with a progress bar, and
 //! prints what came back. No library logic lives here.
 
+mod align;
 mod annotate;
 mod codebook;
 mod codec;
@@ -51,6 +52,8 @@ enum Command {
     Corpus(corpus::CorpusCommand),
     /// Export frames spread over a video (PNG), to mark landmarks on for a model of your own.
     Frames(frames::FramesArgs),
+    /// Forced alignment: a recording and its words → word and phone timings (.TextGrid, .lab).
+    Align(align::AlignArgs),
     /// Mark or correct the 68 landmarks of a folder of frames in a local web page.
     Annotate(annotate::AnnotateArgs),
     /// Track faces through a video or frame folder by AAM search.
@@ -83,6 +86,7 @@ pub fn run() -> Result<()> {
         Command::Codebook(c) => codebook::run(c),
         Command::Corpus(c) => corpus::run(c),
         Command::Frames(a) => frames::run(a),
+        Command::Align(a) => align::run(a),
         Command::Annotate(a) => annotate::run(a),
         Command::Track(a) => track::run(a),
         Command::Encode(a) => codec::encode(a),

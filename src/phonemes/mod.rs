@@ -9,6 +9,7 @@
 pub mod dictionary;
 pub mod labels;
 mod textgrid;
+pub use textgrid::{Tier, format_textgrid};
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

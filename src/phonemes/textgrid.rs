@@ -228,3 +228,50 @@ pub fn parse_textgrid(
         found: names,
     })
 }
+
+/// A TextGrid interval tier: its name and `(start, end, text)` intervals covering `0…xmax`.
+pub struct Tier<'a> {
+    /// The tier's name (`words`, `phones`).
+    pub name: &'a str,
+    /// Intervals in order; gaps are filled with empty intervals when written.
+    pub intervals: Vec<(f64, f64, String)>,
+}
+
+/// Praat's long text form with one interval tier per `tiers` entry, as the Montreal Forced
+/// Aligner writes it (silence as empty intervals).
+pub fn format_textgrid(tiers: &[Tier], xmax: f64) -> String {
+    let quote = |s: &str| s.replace('"', "\"\"");
+    let mut out = format!(
+        "File type = \"ooTextFile\"\nObject class = \"TextGrid\"\n\nxmin = 0\nxmax = {xmax}\ntiers? <exists>\nsize = {}\nitem []:\n",
+        tiers.len()
+    );
+    for (k, tier) in tiers.iter().enumerate() {
+        // Fill gaps so that the intervals tile 0…xmax.
+        let mut filled: Vec<(f64, f64, &str)> = Vec::new();
+        let mut t = 0.0;
+        for (s, e, text) in &tier.intervals {
+            if *s > t + 1e-9 {
+                filled.push((t, *s, ""));
+            }
+            filled.push((*s, *e, text));
+            t = *e;
+        }
+        if xmax > t + 1e-9 {
+            filled.push((t, xmax, ""));
+        }
+        out.push_str(&format!(
+            "    item [{}]:\n        class = \"IntervalTier\"\n        name = \"{}\"\n        xmin = 0\n        xmax = {xmax}\n        intervals: size = {}\n",
+            k + 1,
+            quote(tier.name),
+            filled.len()
+        ));
+        for (i, (s, e, text)) in filled.iter().enumerate() {
+            out.push_str(&format!(
+                "        intervals [{}]:\n            xmin = {s}\n            xmax = {e}\n            text = \"{}\"\n",
+                i + 1,
+                quote(text)
+            ));
+        }
+    }
+    out
+}

@@ -101,3 +101,30 @@ pub(super) fn finish(
         .map_err(|e| e.into_error())?;
     Ok(crate::atomic::persist(tmp, path)?)
 }
+
+/// The audible part of an MP4's first AAC track by its edit list, in seconds: `(skip, keep)`
+/// — the encoder's priming to drop at the start (`media_time`) and how much to keep after it
+/// (`segment_duration`, `None` when the list does not say). `None` when there is no AAC
+/// track; `(0, None)` when there is no edit list.
+pub fn audio_edit(path: &Path) -> Result<Option<(f64, Option<f64>)>, Mp4Error> {
+    let file = open(path)?;
+    let Some(track) = track_of(&file, mp4::MediaType::AAC) else {
+        return Ok(None);
+    };
+    let t = &file.tracks()[&track];
+    let movie_scale = file.moov.mvhd.timescale.max(1) as f64;
+    let media_scale = t.trak.mdia.mdhd.timescale.max(1) as f64;
+    let entry = t
+        .trak
+        .edts
+        .as_ref()
+        .and_then(|e| e.elst.as_ref())
+        .and_then(|l| l.entries.iter().find(|e| e.media_time as i64 >= 0 && e.media_time != u64::MAX));
+    Ok(Some(match entry {
+        Some(e) => (
+            e.media_time as f64 / media_scale,
+            (e.segment_duration > 0).then(|| e.segment_duration as f64 / movie_scale),
+        ),
+        None => (0.0, None),
+    }))
+}

@@ -14,7 +14,7 @@ use std::path::Path;
 
 use thiserror::Error;
 
-pub use audio::AudioTrack;
+pub use audio::{AudioTrack, audio_edit};
 pub use reader::Reader;
 pub use writer::Writer;
 

@@ -1,0 +1,293 @@
+//! The Sphinx MFCC front end, as `feat.params` of the en-us model asks (sphinxbase `fe` and
+//! `feat`): 16 kHz, 100 frames/s, 25.625 ms Hamming windows of pre-emphasised (α = 0.97)
+//! speech, a 512-point power spectrum, 25 unit-area triangular mel filters from 130 to 6800 Hz
+//! (edges rounded to FFT bins), noise removal, `ln(· + 1e-4)`, the orthonormal DCT-II to 13
+//! cepstra, a sinusoidal lifter of 22, batch cepstral mean normalisation, and the
+//! `1s_c_d_dd` feature: c, c[t+2] − c[t−2], (c[t+3] − c[t−1]) − (c[t+1] − c[t−3]).
+
+use std::sync::Arc;
+
+use rustfft::num_complex::Complex32;
+use rustfft::{Fft, FftPlanner};
+
+pub const SAMPLE_RATE: u32 = 16_000;
+/// Samples between frames: 10 ms.
+pub const FRAME_SHIFT: usize = 160;
+/// Samples in a window: 0.025625 s × 16 000.
+pub const FRAME_SIZE: usize = 410;
+const FFT_SIZE: usize = 512;
+const N_FILTERS: usize = 25;
+const LOWER_HZ: f64 = 130.0;
+const UPPER_HZ: f64 = 6800.0;
+pub const N_CEP: usize = 13;
+const LIFTER: f64 = 22.0;
+const PRE_EMPHASIS: f32 = 0.97;
+/// Added to each filter energy before the log (`LOG_FLOOR` of `fe_sigproc.c`).
+const LOG_FLOOR: f64 = 1e-4;
+/// Width of the feature: cepstra, deltas, double deltas.
+pub const FEATURE_DIM: usize = 3 * N_CEP;
+
+/// One triangular filter: its first FFT bin and weights.
+struct Filter {
+    start: usize,
+    weights: Vec<f32>,
+}
+
+/// The precomputed window, filter bank, DCT and lifter, and an FFT plan.
+pub struct FrontEnd {
+    window: Vec<f32>,
+    filters: Vec<Filter>,
+    /// `[cepstrum][filter]`, orthonormal DCT-II rows with the lifter folded in.
+    dct: Vec<[f64; N_FILTERS]>,
+    fft: Arc<dyn Fft<f32>>,
+}
+
+impl Default for FrontEnd {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+fn mel(hz: f64) -> f64 {
+    2595.0 * (1.0 + hz / 700.0).log10()
+}
+
+fn mel_inverse(m: f64) -> f64 {
+    700.0 * (10f64.powf(m / 2595.0) - 1.0)
+}
+
+impl FrontEnd {
+    pub fn new() -> Self {
+        // The symmetric Hamming window of `fe_create_hamming` (0.54 − 0.46 cos 2πi/(N−1)).
+        let window = (0..FRAME_SIZE)
+            .map(|i| {
+                let i = i.min(FRAME_SIZE - 1 - i);
+                (0.54 - 0.46 * (2.0 * std::f64::consts::PI * i as f64 / (FRAME_SIZE as f64 - 1.0)).cos())
+                    as f32
+            })
+            .collect();
+        // `fe_build_melfilters`: centres equally spaced in mel, edges rounded to DFT points,
+        // unit area (peak 2 / (right − left)).
+        let bin_hz = SAMPLE_RATE as f64 / FFT_SIZE as f64;
+        let (mel_lo, mel_hi) = (mel(LOWER_HZ), mel(UPPER_HZ));
+        let mel_bw = (mel_hi - mel_lo) / (N_FILTERS + 1) as f64;
+        let filters = (0..N_FILTERS)
+            .map(|i| {
+                let f: [f64; 3] = std::array::from_fn(|j| {
+                    let hz = mel_inverse((i + j) as f64 * mel_bw + mel_lo) as f32 as f64;
+                    ((hz / bin_hz + 0.5) as i64) as f64 * bin_hz
+                });
+                let mut start = None;
+                let mut weights = Vec::new();
+                for j in 0..=FFT_SIZE / 2 {
+                    let hz = j as f64 * bin_hz;
+                    if hz < f[0] {
+                        continue;
+                    }
+                    if hz > f[2] || j == FFT_SIZE / 2 {
+                        break;
+                    }
+                    start.get_or_insert(j);
+                    let lo = (hz - f[0]) / (f[1] - f[0]) * 2.0 / (f[2] - f[0]);
+                    let hi = (f[2] - hz) / (f[2] - f[1]) * 2.0 / (f[2] - f[0]);
+                    weights.push(lo.min(hi) as f32);
+                }
+                Filter {
+                    start: start.unwrap_or(0),
+                    weights,
+                }
+            })
+            .collect();
+        let n = N_FILTERS as f64;
+        let dct = (0..N_CEP)
+            .map(|i| {
+                let scale = if i == 0 { (1.0 / n).sqrt() } else { (2.0 / n).sqrt() };
+                let lifter = 1.0 + LIFTER / 2.0 * (i as f64 * std::f64::consts::PI / LIFTER).sin();
+                std::array::from_fn(|j| {
+                    let c = if i == 0 {
+                        1.0
+                    } else {
+                        (std::f64::consts::PI / n * i as f64 * (j as f64 + 0.5)).cos()
+                    };
+                    c * scale * lifter
+                })
+            })
+            .collect();
+        FrontEnd {
+            window,
+            filters,
+            dct,
+            fft: FftPlanner::new().plan_fft_forward(FFT_SIZE),
+        }
+    }
+
+    /// Number of frames for `n` samples: every full window, then the remainder as one
+    /// zero-padded frame (as `fe_end_utt` does).
+    pub fn frame_count(n: usize) -> usize {
+        if n == 0 {
+            0
+        } else if n < FRAME_SIZE {
+            1
+        } else {
+            2 + (n - FRAME_SIZE) / FRAME_SHIFT
+        }
+    }
+
+    /// The 13 liftered cepstra of every frame of `samples` (16 kHz, in int16 units).
+    pub fn cepstra(&self, samples: &[f32]) -> Vec<[f32; N_CEP]> {
+        let frames = Self::frame_count(samples.len());
+        let mut out = Vec::with_capacity(frames);
+        let mut noise = NoiseRemoval::default();
+        let mut buf = vec![Complex32::new(0.0, 0.0); FFT_SIZE];
+        let mut scratch = vec![Complex32::new(0.0, 0.0); self.fft.get_inplace_scratch_len()];
+        let mut power = [0f32; FFT_SIZE / 2 + 1];
+        let mut energies = [0f64; N_FILTERS];
+        for t in 0..frames {
+            let start = t * FRAME_SHIFT;
+            let len = FRAME_SIZE.min(samples.len() - start);
+            buf.iter_mut().for_each(|c| *c = Complex32::new(0.0, 0.0));
+            for k in 0..len {
+                // Pre-emphasis runs over the continuous signal (`pre_emphasis_prior`).
+                let prior = if start + k == 0 { 0.0 } else { samples[start + k - 1] };
+                let x = samples[start + k] - PRE_EMPHASIS * prior;
+                buf[k].re = x * self.window[k];
+            }
+            self.fft.process_with_scratch(&mut buf, &mut scratch);
+            for (p, c) in power.iter_mut().zip(&buf) {
+                *p = c.norm_sqr();
+            }
+            for (e, f) in energies.iter_mut().zip(&self.filters) {
+                *e = f
+                    .weights
+                    .iter()
+                    .zip(&power[f.start..])
+                    .map(|(&w, &p)| w as f64 * p as f64)
+                    .sum();
+            }
+            noise.apply(&mut energies);
+            let logs = energies.map(|e| (e + LOG_FLOOR).ln());
+            out.push(std::array::from_fn(|i| {
+                self.dct[i].iter().zip(&logs).map(|(c, l)| c * l).sum::<f64>() as f32
+            }));
+        }
+        out
+    }
+}
+
+/// Batch CMN (`cmn.c`): the mean over frames whose c0 is not negative, subtracted from every
+/// frame. `None` when no frame has c0 ≥ 0 (no signal at all).
+pub fn cmn(cepstra: &mut [[f32; N_CEP]]) -> Option<[f32; N_CEP]> {
+    let mut sum = [0f64; N_CEP];
+    let mut n = 0usize;
+    for c in cepstra.iter().filter(|c| c[0] >= 0.0) {
+        sum.iter_mut().zip(c).for_each(|(s, &v)| *s += v as f64);
+        n += 1;
+    }
+    if n == 0 {
+        return None;
+    }
+    let mean = sum.map(|s| (s / n as f64) as f32);
+    for c in cepstra.iter_mut() {
+        c.iter_mut().zip(&mean).for_each(|(v, m)| *v -= m);
+    }
+    Some(mean)
+}
+
+/// `1s_c_d_dd` with the first and last frame replicated three times at the edges.
+pub fn features(cepstra: &[[f32; N_CEP]]) -> Vec<[f32; FEATURE_DIM]> {
+    let n = cepstra.len() as isize;
+    let at = |t: isize| &cepstra[t.clamp(0, n - 1) as usize];
+    (0..n)
+        .map(|t| {
+            let mut f = [0f32; FEATURE_DIM];
+            for i in 0..N_CEP {
+                f[i] = at(t)[i];
+                f[N_CEP + i] = at(t + 2)[i] - at(t - 2)[i];
+                f[2 * N_CEP + i] = (at(t + 3)[i] - at(t - 1)[i]) - (at(t + 1)[i] - at(t - 3)[i]);
+            }
+            f
+        })
+        .collect()
+}
+
+/// The noise removal of `fe_noise.c` (float build): a smoothed power, a slow lower envelope as
+/// the noise estimate, the signal above it floored by its own envelope and temporal masking,
+/// and a gain (limited to 1/20…20) smoothed over ±4 filters applied to the filter energies.
+struct NoiseRemoval {
+    started: bool,
+    power: [f64; N_FILTERS],
+    noise: [f64; N_FILTERS],
+    floor: [f64; N_FILTERS],
+    peak: [f64; N_FILTERS],
+}
+
+impl Default for NoiseRemoval {
+    fn default() -> Self {
+        NoiseRemoval {
+            started: false,
+            power: [0.0; N_FILTERS],
+            noise: [0.0; N_FILTERS],
+            floor: [0.0; N_FILTERS],
+            peak: [0.0; N_FILTERS],
+        }
+    }
+}
+
+const SMOOTH_WINDOW: usize = 4;
+const LAMBDA_POWER: f64 = 0.7;
+const LAMBDA_A: f64 = 0.995;
+const LAMBDA_B: f64 = 0.5;
+const LAMBDA_T: f64 = 0.85;
+const MU_T: f64 = 0.2;
+const MAX_GAIN: f64 = 20.0;
+
+fn lower_envelope(buf: &[f64; N_FILTERS], floor: &mut [f64; N_FILTERS]) {
+    for (f, &b) in floor.iter_mut().zip(buf) {
+        *f = if b >= *f {
+            LAMBDA_A * *f + (1.0 - LAMBDA_A) * b
+        } else {
+            LAMBDA_B * *f + (1.0 - LAMBDA_B) * b
+        };
+    }
+}
+
+impl NoiseRemoval {
+    fn apply(&mut self, spec: &mut [f64; N_FILTERS]) {
+        if !self.started {
+            self.power = *spec;
+            self.noise = spec.map(|s| s / MAX_GAIN);
+            self.floor = self.noise;
+            self.peak = [0.0; N_FILTERS];
+            self.started = true;
+        }
+        for (p, &s) in self.power.iter_mut().zip(spec.iter()) {
+            *p = LAMBDA_POWER * *p + (1.0 - LAMBDA_POWER) * s;
+        }
+        lower_envelope(&self.power, &mut self.noise);
+        let mut signal: [f64; N_FILTERS] =
+            std::array::from_fn(|i| (self.power[i] - self.noise[i]).max(1.0));
+        lower_envelope(&signal, &mut self.floor);
+        // Temporal masking.
+        for (s, p) in signal.iter_mut().zip(self.peak.iter_mut()) {
+            let cur = *s;
+            *p *= LAMBDA_T;
+            if *s < LAMBDA_T * *p {
+                *s = *p * MU_T;
+            }
+            if cur > *p {
+                *p = cur;
+            }
+        }
+        let gain: [f64; N_FILTERS] = std::array::from_fn(|i| {
+            let s = signal[i].max(self.floor[i]);
+            let g = if s < MAX_GAIN * self.power[i] { s / self.power[i] } else { MAX_GAIN };
+            g.max(1.0 / MAX_GAIN)
+        });
+        for (i, v) in spec.iter_mut().enumerate() {
+            let lo = i.saturating_sub(SMOOTH_WINDOW);
+            let hi = (i + SMOOTH_WINDOW).min(N_FILTERS - 1);
+            let mean = gain[lo..=hi].iter().sum::<f64>() / (hi - lo + 1) as f64;
+            *v *= mean;
+        }
+    }
+}

@@ -1,0 +1,229 @@
+//! Speech in: Viterbi forced alignment of a recording to its words, against the CMU Sphinx
+//! en-us phonetically-tied-mixture acoustic model (DESIGN §6: phone timings).
+//!
+//! The recording goes through the Sphinx MFCC front end ([`frontend`]); the words become a
+//! graph of triphone HMMs — every pronunciation the dictionary gives, cross-word contexts
+//! exact, an optional silence before, between and after the words — and one Viterbi pass
+//! finds the best path. Scores follow pocketsphinx: top-4 Gaussians per codebook and stream,
+//! quantised mixture weights from `sendump`, the model's transition matrices, and a
+//! silence insertion cost of `lw · (ln silprob + ln wip)` (6.5, 0.1, 0.65) against the
+//! acoustic log-likelihood. Frame `t` starts at `t · 10 ms` (pocketsphinx's convention).
+
+pub mod dict;
+pub mod frontend;
+pub mod model;
+mod search;
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+pub use dict::Dictionary;
+pub use model::AcousticModel;
+
+use crate::phonemes::{Phone, Segment};
+
+/// Seconds per feature frame.
+pub const FRAME_SECONDS: f64 = 0.01;
+/// The longest recording aligned in one piece: longer ones are refused before they are
+/// decoded whole, so memory stays bounded.
+pub const MAX_SECONDS: f64 = 600.0;
+
+/// What can go wrong in alignment; every variant says what to do about it.
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum AlignError {
+    /// An acoustic-model file is missing or malformed.
+    #[error("acoustic model {path}: {why}")]
+    Model { path: PathBuf, why: String },
+    /// A dictionary file is missing or malformed.
+    #[error("dictionary {path}:{line}: {why}")]
+    Dictionary { path: PathBuf, line: usize, why: String },
+    /// Words without a pronunciation.
+    #[error(
+        "words not in the pronouncing dictionary: {}; add them with --dict FILE (lines like `WORD  W ER D`)",
+        .0.join(", ")
+    )]
+    OutOfDictionary(Vec<String>),
+    /// The transcript has no words.
+    #[error("the transcript has no words")]
+    NoWords,
+    /// The audio has no samples.
+    #[error("the audio is empty ({samples} samples)")]
+    EmptyAudio { samples: usize },
+    /// The audio is digital silence or nearly so.
+    #[error("the audio is silent (peak {peak_dbfs:.0} dBFS): nothing to align")]
+    Silent { peak_dbfs: f64 },
+    /// Fewer frames than the words' phones need (three each).
+    #[error(
+        "the transcript is too long for the audio: its {phones} phones need at least {needed} frames ({:.2} s) but the audio has {frames} ({:.2} s)",
+        *.needed as f64 * FRAME_SECONDS, *.frames as f64 * FRAME_SECONDS
+    )]
+    TranscriptTooLong { phones: usize, needed: usize, frames: usize },
+    /// The search found no path (the beam lost every hypothesis).
+    #[error("no alignment reaches the end of the words at the end of the audio: is this the right transcript?")]
+    NoPath,
+    /// Audio longer than [`MAX_SECONDS`].
+    #[error("the audio lasts {seconds:.0} s; at most {max:.0} s are aligned at once: split it at pauses")]
+    TooLong { seconds: f64, max: f64 },
+    /// The sample rate is not 16 kHz (resample first: [`crate::audio::resample`]).
+    #[error("audio at {0} Hz: the acoustic model needs 16 000 Hz")]
+    SampleRate(u32),
+}
+
+/// A word and its interval.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TimedWord {
+    pub word: String,
+    /// Which pronunciation (0 = the dictionary's first).
+    pub pronunciation: usize,
+    pub start: f64,
+    pub end: f64,
+}
+
+/// A phone (ARPAbet, `SIL` for silence) and its interval; `word` indexes [`Alignment::words`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TimedPhone {
+    pub phone: String,
+    pub start: f64,
+    pub end: f64,
+    pub word: Option<usize>,
+}
+
+/// Words and phones with times, covering the whole recording.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Alignment {
+    pub words: Vec<TimedWord>,
+    pub phones: Vec<TimedPhone>,
+    /// Feature frames (10 ms each).
+    pub frames: usize,
+    /// Log-likelihood of the best path, per frame.
+    pub score_per_frame: f64,
+}
+
+impl Alignment {
+    /// The phones as label segments (`SIL` → `sil`), for `.lab` and TextGrid files.
+    pub fn segments(&self) -> Vec<Segment> {
+        self.phones
+            .iter()
+            .map(|p| Segment {
+                start: p.start,
+                end: p.end,
+                phone: Phone::parse(&p.phone).unwrap_or(Phone::SIL),
+            })
+            .collect()
+    }
+}
+
+/// The acoustic model and dictionary together: what [`align`] needs.
+pub struct Aligner {
+    pub model: AcousticModel,
+    pub dict: Dictionary,
+    frontend: frontend::FrontEnd,
+}
+
+/// The committed en-us model folder.
+pub fn default_model_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("models/en-us")
+}
+
+impl Aligner {
+    /// Loads the model of `dir` and its dictionary (`cmudict-en-us.dict.gz` beside it), plus
+    /// the pronunciations of `extra` dictionary files.
+    pub fn load(dir: &Path, extra: &[PathBuf]) -> Result<Self, AlignError> {
+        let model = AcousticModel::load(dir)?;
+        let mut dict = Dictionary::load(&dir.join("cmudict-en-us.dict.gz"), &model)?;
+        for path in extra {
+            dict.add_file(path, &model)?;
+        }
+        Ok(Aligner {
+            model,
+            dict,
+            frontend: frontend::FrontEnd::new(),
+        })
+    }
+
+    /// The committed model with `extra` dictionaries.
+    pub fn load_default(extra: &[PathBuf]) -> Result<Self, AlignError> {
+        Self::load(&default_model_dir(), extra)
+    }
+
+    /// Aligns `samples` (mono, 16 kHz, −1…1) to the words of `text`.
+    pub fn align(&self, samples: &[f32], rate: u32, text: &str) -> Result<Alignment, AlignError> {
+        if rate != frontend::SAMPLE_RATE {
+            return Err(AlignError::SampleRate(rate));
+        }
+        let words = dict::words(text);
+        if words.is_empty() {
+            return Err(AlignError::NoWords);
+        }
+        let prons = self.dict.pronunciations(&words, &self.model)?;
+        let seconds = samples.len() as f64 / rate as f64;
+        if seconds > MAX_SECONDS {
+            return Err(AlignError::TooLong { seconds, max: MAX_SECONDS });
+        }
+        if samples.len() < frontend::FRAME_SIZE {
+            return Err(AlignError::EmptyAudio { samples: samples.len() });
+        }
+        let peak = samples.iter().fold(0f32, |m, &x| m.max(x.abs()));
+        let peak_dbfs = 20.0 * (peak.max(1e-10) as f64).log10();
+        if peak_dbfs < -60.0 {
+            return Err(AlignError::Silent { peak_dbfs });
+        }
+        // The front end works in int16 units, as pocketsphinx receives them.
+        let pcm: Vec<f32> = samples.iter().map(|&x| (x * 32768.0).round().clamp(-32768.0, 32767.0)).collect();
+        let mut cep = self.frontend.cepstra(&pcm);
+        if frontend::cmn(&mut cep).is_none() {
+            return Err(AlignError::Silent { peak_dbfs });
+        }
+        let feats = frontend::features(&cep);
+        let phones: usize = prons.iter().map(|p| p.iter().map(Vec::len).min().unwrap_or(0)).sum();
+        let prons: Vec<&[Vec<u8>]> = prons.iter().map(Vec::as_slice).collect();
+        let needed = phones * model::STATES;
+        if feats.len() < needed {
+            return Err(AlignError::TranscriptTooLong { phones, needed, frames: feats.len() });
+        }
+        let graph = search::Graph::build(&self.model, &words, &prons);
+        let path = search::viterbi(&self.model, &graph, &feats).ok_or(AlignError::NoPath)?;
+        Ok(graph.alignment(&self.model, &words, path, feats.len()))
+    }
+}
+
+impl Alignment {
+    /// Praat TextGrid with a `words` and a `phones` tier, silence as empty intervals (the
+    /// Montreal Forced Aligner's layout).
+    pub fn textgrid(&self) -> String {
+        use crate::phonemes::{Tier, format_textgrid};
+        let words = Tier {
+            name: "words",
+            intervals: self.words.iter().map(|w| (w.start, w.end, w.word.clone())).collect(),
+        };
+        let phones = Tier {
+            name: "phones",
+            intervals: self
+                .phones
+                .iter()
+                .filter(|p| p.word.is_some())
+                .map(|p| (p.start, p.end, p.phone.clone()))
+                .collect(),
+        };
+        format_textgrid(&[words, phones], self.frames as f64 * FRAME_SECONDS)
+    }
+
+    /// Writes the alignment by extension: `.TextGrid` (words and phones), else phone labels
+    /// (`.lab` HTK, `.tsv`), atomically.
+    pub fn write(&self, path: &Path) -> Result<(), crate::phonemes::PhonemeError> {
+        let is_textgrid = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .is_some_and(|e| e.eq_ignore_ascii_case("textgrid"));
+        if is_textgrid {
+            crate::atomic::write_file(path, self.textgrid().as_bytes()).map_err(|source| {
+                crate::phonemes::PhonemeError::Io { path: path.into(), source }
+            })
+        } else {
+            crate::phonemes::write_labels(path, &self.segments())
+        }
+    }
+}

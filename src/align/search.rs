@@ -1,0 +1,468 @@
+//! The alignment graph (triphone HMMs of every pronunciation, optional silences) and its
+//! Viterbi search with phone-level back-pointers.
+
+use super::frontend::FEATURE_DIM;
+use super::model::{AcousticModel, STATES, STREAMS, STREAM_DIM, TOP_N, WordPosition};
+use super::{Alignment, FRAME_SECONDS, TimedPhone, TimedWord};
+
+/// Language weight, silence probability and word insertion penalty of the reference
+/// alignment (pocketsphinx `-lw 6.5 -silprob 0.1 -wip 0.65`): an optional silence costs
+/// `lw · (ln silprob + ln wip)` nats against the acoustic log-likelihood.
+const LW: f64 = 6.5;
+const SILPROB: f64 = 0.1;
+const WIP: f64 = 0.65;
+/// Hypotheses more than `−ln 1e-80` below the frame's best are dropped (pocketsphinx
+/// `-beam 1e-80`).
+const BEAM: f32 = 184.2;
+
+fn silence_cost() -> f32 {
+    (LW * (SILPROB.ln() + WIP.ln())) as f32
+}
+
+const NONE: u32 = u32::MAX;
+
+/// One phone HMM of the graph.
+struct Node {
+    senones: [u16; STATES],
+    tmat: usize,
+    /// CI phone id.
+    phone: u8,
+    /// (word index, pronunciation) for word phones; `None` for silence.
+    word: Option<(usize, usize)>,
+}
+
+/// HMMs, their predecessors with the cost of the transition, the entry and final HMMs.
+pub(super) struct Graph {
+    nodes: Vec<Node>,
+    preds: Vec<Vec<(u32, f32)>>,
+    start: Vec<(u32, f32)>,
+    finals: Vec<u32>,
+}
+
+/// The entry and exit HMMs of one pronunciation, keyed by the context they assume.
+struct WordEnds {
+    /// (left context, first HMM).
+    entries: Vec<(usize, u32)>,
+    /// (right context, last HMM).
+    exits: Vec<(usize, u32)>,
+    first: usize,
+    last: usize,
+}
+
+impl Graph {
+    fn add(&mut self, node: Node) -> u32 {
+        self.nodes.push(node);
+        self.preds.push(Vec::new());
+        (self.nodes.len() - 1) as u32
+    }
+
+    fn edge(&mut self, from: u32, to: u32, cost: f32) {
+        self.preds[to as usize].push((from, cost));
+    }
+
+    /// Words × pronunciations → HMMs with exact cross-word triphone contexts: a word's first
+    /// (last) phone is duplicated for each left (right) context it can meet — silence or the
+    /// edge phone of each neighbouring pronunciation.
+    pub(super) fn build(model: &AcousticModel, words: &[String], prons: &[&[Vec<u8>]]) -> Graph {
+        let sil = model.sil;
+        let n = words.len();
+        let mut g = Graph {
+            nodes: Vec::new(),
+            preds: Vec::new(),
+            start: Vec::new(),
+            finals: Vec::new(),
+        };
+        let contexts = |i: usize, first: bool| -> Vec<usize> {
+            let mut c = vec![sil];
+            let neighbour = if first { i.checked_sub(1) } else { Some(i + 1).filter(|&j| j < n) };
+            if let Some(j) = neighbour {
+                for p in prons[j] {
+                    let ph = if first { *p.last().unwrap() } else { p[0] } as usize;
+                    if !c.contains(&ph) {
+                        c.push(ph);
+                    }
+                }
+            }
+            c
+        };
+        let mut ends: Vec<Vec<WordEnds>> = Vec::with_capacity(n);
+        for (i, variants) in prons.iter().enumerate() {
+            let (lcs, rcs) = (contexts(i, true), contexts(i, false));
+            let mut word_ends = Vec::new();
+            for (v, pron) in variants.iter().enumerate() {
+                let p: Vec<usize> = pron.iter().map(|&c| c as usize).collect();
+                let len = p.len();
+                let mut node = |g: &mut Graph, base: usize, l: usize, r: usize, pos| {
+                    let (senones, tmat) = model.triphone(base, l, r, pos);
+                    g.add(Node {
+                        senones,
+                        tmat,
+                        phone: base as u8,
+                        word: Some((i, v)),
+                    })
+                };
+                let mut e = WordEnds {
+                    entries: Vec::new(),
+                    exits: Vec::new(),
+                    first: p[0],
+                    last: p[len - 1],
+                };
+                if len == 1 {
+                    for &l in &lcs {
+                        for &r in &rcs {
+                            let h = node(&mut g, p[0], l, r, WordPosition::Single);
+                            e.entries.push((l, h));
+                            e.exits.push((r, h));
+                        }
+                    }
+                    // A single-phone HMM keyed by (l, r) must be entered from l and left to r:
+                    // record both keys on the same node (checked in `link`).
+                } else {
+                    let firsts: Vec<u32> =
+                        lcs.iter().map(|&l| node(&mut g, p[0], l, p[1], WordPosition::Begin)).collect();
+                    let mut tails = firsts.clone();
+                    for k in 1..len - 1 {
+                        let h = node(&mut g, p[k], p[k - 1], p[k + 1], WordPosition::Internal);
+                        for &t in &tails {
+                            g.edge(t, h, 0.0);
+                        }
+                        tails = vec![h];
+                    }
+                    for &r in &rcs {
+                        let h = node(&mut g, p[len - 1], p[len - 2], r, WordPosition::End);
+                        for &t in &tails {
+                            g.edge(t, h, 0.0);
+                        }
+                        e.exits.push((r, h));
+                    }
+                    e.entries = lcs.iter().copied().zip(firsts).collect();
+                }
+                word_ends.push(e);
+            }
+            ends.push(word_ends);
+        }
+        let sil_node = |g: &mut Graph| {
+            let (senones, tmat) = model.triphone(sil, sil, sil, WordPosition::Single);
+            g.add(Node {
+                senones,
+                tmat,
+                phone: sil as u8,
+                word: None,
+            })
+        };
+        let cost = silence_cost();
+        // An HMM of a one-phone word appears in both lists under its (l, r) key; it may only be
+        // left towards its own right context, which `exits` already encodes.
+        for j in 0..=n {
+            let s = sil_node(&mut g);
+            if j == 0 {
+                g.start.push((s, cost));
+            } else {
+                for e in &ends[j - 1] {
+                    for &(r, h) in &e.exits {
+                        if r == sil {
+                            g.edge(h, s, cost);
+                        }
+                    }
+                }
+            }
+            if j == n {
+                g.finals.push(s);
+                for e in &ends[n - 1] {
+                    for &(r, h) in &e.exits {
+                        if r == sil {
+                            g.finals.push(h);
+                        }
+                    }
+                }
+                break;
+            }
+            for e in &ends[j] {
+                for &(l, h) in &e.entries {
+                    if l != sil {
+                        continue;
+                    }
+                    g.edge(s, h, 0.0);
+                    if j == 0 {
+                        g.start.push((h, 0.0));
+                    }
+                }
+            }
+            if j > 0 {
+                // Direct word-to-word transitions, contexts matching on both sides.
+                let mut direct = Vec::new();
+                for prev in &ends[j - 1] {
+                    for next in &ends[j] {
+                        for &(r, from) in &prev.exits {
+                            if r != next.first {
+                                continue;
+                            }
+                            for &(l, to) in &next.entries {
+                                if l == prev.last {
+                                    direct.push((from, to));
+                                }
+                            }
+                        }
+                    }
+                }
+                for (from, to) in direct {
+                    g.edge(from, to, 0.0);
+                }
+            }
+        }
+        g
+    }
+
+    /// The path's HMMs → phones and words with times.
+    pub(super) fn alignment(
+        &self,
+        model: &AcousticModel,
+        words: &[String],
+        path: Path,
+        frames: usize,
+    ) -> Alignment {
+        let mut phones = Vec::with_capacity(path.entries.len());
+        let mut timed_words: Vec<TimedWord> = Vec::new();
+        let mut word_of_node: Vec<Option<usize>> = Vec::new();
+        for (k, &(node, start)) in path.entries.iter().enumerate() {
+            let end = path.entries.get(k + 1).map_or(frames as u32, |e| e.1);
+            let (start, end) = (start as f64 * FRAME_SECONDS, end as f64 * FRAME_SECONDS);
+            let n = &self.nodes[node as usize];
+            let word = n.word.map(|(i, v)| {
+                match timed_words.last_mut() {
+                    Some(w) if word_of_node.last().copied().flatten() == Some(i) => w.end = end,
+                    _ => timed_words.push(TimedWord {
+                        word: words[i].clone(),
+                        pronunciation: v,
+                        start,
+                        end,
+                    }),
+                }
+                timed_words.len() - 1
+            });
+            word_of_node.push(n.word.map(|(i, _)| i));
+            phones.push(TimedPhone {
+                phone: model.ci_names[n.phone as usize].clone(),
+                start,
+                end,
+                word,
+            });
+        }
+        Alignment {
+            words: timed_words,
+            phones,
+            frames,
+            score_per_frame: path.score / frames.max(1) as f64,
+        }
+    }
+}
+
+/// The best path: (HMM, first frame) in order, and its log-likelihood.
+pub(super) struct Path {
+    entries: Vec<(u32, u32)>,
+    score: f64,
+}
+
+/// Senone scores of one frame, computed on demand: per codebook and stream the top-N
+/// Gaussians, per senone the log-sum of weight × density over them, summed over streams.
+struct Scorer<'a> {
+    model: &'a AcousticModel,
+    feat: &'a [f32; FEATURE_DIM],
+    frame: u32,
+    top: Vec<[(u16, f32); TOP_N]>,
+    top_frame: Vec<u32>,
+    senone: Vec<f32>,
+    senone_frame: Vec<u32>,
+    densities: Vec<f32>,
+}
+
+impl<'a> Scorer<'a> {
+    fn new(model: &'a AcousticModel, feat: &'a [f32; FEATURE_DIM]) -> Self {
+        Scorer {
+            model,
+            feat,
+            frame: NONE,
+            top: vec![[(0, f32::NEG_INFINITY); TOP_N]; model.n_codebooks * STREAMS],
+            top_frame: vec![NONE; model.n_codebooks * STREAMS],
+            senone: vec![0.0; model.n_senones],
+            senone_frame: vec![NONE; model.n_senones],
+            densities: vec![0.0; model.n_density],
+        }
+    }
+
+    fn set_frame(&mut self, frame: u32, feat: &'a [f32; FEATURE_DIM]) {
+        self.frame = frame;
+        self.feat = feat;
+    }
+
+    fn codebook(&mut self, block: usize) -> [(u16, f32); TOP_N] {
+        if self.top_frame[block] == self.frame {
+            return self.top[block];
+        }
+        let m = self.model;
+        let nd = m.n_density;
+        let stream = block % STREAMS;
+        let acc = &mut self.densities;
+        acc.copy_from_slice(&m.log_norm[block * nd..(block + 1) * nd]);
+        for k in 0..STREAM_DIM {
+            let x = self.feat[stream * STREAM_DIM + k];
+            let off = block * nd * STREAM_DIM + k * nd;
+            let means = &m.means[off..off + nd];
+            let inv = &m.inv_2var[off..off + nd];
+            for ((a, &mu), &iv) in acc.iter_mut().zip(means).zip(inv) {
+                let d = x - mu;
+                *a -= d * d * iv;
+            }
+        }
+        let mut top = [(0u16, f32::NEG_INFINITY); TOP_N];
+        for (d, &s) in acc.iter().enumerate() {
+            if s > top[TOP_N - 1].1 {
+                let mut k = TOP_N - 1;
+                while k > 0 && top[k - 1].1 < s {
+                    top[k] = top[k - 1];
+                    k -= 1;
+                }
+                top[k] = (d as u16, s);
+            }
+        }
+        self.top[block] = top;
+        self.top_frame[block] = self.frame;
+        top
+    }
+
+    fn score(&mut self, sen: u16) -> f32 {
+        let sen = sen as usize;
+        if self.senone_frame[sen] == self.frame {
+            return self.senone[sen];
+        }
+        let cb = self.model.senone_codebook[sen] as usize;
+        let mut total = 0.0;
+        for s in 0..STREAMS {
+            let top = self.codebook(cb * STREAMS + s);
+            let mixw = &self.model.log_mixw[s * self.model.n_density * self.model.n_senones..];
+            let terms = top.map(|(d, g)| g + mixw[d as usize * self.model.n_senones + sen]);
+            let best = terms.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b));
+            total += best + terms.iter().map(|&t| (t - best).exp()).sum::<f32>().ln();
+        }
+        self.senone[sen] = total;
+        self.senone_frame[sen] = self.frame;
+        total
+    }
+}
+
+/// Frame-synchronous Viterbi over the graph, beam-pruned; phone-level back-pointers.
+pub(super) fn viterbi(model: &AcousticModel, g: &Graph, feats: &[[f32; FEATURE_DIM]]) -> Option<Path> {
+    let n = g.nodes.len();
+    let ninf = f32::NEG_INFINITY;
+    let mut score = vec![[ninf; STATES]; n];
+    let mut hist = vec![[NONE; STATES]; n];
+    let mut next = vec![[ninf; STATES]; n];
+    let mut next_hist = vec![[NONE; STATES]; n];
+    let mut exit = vec![(ninf, NONE); n];
+    let mut active = vec![false; n];
+    // (node, first frame, previous record)
+    let mut records: Vec<(u32, u32, u32)> = Vec::new();
+    let mut start_cost = vec![ninf; n];
+    for &(h, c) in &g.start {
+        start_cost[h as usize] = c;
+    }
+    let mut scorer = Scorer::new(model, &feats[0]);
+    for (t, feat) in feats.iter().enumerate() {
+        scorer.set_frame(t as u32, feat);
+        // Exits of the previous frame.
+        for h in 0..n {
+            exit[h] = (ninf, NONE);
+            if !active[h] {
+                continue;
+            }
+            let a = &model.tmats[g.nodes[h].tmat];
+            for s in 0..STATES {
+                let v = score[h][s] + a[s][STATES];
+                if v > exit[h].0 {
+                    exit[h] = (v, hist[h][s]);
+                }
+            }
+        }
+        let mut best = ninf;
+        for h in 0..n {
+            let (mut entry, mut entry_hist) = if t == 0 { (start_cost[h], NONE) } else { (ninf, NONE) };
+            for &(p, c) in &g.preds[h] {
+                let v = exit[p as usize].0 + c;
+                if v > entry {
+                    entry = v;
+                    entry_hist = exit[p as usize].1;
+                }
+            }
+            if !active[h] && entry == ninf {
+                next[h] = [ninf; STATES];
+                continue;
+            }
+            let node = &g.nodes[h];
+            let a = &model.tmats[node.tmat];
+            for j in 0..STATES {
+                let (mut v, mut from) = (ninf, NONE);
+                for i in 0..=j {
+                    let s = score[h][i] + a[i][j];
+                    if s > v {
+                        v = s;
+                        from = hist[h][i];
+                    }
+                }
+                if j == 0 && entry > v {
+                    v = entry;
+                    records.push((h as u32, t as u32, entry_hist));
+                    from = (records.len() - 1) as u32;
+                }
+                if v > ninf {
+                    v += scorer.score(node.senones[j]);
+                }
+                next[h][j] = v;
+                next_hist[h][j] = from;
+                best = best.max(v);
+            }
+        }
+        if best == ninf {
+            return None;
+        }
+        let threshold = best - BEAM;
+        for h in 0..n {
+            let mut any = false;
+            for s in 0..STATES {
+                if next[h][s] < threshold {
+                    next[h][s] = ninf;
+                } else {
+                    any = true;
+                }
+            }
+            active[h] = any;
+        }
+        std::mem::swap(&mut score, &mut next);
+        std::mem::swap(&mut hist, &mut next_hist);
+    }
+    let (mut best, mut at) = (ninf, NONE);
+    for &h in &g.finals {
+        let h = h as usize;
+        let a = &model.tmats[g.nodes[h].tmat];
+        for s in 0..STATES {
+            let v = score[h][s] + a[s][STATES];
+            if v > best {
+                best = v;
+                at = hist[h][s];
+            }
+        }
+    }
+    if at == NONE {
+        return None;
+    }
+    let mut entries = Vec::new();
+    while at != NONE {
+        let (node, start, prev) = records[at as usize];
+        entries.push((node, start));
+        at = prev;
+    }
+    entries.reverse();
+    Some(Path {
+        entries,
+        score: best as f64,
+    })
+}
