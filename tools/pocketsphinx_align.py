@@ -16,7 +16,7 @@ def main():
     wav_dir, listing = sys.argv[1], sys.argv[2]
     out_dir = sys.argv[3] if len(sys.argv) > 3 else None
     t0 = time.perf_counter()
-    dec = Decoder(beam=1e-80, wbeam=1e-60, pbeam=1e-80, silprob=0.1, loglevel="FATAL")
+    dec = Decoder(beam=1e-80, wbeam=1e-60, pbeam=1e-80, silprob=0.1, bestpath=False, loglevel="FATAL")
     load = time.perf_counter() - t0
     items = [l.split("\t", 1) for l in open(listing).read().splitlines() if l.strip()]
     pcm = {}

@@ -133,11 +133,24 @@ impl FrontEnd {
         }
     }
 
-    /// The 13 liftered cepstra of every frame of `samples` (16 kHz, in int16 units).
+    /// The 13 liftered cepstra of every frame of `samples` (16 kHz, in int16 units), the
+    /// noise estimate starting from the first frame.
     pub fn cepstra(&self, samples: &[f32]) -> Vec<[f32; N_CEP]> {
+        self.cepstra_from(samples, &mut NoiseRemoval::default())
+    }
+
+    /// The cepstra with the noise estimate first run over the whole recording, so that it
+    /// starts from the recording's own floor rather than its first frame (what pocketsphinx's
+    /// phone pass sees after its word pass over the same audio).
+    pub fn cepstra_warm(&self, samples: &[f32]) -> Vec<[f32; N_CEP]> {
+        let mut noise = NoiseRemoval::default();
+        self.cepstra_from(samples, &mut noise);
+        self.cepstra_from(samples, &mut noise)
+    }
+
+    fn cepstra_from(&self, samples: &[f32], noise: &mut NoiseRemoval) -> Vec<[f32; N_CEP]> {
         let frames = Self::frame_count(samples.len());
         let mut out = Vec::with_capacity(frames);
-        let mut noise = NoiseRemoval::default();
         let mut buf = vec![Complex32::new(0.0, 0.0); FFT_SIZE];
         let mut scratch = vec![Complex32::new(0.0, 0.0); self.fft.get_inplace_scratch_len()];
         let mut power = [0f32; FFT_SIZE / 2 + 1];
@@ -213,7 +226,7 @@ pub fn features(cepstra: &[[f32; N_CEP]]) -> Vec<[f32; FEATURE_DIM]> {
 /// The noise removal of `fe_noise.c` (float build): a smoothed power, a slow lower envelope as
 /// the noise estimate, the signal above it floored by its own envelope and temporal masking,
 /// and a gain (limited to 1/20…20) smoothed over ±4 filters applied to the filter energies.
-struct NoiseRemoval {
+pub struct NoiseRemoval {
     started: bool,
     power: [f64; N_FILTERS],
     noise: [f64; N_FILTERS],

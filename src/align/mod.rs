@@ -173,7 +173,7 @@ impl Aligner {
         }
         // The front end works in int16 units, as pocketsphinx receives them.
         let pcm: Vec<f32> = samples.iter().map(|&x| (x * 32768.0).round().clamp(-32768.0, 32767.0)).collect();
-        let mut cep = self.frontend.cepstra(&pcm);
+        let mut cep = self.frontend.cepstra_warm(&pcm);
         if frontend::cmn(&mut cep).is_none() {
             return Err(AlignError::Silent { peak_dbfs });
         }
