@@ -136,25 +136,38 @@ impl FrontEnd {
     /// The 13 liftered cepstra of every frame of `samples` (16 kHz, in int16 units), the
     /// noise estimate starting from the first frame.
     pub fn cepstra(&self, samples: &[f32]) -> Vec<[f32; N_CEP]> {
-        self.cepstra_from(samples, &mut NoiseRemoval::default())
+        let mut energies = self.filter_energies(samples);
+        let mut noise = NoiseRemoval::default();
+        energies.iter_mut().for_each(|e| noise.apply(e));
+        energies.iter().map(|e| self.cepstrum(e)).collect()
     }
 
     /// The cepstra with the noise estimate first run over the whole recording, so that it
     /// starts from the recording's own floor rather than its first frame (what pocketsphinx's
     /// phone pass sees after its word pass over the same audio).
     pub fn cepstra_warm(&self, samples: &[f32]) -> Vec<[f32; N_CEP]> {
+        let mut energies = self.filter_energies(samples);
         let mut noise = NoiseRemoval::default();
-        self.cepstra_from(samples, &mut noise);
-        self.cepstra_from(samples, &mut noise)
+        for e in &energies {
+            noise.apply(&mut e.clone());
+        }
+        energies.iter_mut().for_each(|e| noise.apply(e));
+        energies.iter().map(|e| self.cepstrum(e)).collect()
     }
 
-    fn cepstra_from(&self, samples: &[f32], noise: &mut NoiseRemoval) -> Vec<[f32; N_CEP]> {
+    /// `ln(e + 1e-4)`, the DCT and the lifter.
+    fn cepstrum(&self, energies: &[f64; N_FILTERS]) -> [f32; N_CEP] {
+        let logs = energies.map(|e| (e + LOG_FLOOR).ln());
+        std::array::from_fn(|i| self.dct[i].iter().zip(&logs).map(|(c, l)| c * l).sum::<f64>() as f32)
+    }
+
+    /// The mel filter energies of every frame (before noise removal).
+    fn filter_energies(&self, samples: &[f32]) -> Vec<[f64; N_FILTERS]> {
         let frames = Self::frame_count(samples.len());
         let mut out = Vec::with_capacity(frames);
         let mut buf = vec![Complex32::new(0.0, 0.0); FFT_SIZE];
         let mut scratch = vec![Complex32::new(0.0, 0.0); self.fft.get_inplace_scratch_len()];
         let mut power = [0f32; FFT_SIZE / 2 + 1];
-        let mut energies = [0f64; N_FILTERS];
         for t in 0..frames {
             let start = t * FRAME_SHIFT;
             let len = FRAME_SIZE.min(samples.len() - start);
@@ -169,18 +182,9 @@ impl FrontEnd {
             for (p, c) in power.iter_mut().zip(&buf) {
                 *p = c.norm_sqr();
             }
-            for (e, f) in energies.iter_mut().zip(&self.filters) {
-                *e = f
-                    .weights
-                    .iter()
-                    .zip(&power[f.start..])
-                    .map(|(&w, &p)| w as f64 * p as f64)
-                    .sum();
-            }
-            noise.apply(&mut energies);
-            let logs = energies.map(|e| (e + LOG_FLOOR).ln());
             out.push(std::array::from_fn(|i| {
-                self.dct[i].iter().zip(&logs).map(|(c, l)| c * l).sum::<f64>() as f32
+                let f = &self.filters[i];
+                f.weights.iter().zip(&power[f.start..]).map(|(&w, &p)| w as f64 * p as f64).sum()
             }));
         }
         out
@@ -226,7 +230,7 @@ pub fn features(cepstra: &[[f32; N_CEP]]) -> Vec<[f32; FEATURE_DIM]> {
 /// The noise removal of `fe_noise.c` (float build): a smoothed power, a slow lower envelope as
 /// the noise estimate, the signal above it floored by its own envelope and temporal masking,
 /// and a gain (limited to 1/20…20) smoothed over ±4 filters applied to the filter energies.
-pub struct NoiseRemoval {
+struct NoiseRemoval {
     started: bool,
     power: [f64; N_FILTERS],
     noise: [f64; N_FILTERS],

@@ -50,10 +50,18 @@ pub enum CorpusError {
         dir: PathBuf,
     },
     /// A trajectory without labels.
-    #[error("{npy}: no label file of the same name (.lab, .TextGrid or .tsv)")]
+    #[error("{npy}: no label file of the same name (.lab, .TextGrid or .tsv; beside a video, a .txt transcript is aligned)")]
     MissingLabels {
         /// The trajectory.
         npy: PathBuf,
+    },
+    /// A recording's sound could not be aligned to its transcript.
+    #[error("{path}: {reason}")]
+    Align {
+        /// The recording (or the acoustic model).
+        path: PathBuf,
+        /// What went wrong.
+        reason: String,
     },
     /// A recording could not be tracked or projected.
     #[error("{path}: {source}")]

@@ -12,7 +12,26 @@ use crate::codec::{self, EncodeOptions, TrackingSummary};
 use crate::model::FaceModel;
 use crate::phonemes::{self, PhoneMap};
 use crate::video::{self, Source};
-use crate::{Progress, atomic};
+use crate::{Progress, align, atomic, audio};
+
+/// A recording's own sound aligned to its transcript → phone segments.
+fn align_transcript(
+    aligner: &align::Aligner,
+    video: &Path,
+    transcript: &Path,
+) -> Result<Vec<phonemes::Segment>, CorpusError> {
+    let fail = |reason: String| CorpusError::Align { path: video.to_owned(), reason };
+    let text = std::fs::read_to_string(transcript).map_err(|source| CorpusError::Io {
+        path: transcript.to_owned(),
+        source,
+    })?;
+    let speech = audio::read(video, align::frontend::SAMPLE_RATE, align::MAX_SECONDS)
+        .map_err(|e| fail(e.to_string()))?;
+    let alignment = aligner
+        .align(&speech.samples, speech.rate, &text)
+        .map_err(|e| fail(format!("aligning {}: {e}", transcript.display())))?;
+    Ok(alignment.segments())
+}
 
 /// Video file extensions looked for (frame folders count too).
 const VIDEO_EXTENSIONS: &[&str] = &["mp4", "m4v", "mov", "y4m", "mkv", "avi", "webm"];
@@ -30,8 +49,17 @@ pub struct Recorded {
     pub audio: bool,
 }
 
-/// The recordings in `dir`: (name, video, labels), sorted by name.
-fn recordings(dir: &Path) -> Result<Vec<(String, PathBuf, PathBuf)>, CorpusError> {
+/// Where a recording's phone timings come from.
+#[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord)]
+enum Timings {
+    /// A label file (`.lab`, `.TextGrid`, `.tsv`).
+    Labels(PathBuf),
+    /// A transcript (`NAME.txt`) to align on the recording's sound.
+    Transcript(PathBuf),
+}
+
+/// The recordings in `dir`: (name, video, timings), sorted by name.
+fn recordings(dir: &Path) -> Result<Vec<(String, PathBuf, Timings)>, CorpusError> {
     let io = |source| CorpusError::Io {
         path: dir.into(),
         source,
@@ -65,6 +93,11 @@ fn recordings(dir: &Path) -> Result<Vec<(String, PathBuf, PathBuf)>, CorpusError
             .iter()
             .map(|x| dir.join(format!("{stem}.{x}")))
             .find(|p| p.is_file())
+            .map(Timings::Labels)
+            .or_else(|| {
+                let txt = dir.join(format!("{stem}.txt"));
+                txt.is_file().then_some(Timings::Transcript(txt))
+            })
             .ok_or_else(|| CorpusError::MissingLabels { npy: path.clone() })?;
         found.push((stem, path, labels));
     }
@@ -89,6 +122,15 @@ pub fn from_recordings(
     progress: impl FnMut(Progress) + Send,
 ) -> Result<(f64, Vec<Recorded>), CorpusError> {
     let found = recordings(dir)?;
+    // The aligner is loaded once, and only when some recording has just a transcript.
+    let aligner = if found.iter().any(|f| matches!(f.2, Timings::Transcript(_))) {
+        Some(align::Aligner::load_default(&[]).map_err(|e| CorpusError::Align {
+            path: align::default_model_dir(),
+            reason: e.to_string(),
+        })?)
+    } else {
+        None
+    };
     let progress = std::sync::Mutex::new(progress);
     let done = std::sync::atomic::AtomicUsize::new(0);
     let encoded = found
@@ -103,10 +145,17 @@ pub fn from_recordings(
             let clip = codec::encode(model, source, options, |_| {})
                 .map_err(encode_error)?
                 .clip;
-            let segments = phonemes::read_labels(labels, tier, map)?;
+            let segments = match labels {
+                Timings::Labels(path) => phonemes::read_labels(path, tier, map)?,
+                Timings::Transcript(path) => {
+                    let aligner = aligner.as_ref().expect("loaded for transcripts");
+                    align_transcript(aligner, video, path)?
+                }
+            };
             let fps = clip.frames.fps();
             let (frames_s, labels_s) = (clip.frames.duration(), segments[segments.len() - 1].end);
             if (frames_s - labels_s).abs() > 2.0 / fps {
+                let (Timings::Labels(labels) | Timings::Transcript(labels)) = labels;
                 return Err(CorpusError::DurationMismatch {
                     npy: video.clone(),
                     labels: labels.clone(),
@@ -122,13 +171,13 @@ pub fn from_recordings(
                 done: n,
                 total: found.len(),
             });
-            Ok((name, video, labels, clip))
+            Ok((name, video, labels, segments, clip))
         })
         .collect::<Result<Vec<_>, CorpusError>>()?;
-    let fps = encoded[0].3.frames.fps();
+    let fps = encoded[0].4.frames.fps();
     if let Some((name, ..)) = encoded
         .iter()
-        .find(|e| (e.3.frames.fps() - fps).abs() > 1e-9)
+        .find(|e| (e.4.frames.fps() - fps).abs() > 1e-9)
     {
         return Err(CorpusError::Io {
             path: dir.join(name),
@@ -143,14 +192,21 @@ pub fn from_recordings(
         out,
         "corpus",
         |staged| -> Result<(), CorpusError> {
-            for (name, video, labels, clip) in &encoded {
+            for (name, video, labels, segments, clip) in &encoded {
                 crate::npy::write(&staged.join(format!("{name}.npy")), clip.frames.values())?;
-                let ext = labels.extension().unwrap_or_default().to_string_lossy();
-                let copy = staged.join(format!("{name}.{ext}"));
-                std::fs::copy(labels, &copy).map_err(|source| CorpusError::Io {
-                    path: copy.clone(),
-                    source,
-                })?;
+                match labels {
+                    Timings::Labels(labels) => {
+                        let ext = labels.extension().unwrap_or_default().to_string_lossy();
+                        let copy = staged.join(format!("{name}.{ext}"));
+                        std::fs::copy(labels, &copy).map_err(|source| CorpusError::Io {
+                            path: copy.clone(),
+                            source,
+                        })?;
+                    }
+                    Timings::Transcript(_) => {
+                        phonemes::write_labels(&staged.join(format!("{name}.lab")), segments)?;
+                    }
+                }
                 let audio = video.is_file()
                     && video::extract_audio(video, &staged.join(format!("{name}.m4a"))).map_err(
                         |e| CorpusError::Encode {
