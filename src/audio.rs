@@ -19,7 +19,9 @@ use crate::video::system_ffmpeg;
 /// Mono samples in −1…1 at `rate` Hz.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Audio {
+    /// The samples, −1…1.
     pub samples: Vec<f32>,
+    /// Samples per second.
     pub rate: u32,
 }
 
@@ -34,25 +36,58 @@ impl Audio {
 #[derive(Debug, Error)]
 #[non_exhaustive]
 pub enum AudioError {
+    /// The file could not be opened or read.
     #[error("{path}: {source}")]
-    Io { path: PathBuf, source: std::io::Error },
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
     /// Not a format read here, and no ffmpeg to read it.
     #[error(
         "{path}: {why}; WAV, MP4 and M4A (AAC) are read without ffmpeg, other formats need a system ffmpeg (not found on PATH)"
     )]
-    Unsupported { path: PathBuf, why: String },
+    Unsupported {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        why: String,
+    },
     /// The container holds no audio track.
     #[error("{path}: no audio track")]
-    NoAudio { path: PathBuf },
+    NoAudio {
+        /// The file.
+        path: PathBuf,
+    },
     /// A packet that does not decode.
     #[error("{path}: audio packet {packet} does not decode: {why}")]
-    Decode { path: PathBuf, packet: usize, why: String },
+    Decode {
+        /// The file.
+        path: PathBuf,
+        /// The packet (0-based).
+        packet: usize,
+        /// What is wrong.
+        why: String,
+    },
     /// Longer than the caller allows; decoding stopped there.
     #[error("{path}: the audio lasts more than {max:.0} s (at least {seconds:.0} s); split it")]
-    TooLong { path: PathBuf, seconds: f64, max: f64 },
+    TooLong {
+        /// The file.
+        path: PathBuf,
+        /// Its duration (or as far as it was read), seconds.
+        seconds: f64,
+        /// The limit, seconds.
+        max: f64,
+    },
     /// ffmpeg could not read it.
     #[error("{path}: ffmpeg could not decode the audio ({status})")]
-    Ffmpeg { path: PathBuf, status: String },
+    Ffmpeg {
+        /// The file.
+        path: PathBuf,
+        /// How ffmpeg exited.
+        status: String,
+    },
 }
 
 /// Reads the audio of `path` as mono at `rate` Hz, refusing more than `max_seconds` (checked

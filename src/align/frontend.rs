@@ -10,6 +10,7 @@ use std::sync::Arc;
 use rustfft::num_complex::Complex32;
 use rustfft::{Fft, FftPlanner};
 
+/// The model's sample rate, Hz.
 pub const SAMPLE_RATE: u32 = 16_000;
 /// Samples between frames: 10 ms.
 pub const FRAME_SHIFT: usize = 160;
@@ -19,6 +20,7 @@ const FFT_SIZE: usize = 512;
 const N_FILTERS: usize = 25;
 const LOWER_HZ: f64 = 130.0;
 const UPPER_HZ: f64 = 6800.0;
+/// Cepstra per frame.
 pub const N_CEP: usize = 13;
 const LIFTER: f64 = 22.0;
 const PRE_EMPHASIS: f32 = 0.97;
@@ -57,6 +59,7 @@ fn mel_inverse(m: f64) -> f64 {
 }
 
 impl FrontEnd {
+    /// Precomputes the window, filters, DCT and FFT plan.
     pub fn new() -> Self {
         // The symmetric Hamming window of `fe_create_hamming` (0.54 − 0.46 cos 2πi/(N−1)).
         let window = (0..FRAME_SIZE)

@@ -36,10 +36,22 @@ pub const MAX_SECONDS: f64 = 600.0;
 pub enum AlignError {
     /// An acoustic-model file is missing or malformed.
     #[error("acoustic model {path}: {why}")]
-    Model { path: PathBuf, why: String },
+    Model {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        why: String,
+    },
     /// A dictionary file is missing or malformed.
     #[error("dictionary {path}:{line}: {why}")]
-    Dictionary { path: PathBuf, line: usize, why: String },
+    Dictionary {
+        /// The file.
+        path: PathBuf,
+        /// The line (1-based; 0: the whole file).
+        line: usize,
+        /// What is wrong.
+        why: String,
+    },
     /// Words without a pronunciation.
     #[error(
         "words not in the pronouncing dictionary: {}; add them with --dict FILE (lines like `WORD  W ER D`)",
@@ -49,24 +61,48 @@ pub enum AlignError {
     /// The transcript has no words.
     #[error("the transcript has no words")]
     NoWords,
+    /// A sample is NaN or infinite.
+    #[error("audio sample {index} is not finite")]
+    NotFinite {
+        /// The first such sample.
+        index: usize,
+    },
     /// The audio has no samples.
     #[error("the audio is empty ({samples} samples)")]
-    EmptyAudio { samples: usize },
+    EmptyAudio {
+        /// Samples there are.
+        samples: usize,
+    },
     /// The audio is digital silence or nearly so.
     #[error("the audio is silent (peak {peak_dbfs:.0} dBFS): nothing to align")]
-    Silent { peak_dbfs: f64 },
+    Silent {
+        /// The loudest sample, dB below full scale.
+        peak_dbfs: f64,
+    },
     /// Fewer frames than the words' phones need (three each).
     #[error(
         "the transcript is too long for the audio: its {phones} phones need at least {needed} frames ({:.2} s) but the audio has {frames} ({:.2} s)",
         *.needed as f64 * FRAME_SECONDS, *.frames as f64 * FRAME_SECONDS
     )]
-    TranscriptTooLong { phones: usize, needed: usize, frames: usize },
+    TranscriptTooLong {
+        /// Phones of the shortest pronunciations.
+        phones: usize,
+        /// Frames they need.
+        needed: usize,
+        /// Frames the audio has.
+        frames: usize,
+    },
     /// The search found no path (the beam lost every hypothesis).
     #[error("no alignment reaches the end of the words at the end of the audio: is this the right transcript?")]
     NoPath,
     /// Audio longer than [`MAX_SECONDS`].
     #[error("the audio lasts {seconds:.0} s; at most {max:.0} s are aligned at once: split it at pauses")]
-    TooLong { seconds: f64, max: f64 },
+    TooLong {
+        /// Its duration (or as far as it was read), seconds.
+        seconds: f64,
+        /// The limit, seconds.
+        max: f64,
+    },
     /// The sample rate is not 16 kHz (resample first: [`crate::audio::resample`]).
     #[error("audio at {0} Hz: the acoustic model needs 16 000 Hz")]
     SampleRate(u32),
@@ -75,26 +111,35 @@ pub enum AlignError {
 /// A word and its interval.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TimedWord {
+    /// The word (lower case).
     pub word: String,
     /// Which pronunciation (0 = the dictionary's first).
     pub pronunciation: usize,
+    /// Start, seconds.
     pub start: f64,
+    /// End, seconds.
     pub end: f64,
 }
 
 /// A phone (ARPAbet, `SIL` for silence) and its interval; `word` indexes [`Alignment::words`].
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TimedPhone {
+    /// ARPAbet, upper case; `SIL` for silence.
     pub phone: String,
+    /// Start, seconds.
     pub start: f64,
+    /// End, seconds.
     pub end: f64,
+    /// The word it belongs to; `None` for silence.
     pub word: Option<usize>,
 }
 
 /// Words and phones with times, covering the whole recording.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Alignment {
+    /// The words, in order.
     pub words: Vec<TimedWord>,
+    /// The phones and silences, tiling the recording.
     pub phones: Vec<TimedPhone>,
     /// Feature frames (10 ms each).
     pub frames: usize,
@@ -118,7 +163,9 @@ impl Alignment {
 
 /// The acoustic model and dictionary together: what [`align`] needs.
 pub struct Aligner {
+    /// The acoustic model.
     pub model: AcousticModel,
+    /// Its pronouncing dictionary with the user's additions.
     pub dict: Dictionary,
     frontend: frontend::FrontEnd,
 }
@@ -162,6 +209,9 @@ impl Aligner {
         let seconds = samples.len() as f64 / rate as f64;
         if seconds > MAX_SECONDS {
             return Err(AlignError::TooLong { seconds, max: MAX_SECONDS });
+        }
+        if let Some(index) = samples.iter().position(|x| !x.is_finite()) {
+            return Err(AlignError::NotFinite { index });
         }
         if samples.len() < frontend::FRAME_SIZE {
             return Err(AlignError::EmptyAudio { samples: samples.len() });

@@ -12,6 +12,7 @@ use super::AlignError;
 pub const TOP_N: usize = 4;
 /// Feature streams (`-svspec 0-12/13-25/26-38`) and their width.
 pub const STREAMS: usize = 3;
+/// Width of each stream.
 pub const STREAM_DIM: usize = 13;
 /// Emitting states per phone HMM.
 pub const STATES: usize = 3;
@@ -23,9 +24,13 @@ const SHIFTED_LOG_UNIT: f64 = 1024.0 * 0.000_099_995_000_333_308_33;
 /// Word position of a phone, as the triphone tree keys it (`WORD_POSN_*` in `mdef.h`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum WordPosition {
+    /// Inside a word.
     Internal = 0,
+    /// A word's first phone.
     Begin = 1,
+    /// A word's last phone.
     End = 2,
+    /// A one-phone word.
     Single = 3,
 }
 
@@ -46,10 +51,12 @@ struct PhoneEntry {
 
 /// The whole acoustic model, in natural-log units.
 pub struct AcousticModel {
+    /// The folder it was read from.
     pub dir: PathBuf,
     /// CI phone names in `mdef` order (`+NSN+ +SPN+ AA … ZH`, `SIL` among them).
     pub ci_names: Vec<String>,
     ci_filler: Vec<bool>,
+    /// The CI id of `SIL`.
     pub sil: usize,
     tree: Vec<TreeNode>,
     phones: Vec<PhoneEntry>,
@@ -57,7 +64,9 @@ pub struct AcousticModel {
     sseq: Vec<[u16; STATES]>,
     /// Codebook (= CI phone) of each senone.
     pub senone_codebook: Vec<u16>,
+    /// Codebooks (one per CI phone).
     pub n_codebooks: usize,
+    /// Gaussians per codebook and stream.
     pub n_density: usize,
     /// Per codebook, stream, dimension, density: the mean (transposed, so that one dimension of
     /// every density of a codebook is contiguous).
@@ -68,6 +77,7 @@ pub struct AcousticModel {
     pub log_norm: Vec<f32>,
     /// Per stream, density, senone: log mixture weight (≤ 0).
     pub log_mixw: Vec<f32>,
+    /// Senones (tied states).
     pub n_senones: usize,
     /// Per transition matrix: `[from][to]` log probabilities, `to = 3` is the exit.
     pub tmats: Vec<[[f32; STATES + 1]; STATES]>,
@@ -421,6 +431,7 @@ pub(crate) fn read_s3(bytes: &[u8]) -> Result<(Vec<u32>, Vec<f32>), String> {
                 .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
                 .collect();
             if checksummed {
+                // Every word after the byte-order magic, shape and count included.
                 let mut sum = 0u32;
                 for c in bytes[data_start..r.at].chunks_exact(4) {
                     sum = (sum << 20 | sum >> 12)
@@ -428,17 +439,9 @@ pub(crate) fn read_s3(bytes: &[u8]) -> Result<(Vec<u32>, Vec<f32>), String> {
                 }
                 let stored = r.u32()?;
                 if stored != sum {
-                    let _ = stored; // see below: the checksum covers data words only
-                    let mut data_sum = 0u32;
-                    for c in bytes[r.at - 4 - want..r.at - 4].chunks_exact(4) {
-                        data_sum = (data_sum << 20 | data_sum >> 12)
-                            .wrapping_add(u32::from_le_bytes(c.try_into().unwrap()));
-                    }
-                    if stored != data_sum {
-                        return Err(format!(
-                            "checksum {stored:#x} does not match the data ({data_sum:#x}): damaged file"
-                        ));
-                    }
+                    return Err(format!(
+                        "checksum {stored:#x} does not match the contents ({sum:#x}): damaged file"
+                    ));
                 }
             }
             return Ok((words, data));

@@ -3,7 +3,9 @@
 
 use super::frontend::FEATURE_DIM;
 use super::model::{AcousticModel, STATES, STREAMS, STREAM_DIM, TOP_N, WordPosition};
-use super::{Alignment, FRAME_SECONDS, TimedPhone, TimedWord};
+use super::{Alignment, TimedPhone, TimedWord};
+
+const FRAMES_PER_SECOND: f64 = 100.0;
 
 /// Language weight, silence probability and word insertion penalty of the reference
 /// alignment (pocketsphinx `-lw 6.5 -silprob 0.1 -wip 0.65`): an optional silence costs
@@ -92,7 +94,7 @@ impl Graph {
             for (v, pron) in variants.iter().enumerate() {
                 let p: Vec<usize> = pron.iter().map(|&c| c as usize).collect();
                 let len = p.len();
-                let mut node = |g: &mut Graph, base: usize, l: usize, r: usize, pos| {
+                let node = |g: &mut Graph, base: usize, l: usize, r: usize, pos| {
                     let (senones, tmat) = model.triphone(base, l, r, pos);
                     g.add(Node {
                         senones,
@@ -226,7 +228,8 @@ impl Graph {
         let mut word_of_node: Vec<Option<usize>> = Vec::new();
         for (k, &(node, start)) in path.entries.iter().enumerate() {
             let end = path.entries.get(k + 1).map_or(frames as u32, |e| e.1);
-            let (start, end) = (start as f64 * FRAME_SECONDS, end as f64 * FRAME_SECONDS);
+            // Divided, not multiplied by 0.01, so that times read back from files compare equal.
+            let (start, end) = (start as f64 / FRAMES_PER_SECOND, end as f64 / FRAMES_PER_SECOND);
             let n = &self.nodes[node as usize];
             let word = n.word.map(|(i, v)| {
                 match timed_words.last_mut() {

@@ -25,7 +25,14 @@ fn align_transcript(
         path: transcript.to_owned(),
         source,
     })?;
-    let speech = audio::read(video, align::frontend::SAMPLE_RATE, align::MAX_SECONDS)
+    // The recording's own sound: its audio track, or for a frame folder (or a silent video)
+    // a `NAME.wav` / `NAME.m4a` beside it.
+    let beside = ["wav", "m4a"]
+        .iter()
+        .map(|x| transcript.with_extension(x))
+        .find(|p| p.is_file());
+    let sound = beside.as_deref().unwrap_or(video);
+    let speech = audio::read(sound, align::frontend::SAMPLE_RATE, align::MAX_SECONDS)
         .map_err(|e| fail(e.to_string()))?;
     let alignment = aligner
         .align(&speech.samples, speech.rate, &text)
