@@ -93,18 +93,27 @@ pub enum AudioError {
 /// Reads the audio of `path` as mono at `rate` Hz, refusing more than `max_seconds` (checked
 /// from the header when it tells, else while decoding, so memory stays bounded).
 pub fn read(path: &Path, rate: u32, max_seconds: f64) -> Result<Audio, AudioError> {
+    Ok(resample(&read_at(path, Some(rate), max_seconds)?, rate))
+}
+
+/// Reads the audio of `path` as mono at its own sample rate (ffmpeg, when it is needed,
+/// delivers 48 kHz).
+pub fn read_native(path: &Path, max_seconds: f64) -> Result<Audio, AudioError> {
+    read_at(path, None, max_seconds)
+}
+
+fn read_at(path: &Path, rate: Option<u32>, max_seconds: f64) -> Result<Audio, AudioError> {
     let io = |source| AudioError::Io { path: path.to_owned(), source };
     let file = crate::manifest::open_regular(path).map_err(io)?;
-    let audio = match decode_native(path, file, max_seconds) {
-        Ok(a) if is_mp4(path) => trim_to_edit_list(path, a)?,
-        Ok(a) => a,
+    match decode_native(path, file, max_seconds) {
+        Ok(a) if is_mp4(path) => trim_to_edit_list(path, a),
+        Ok(a) => Ok(a),
         Err(AudioError::Unsupported { why, .. }) => match system_ffmpeg() {
-            Some(ffmpeg) => decode_ffmpeg(&ffmpeg, path, rate, max_seconds)?,
-            None => return Err(AudioError::Unsupported { path: path.to_owned(), why }),
+            Some(ffmpeg) => decode_ffmpeg(&ffmpeg, path, rate.unwrap_or(48_000), max_seconds),
+            None => Err(AudioError::Unsupported { path: path.to_owned(), why }),
         },
-        Err(e) => return Err(e),
-    };
-    Ok(resample(&audio, rate))
+        Err(e) => Err(e),
+    }
 }
 
 fn is_mp4(path: &Path) -> bool {

@@ -11,7 +11,6 @@ mod source;
 pub mod y4m;
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use image::RgbImage;
 
@@ -47,6 +46,14 @@ pub enum VideoError {
         path: PathBuf,
         /// The cause.
         source: image::ImageError,
+    },
+    /// Sound that could not be read.
+    #[error("{path}: {reason}")]
+    Audio {
+        /// The sound file.
+        path: PathBuf,
+        /// What went wrong.
+        reason: String,
     },
     /// A container only ffmpeg handles, and there is none.
     #[error(
@@ -188,7 +195,9 @@ pub fn system_ffmpeg() -> Option<PathBuf> {
     })
 }
 
-/// The AAC track to mux: straight from an MP4/M4A, or (with ffmpeg) transcoded from anything.
+/// The AAC track to mux: straight from an MP4/M4A (its edit list kept), else the sound
+/// decoded (WAV and AAC in Rust, other formats through a system ffmpeg) and encoded as AAC
+/// in Rust — no ffmpeg needed for WAV.
 pub(crate) fn audio_track(audio: &Path) -> Result<mp4::AudioTrack, VideoError> {
     let mp4 = |source| VideoError::Mp4 {
         path: audio.into(),
@@ -197,38 +206,29 @@ pub(crate) fn audio_track(audio: &Path) -> Result<mp4::AudioTrack, VideoError> {
     if let Ok(Some(track)) = mp4::AudioTrack::read(audio) {
         return Ok(track);
     }
-    let ffmpeg = system_ffmpeg().ok_or_else(|| VideoError::NeedsFfmpeg(audio.into()))?;
-    let tmp = tempfile::Builder::new()
-        .suffix(".m4a")
-        .tempfile()
-        .map_err(io_error(audio))?
-        .into_temp_path();
-    let status = Command::new(ffmpeg)
-        .args(["-v", "error", "-y", "-nostdin", "-i"])
-        .arg(audio)
-        .args(["-vn", "-c:a", "aac"])
-        .arg(&tmp)
-        .status()
-        .map_err(io_error(audio))?;
-    if !status.success() {
-        return Err(VideoError::Ffmpeg {
+    let sound = crate::audio::read_native(audio, crate::synth::MAX_DURATION).map_err(|e| {
+        VideoError::Audio {
             path: audio.into(),
-            status: format!("{status}; found no audio it can read"),
+            reason: e.to_string(),
+        }
+    })?;
+    if sound.samples.is_empty() {
+        return Err(VideoError::Audio {
+            path: audio.into(),
+            reason: "no audio samples".into(),
         });
     }
-    mp4::AudioTrack::read(&tmp)
-        .map_err(mp4)?
-        .ok_or_else(|| mp4(mp4::Mp4Error::NoTrack("audio")))
+    mp4::AudioTrack::encode(&sound).map_err(mp4)
 }
 
 /// Lifts the audio of `input` into `out` (an `.m4a`): copied from an MP4's AAC track, or
-/// transcoded by a system ffmpeg. `Ok(false)` when the input has no audio (or only ffmpeg could
-/// tell, and there is none).
+/// decoded (in Rust, or by a system ffmpeg) and encoded as AAC. `Ok(false)` when the input has
+/// no audio that can be read.
 pub fn extract_audio(input: &Path, out: &Path) -> Result<bool, VideoError> {
     let mp4_input = matches!(extension(input).as_str(), "mp4" | "m4v" | "mov" | "m4a");
     let track = match mp4_input.then(|| mp4::AudioTrack::read(input)) {
         Some(Ok(found)) => found,
-        _ if input.is_dir() || system_ffmpeg().is_none() => None,
+        _ if input.is_dir() => None,
         _ => audio_track(input).ok(),
     };
     match track {

@@ -14,7 +14,7 @@ use std::path::Path;
 
 use thiserror::Error;
 
-pub use audio::{AudioTrack, audio_edit};
+pub use audio::{AudioTrack, Edit, audio_edit};
 pub use reader::Reader;
 pub use writer::Writer;
 
@@ -36,6 +36,9 @@ pub enum Mp4Error {
     /// OpenH264 failed.
     #[error("H.264: {0}")]
     Codec(#[from] openh264::Error),
+    /// The AAC encoder failed.
+    #[error("AAC encoder: {0}")]
+    AudioCodec(String),
     /// A sample the track lists is absent.
     #[error("sample {0} is missing (truncated file?)")]
     MissingSample(u32),

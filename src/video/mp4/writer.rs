@@ -143,7 +143,8 @@ impl Writer {
         if let Some(a) = audio {
             a.add_to(&mut self.writer, 2)?;
         }
-        finish(self.tmp, self.writer, path)?;
+        let audio = audio.map(|a| (2, a.edit(), a.timescale()));
+        finish(self.tmp, self.writer, path, audio)?;
         Ok(self.frames)
     }
 }
