@@ -124,6 +124,7 @@ pub mod shape;
 pub mod study;
 pub mod synth;
 pub mod trajectory;
+pub mod tts;
 pub mod video;
 pub mod warp;
 

@@ -103,6 +103,9 @@ pub enum AlignError {
         /// The limit, seconds.
         max: f64,
     },
+    /// The sound could not be read.
+    #[error(transparent)]
+    Audio(#[from] crate::audio::AudioError),
     /// The sample rate is not 16 kHz (resample first: [`crate::audio::resample`]).
     #[error("audio at {0} Hz: the acoustic model needs 16 000 Hz")]
     SampleRate(u32),
@@ -194,6 +197,13 @@ impl Aligner {
     /// The committed model with `extra` dictionaries.
     pub fn load_default(extra: &[PathBuf]) -> Result<Self, AlignError> {
         Self::load(&default_model_dir(), extra)
+    }
+
+    /// Reads the sound of `path` (WAV, MP4/M4A, or through ffmpeg anything it reads) and
+    /// aligns it to the words of `text`.
+    pub fn align_file(&self, path: &Path, text: &str) -> Result<Alignment, AlignError> {
+        let speech = crate::audio::read(path, frontend::SAMPLE_RATE, MAX_SECONDS)?;
+        self.align(&speech.samples, speech.rate, text)
     }
 
     /// Aligns `samples` (mono, 16 kHz, −1…1) to the words of `text`.

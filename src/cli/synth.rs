@@ -59,11 +59,22 @@ pub struct SynthArgs {
     #[arg(long)]
     codebook: PathBuf,
     /// Phone timings (.lab, .TextGrid, .tsv).
-    #[arg(long, conflicts_with = "text", required_unless_present = "text")]
+    #[arg(long, conflicts_with_all = ["text", "transcript", "say"], required_unless_present_any = ["text", "transcript", "say"])]
     labels: Option<PathBuf>,
-    /// Text to speak (CMU dictionary; durations from the codebook).
-    #[arg(long)]
+    /// Text to speak. With --audio, the words of that recording, aligned to it; alone, phone
+    /// durations come from the codebook (CMU dictionary).
+    #[arg(long, conflicts_with_all = ["transcript", "say"])]
     text: Option<String>,
+    /// A text file with the words of the --audio recording, aligned to it.
+    #[arg(long, requires = "audio", conflicts_with = "say")]
+    transcript: Option<PathBuf>,
+    /// Text for a text-to-speech engine (Festival, else espeak-ng): its speech is aligned,
+    /// drives the face, and is muxed into the video.
+    #[arg(long, conflicts_with = "audio")]
+    say: Option<String>,
+    /// Extra pronunciations for the aligner (`WORD  P H O N E S` lines); may repeat.
+    #[arg(long = "dict")]
+    dicts: Vec<PathBuf>,
     #[arg(long)]
     tier: Option<String>,
     #[arg(long)]
@@ -110,8 +121,9 @@ pub struct SynthArgs {
     /// Seed of the blind A/B order.
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Sound to mux into the MP4s: an MP4/M4A with AAC as is, or (with a system ffmpeg) any
-    /// audio file, e.g. WAV.
+    /// Speech to drive the face and mux into the MP4s: WAV or MP4/M4A (AAC), other formats
+    /// through a system ffmpeg. With --text or --transcript it is aligned to those words;
+    /// with --labels the labels time the face.
     #[arg(long)]
     audio: Option<PathBuf>,
     #[arg(short, long)]
@@ -129,22 +141,54 @@ pub fn run(a: SynthArgs) -> Result<()> {
             a.model.display()
         )
     })?;
-    let target = match (&a.labels, &a.text) {
-        (Some(path), _) => {
+    // Speech from text: the engine's WAV lives in this folder until the MP4s have it.
+    let spoken = tempfile::tempdir().context("a temporary folder for the speech")?;
+    let speech = match &a.say {
+        Some(text) => {
+            let wav = spoken.path().join("speech.wav");
+            let engine = facespace::tts::speak(text, &wav).context("--say")?;
+            println!("speech by {} → aligned", engine.name());
+            Some(wav)
+        }
+        None => a.audio.clone(),
+    };
+    let words = match (&a.say, &a.text, &a.transcript) {
+        (Some(t), ..) => Some(t.clone()),
+        (None, Some(t), _) if a.audio.is_some() => Some(t.clone()),
+        (None, None, Some(p)) => Some(
+            std::fs::read_to_string(p)
+                .with_context(|| format!("reading the transcript {}", p.display()))?,
+        ),
+        _ => None,
+    };
+    let target = match (&a.labels, &words, &speech) {
+        (Some(path), ..) => {
             let map = match &a.phone_map {
                 Some(p) => PhoneMap::read(p)?,
                 None => PhoneMap::default(),
             };
             phonemes::read_labels(path, a.tier.as_deref(), &map)?
         }
-        (None, Some(text)) => phonemes::text_to_segments(text, &cb.mean_durations())?,
-        (None, None) => anyhow::bail!("give --labels or --text"),
+        (None, Some(words), Some(sound)) => {
+            let aligner = facespace::align::Aligner::load_default(&a.dicts)?;
+            let alignment = aligner
+                .align_file(sound, words)
+                .with_context(|| format!("aligning the speech {}", sound.display()))?;
+            alignment.segments()
+        }
+        (None, None, _) => match &a.text {
+            Some(text) => phonemes::text_to_segments(text, &cb.mean_durations())?,
+            None => anyhow::bail!("give --labels, --text, --transcript or --say"),
+        },
+        (None, Some(_), None) => unreachable!("words without speech come from --text alone"),
     };
     // Checked here, before any work, so the message names where the phones came from.
-    let source = a
-        .labels
-        .as_ref()
-        .map_or_else(|| "--text".to_owned(), |p| p.display().to_string());
+    let source = match (&a.labels, &a.say, &speech) {
+        (Some(p), ..) => p.display().to_string(),
+        (None, Some(_), _) => "--say".to_owned(),
+        (None, None, Some(s)) if words.is_some() => format!("the alignment of {}", s.display()),
+        _ => "--text".to_owned(),
+    };
     synth::validate_request(&target, a.fps)
         .with_context(|| format!("the phones of {source} at {} fps", a.fps))?;
     let real = match &a.real {
@@ -218,10 +262,10 @@ pub fn run(a: SynthArgs) -> Result<()> {
         &utterance,
         background,
         &OutputOptions {
-            audio: a.audio.as_deref(),
+            audio: speech.as_deref(),
             seed: a.seed,
             real: real.as_ref(),
-            text: a.text.as_deref(),
+            text: words.as_deref().or(a.text.as_deref()),
         },
         progress,
     )
