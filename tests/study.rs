@@ -436,14 +436,16 @@ fn a_torn_last_line_is_dropped_and_a_damaged_log_is_refused() {
     assert!(err.contains("answers.jsonl: line 2"), "{err}");
 }
 
-/// A sentence with sound gets it muxed into every stimulus; a study without answers is not
-/// analysed (most likely the wrong folder).
+/// A sentence with sound gets it muxed into every stimulus — a GRID recording's real sound
+/// (recorded speech), decoded back from each stimulus sample for sample at lag 0; a study
+/// without answers is not analysed (most likely the wrong folder).
 #[test]
 fn stimuli_carry_the_sentence_sound_and_an_unanswered_study_is_not_analysed() {
     let dir = tempfile::tempdir().unwrap();
     let sound = dir.path().join("demo.m4a");
-    let input = common::root().join("tests/data/video/high_bframes_aac.mp4");
+    let input = common::root().join("tests/data/grid/bbbf9a.mp4");
     assert!(facespace::video::extract_audio(&input, &sound).unwrap());
+    let source = facespace::audio::read(&input, 16_000, 600.0).unwrap();
     let study = dir.path().join("study");
     let manifest = make_study_with(&study, "original,unsmoothed", 1, Task::Rating, Some(&sound));
     for s in &manifest.stimuli {
@@ -454,6 +456,12 @@ fn stimuli_carry_the_sentence_sound_and_an_unanswered_study_is_not_analysed() {
             "no sound track in {}",
             s.id
         );
+        let heard = facespace::audio::read(&study.join("stimuli").join(s.file_name()), 16_000, 600.0)
+            .unwrap();
+        assert_eq!(heard.samples.len(), source.samples.len(), "{}", s.id);
+        // Copied packet for packet with the edit list: the same samples from time 0.
+        let diff = heard.samples.iter().zip(&source.samples).map(|(a, b)| (a - b).abs()).fold(0f32, f32::max);
+        assert!(diff < 1e-6, "{}: sound differs by {diff}", s.id);
     }
     let err = facespace::study::analyse(&study).unwrap_err().to_string();
     assert!(err.contains("no answers stored yet"), "{err}");
