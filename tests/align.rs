@@ -278,7 +278,10 @@ fn bad_audio_files_get_clear_errors() {
     let text = d.join("words.wav");
     std::fs::write(&text, "bin blue by f nine again\n").unwrap();
     let e = audio::read(&text, 16_000, 600.0).unwrap_err();
-    assert!(matches!(e, AudioError::Unsupported { .. } | AudioError::Decode { .. }), "{e}");
+    assert!(
+        matches!(e, AudioError::Unsupported { .. } | AudioError::Decode { .. } | AudioError::Ffmpeg { .. }),
+        "{e}"
+    );
     assert!(e.to_string().contains("words.wav"));
     // A WAV whose format tag is no PCM codec.
     let odd = d.join("odd.wav");
@@ -288,11 +291,10 @@ fn bad_audio_files_get_clear_errors() {
     // Missing, a folder, and an MP4 without sound (the committed video fixture).
     assert!(matches!(audio::read(&d.join("none.wav"), 16_000, 600.0), Err(AudioError::Io { .. })));
     assert!(audio::read(d, 16_000, 600.0).is_err());
-    let silent_video = common::root().join("tests/data/video/clip.mp4");
-    if silent_video.is_file() {
-        let e = audio::read(&silent_video, 16_000, 600.0).unwrap_err();
-        assert!(matches!(e, AudioError::NoAudio { .. } | AudioError::Unsupported { .. }), "{e}");
-    }
+    let silent_video = common::root().join("models/demo/background.mp4");
+    let e = audio::read(&silent_video, 16_000, 600.0).unwrap_err();
+    assert!(matches!(e, AudioError::NoAudio { .. }), "{e}");
+    assert!(e.to_string().contains("no audio track"));
     // An empty WAV reads as no samples, which alignment refuses.
     let empty = d.join("empty.wav");
     std::fs::write(&empty, wav_bytes(1, 1, 16_000, 16, &[])).unwrap();
