@@ -231,3 +231,64 @@ fn quantised_clips_are_corpus_sentences() {
         "{err}"
     );
 }
+
+/// Issue 22: real corpora have bad recordings. A damaged video (the demo talker's, cut short
+/// mid-stream) and a video of another face (a GRID clip: recorded video of another man) are
+/// named and left out while the good ones make the corpus; beyond `--max-failed` (10 % by
+/// default) nothing is written and every failure is named. Every kept value is finite.
+#[test]
+fn bad_recordings_are_named_and_left_out() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("recordings");
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = |x: &std::path::Path| x.to_str().unwrap().to_owned();
+    // Three good takes: the committed clip's 50 frames in three folders.
+    let mut frames: Vec<_> = std::fs::read_dir(common::root().join("tests/data/clip"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|x| x == "jpg"))
+        .collect();
+    frames.sort();
+    for (k, chunk) in frames.chunks(17).take(3).enumerate() {
+        let take = dir.join(format!("good{k}"));
+        std::fs::create_dir(&take).unwrap();
+        for f in chunk {
+            std::fs::copy(f, take.join(f.file_name().unwrap())).unwrap();
+        }
+        let end = chunk.len() as f64 / 25.0;
+        std::fs::write(
+            dir.join(format!("good{k}.lab")),
+            format!("0 2000000 sil\n2000000 {} aa\n", (end * 1e7).round() as i64),
+        )
+        .unwrap();
+    }
+    // Damaged: the demo talker's video, its file cut at two thirds.
+    let video = std::fs::read(common::root().join("models/demo/background.mp4")).unwrap();
+    std::fs::write(dir.join("damaged.mp4"), &video[..video.len() * 2 / 3]).unwrap();
+    std::fs::write(dir.join("damaged.lab"), "0 20000000 sil\n").unwrap();
+    // Another face, with its own labels.
+    std::fs::copy(common::root().join("tests/data/grid/bbbf9a.mp4"), dir.join("other.mp4")).unwrap();
+    std::fs::copy(common::root().join("tests/data/grid/bbbf9a.lab"), dir.join("other.lab")).unwrap();
+    let init = common::root().join("tests/data/clip/01000.pts");
+
+    let corpus = tmp.path().join("corpus");
+    let o = common::facespace(&["corpus", "from-videos", &p(&dir), "--init", &p(&init), "-o", &p(&corpus)]);
+    let t = common::text(&o);
+    assert_eq!(o.status.code(), Some(1), "{t}");
+    assert!(t.contains("2 of 5 recordings could not be used") && t.contains("--max-failed"), "{t}");
+    assert!(t.contains("damaged") && t.contains("other"), "{t}");
+    assert!(!corpus.exists());
+
+    let o = common::facespace(&[
+        "corpus", "from-videos", &p(&dir), "--init", &p(&init), "--max-failed", "0.5", "-o", &p(&corpus),
+    ]);
+    let t = common::text(&o);
+    assert!(o.status.success(), "{t}");
+    assert!(t.contains("left out damaged") && t.contains("left out other"), "{t}");
+    assert!(t.contains("2 of 5 recordings left out"), "{t}");
+    for k in 0..3 {
+        let v: ndarray::ArrayD<f32> = facespace::npy::read(&corpus.join(format!("good{k}.npy"))).unwrap();
+        assert!(v.iter().all(|x| x.is_finite()));
+    }
+    assert!(!corpus.join("damaged.npy").exists() && !corpus.join("other.npy").exists());
+}

@@ -36,6 +36,10 @@ pub struct FromVideosArgs {
     phone_map: Option<PathBuf>,
     #[command(flatten)]
     tracking: super::TrackingArgs,
+    /// Share of recordings that may fail (each is named and left out) before the corpus is
+    /// refused.
+    #[arg(long, default_value_t = facespace::corpus::DEFAULT_MAX_FAILED)]
+    max_failed: f64,
     /// Output corpus folder.
     #[arg(short, long)]
     output: PathBuf,
@@ -131,18 +135,23 @@ fn from_videos(a: FromVideosArgs) -> Result<()> {
         None => facespace::phonemes::PhoneMap::default(),
     };
     let (bar, progress) = progress_bar();
-    let (fps, sentences) = facespace::corpus::from_recordings(
+    if !(0.0..=1.0).contains(&a.max_failed) {
+        anyhow::bail!("--max-failed {} is not a share between 0 and 1", a.max_failed);
+    }
+    let made = facespace::corpus::from_recordings(
         &model,
         &a.dir,
         &a.output,
         &options,
         a.tier.as_deref(),
         &map,
+        a.max_failed,
         progress,
     )
     .with_context(|| format!("making a corpus of {}", a.dir.display()))?;
     bar.finish_and_clear();
-    for s in &sentences {
+    let (fps, sentences) = (made.fps, &made.sentences);
+    for s in sentences {
         println!(
             "  {}: {} frames, residual mean {:.2}, {} lost{}",
             s.name,
@@ -150,6 +159,17 @@ fn from_videos(a: FromVideosArgs) -> Result<()> {
             s.tracking.mean_error,
             s.tracking.lost,
             if s.audio { ", sound kept" } else { "" }
+        );
+    }
+    for s in &made.skipped {
+        println!("  left out {}: {}", s.name, s.reason);
+    }
+    if !made.skipped.is_empty() {
+        println!(
+            "{} of {} recordings left out (at most {:.0} % may be; --max-failed)",
+            made.skipped.len(),
+            made.skipped.len() + sentences.len(),
+            a.max_failed * 100.0
         );
     }
     println!(

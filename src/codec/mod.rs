@@ -233,7 +233,7 @@ pub fn track(
         for frame in std::iter::once(Ok(first)).chain(frames) {
             let frame = frame?;
             let t = tracker.track(&frame)?;
-            let lost = t.error > options.reinit_error;
+            let lost = t.diverged || t.error > options.reinit_error;
             if lost && tracking.is_empty() && !options.allow_lost {
                 return Err(CodecError::NoFace {
                     path: path.clone(),

@@ -6,7 +6,7 @@
 pub mod demo;
 mod recordings;
 
-pub use recordings::{Recorded, from_recordings};
+pub use recordings::{DEFAULT_MAX_FAILED, RecordedCorpus, Recorded, Skipped, from_recordings};
 
 use std::path::{Path, PathBuf};
 
@@ -54,6 +54,23 @@ pub enum CorpusError {
     MissingLabels {
         /// The trajectory.
         npy: PathBuf,
+    },
+    /// More recordings failed than the share allowed.
+    #[error(
+        "{dir}: {failed} of {total} recordings could not be used (more than {:.0} % allowed; --max-failed changes it):\n  {}",
+        .max_share * 100.0, .reasons.join("\n  ")
+    )]
+    TooManyFailed {
+        /// The recordings' folder.
+        dir: PathBuf,
+        /// How many failed.
+        failed: usize,
+        /// How many there are.
+        total: usize,
+        /// The share allowed.
+        max_share: f64,
+        /// Each failure, named.
+        reasons: Vec<String>,
     },
     /// A recording's sound could not be aligned to its transcript.
     #[error("{path}: {reason}")]

@@ -115,10 +115,36 @@ fn recordings(dir: &Path) -> Result<Vec<(String, PathBuf, Timings)>, CorpusError
     Ok(found)
 }
 
+/// A recording left out of the corpus, and why.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Skipped {
+    /// Its name.
+    pub name: String,
+    /// What was wrong with it (the error, naming the file and frame where known).
+    pub reason: String,
+}
+
+/// What [`from_recordings`] wrote.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RecordedCorpus {
+    /// The corpus's frame rate.
+    pub fps: f64,
+    /// The sentences written.
+    pub sentences: Vec<Recorded>,
+    /// The recordings left out.
+    pub skipped: Vec<Skipped>,
+}
+
+/// Share of recordings that may fail before the whole corpus is refused (`--max-failed`).
+pub const DEFAULT_MAX_FAILED: f64 = 0.10;
+
 /// Tracks and projects every recording in `dir` with `model` (videos in parallel) and writes
 /// the corpus folder `out` atomically: `NAME.npy`, the label file, `NAME.m4a` when the video
 /// has sound. Labels must end within two frames of the video's duration; every video must
-/// have the same frame rate (a codebook has one), which is returned with the sentences.
+/// have the same frame rate (a codebook has one). A recording that cannot be used (damaged
+/// frames, a face lost, labels that do not fit) is left out and named in the result, unless
+/// more than `max_failed` of them fail: then nothing is written and every failure is named.
+#[allow(clippy::too_many_arguments)]
 pub fn from_recordings(
     model: &FaceModel,
     dir: &Path,
@@ -126,8 +152,9 @@ pub fn from_recordings(
     options: &EncodeOptions,
     tier: Option<&str>,
     map: &PhoneMap,
+    max_failed: f64,
     progress: impl FnMut(Progress) + Send,
-) -> Result<(f64, Vec<Recorded>), CorpusError> {
+) -> Result<RecordedCorpus, CorpusError> {
     let found = recordings(dir)?;
     // The aligner is loaded once, and only when some recording has just a transcript.
     let aligner = if found.iter().any(|f| matches!(f.2, Timings::Transcript(_))) {
@@ -140,7 +167,7 @@ pub fn from_recordings(
     };
     let progress = std::sync::Mutex::new(progress);
     let done = std::sync::atomic::AtomicUsize::new(0);
-    let encoded = found
+    let results: Vec<Result<_, CorpusError>> = found
         .par_iter()
         .map(|(name, video, labels)| {
             let encode_error = |source| CorpusError::Encode {
@@ -172,15 +199,41 @@ pub fn from_recordings(
                     labels_s,
                 });
             }
+            Ok((name, video, labels, segments, clip))
+        })
+        .inspect(|_| {
             let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
             (progress.lock().unwrap_or_else(|e| e.into_inner()))(Progress {
                 stage: "tracking recordings",
                 done: n,
                 total: found.len(),
             });
-            Ok((name, video, labels, segments, clip))
         })
-        .collect::<Result<Vec<_>, CorpusError>>()?;
+        .collect();
+    let mut encoded = Vec::with_capacity(results.len());
+    let mut skipped = Vec::new();
+    for ((name, ..), result) in found.iter().zip(results) {
+        match result {
+            Ok(e) => encoded.push(e),
+            // The acoustic model is shared: its failure is everyone's.
+            Err(e @ CorpusError::Align { .. }) if e.to_string().contains("acoustic model") => {
+                return Err(e);
+            }
+            Err(e) => skipped.push(Skipped {
+                name: name.clone(),
+                reason: e.to_string(),
+            }),
+        }
+    }
+    if encoded.is_empty() || skipped.len() as f64 > max_failed * found.len() as f64 {
+        return Err(CorpusError::TooManyFailed {
+            dir: dir.into(),
+            failed: skipped.len(),
+            total: found.len(),
+            max_share: max_failed,
+            reasons: skipped.iter().map(|s| format!("{}: {}", s.name, s.reason)).collect(),
+        });
+    }
     let fps = encoded[0].4.frames.fps();
     if let Some((name, ..)) = encoded
         .iter()
@@ -235,5 +288,9 @@ pub fn from_recordings(
             source,
         },
     )?;
-    Ok((fps, written))
+    Ok(RecordedCorpus {
+        fps,
+        sentences: written,
+        skipped,
+    })
 }

@@ -25,6 +25,25 @@ pub struct TrackedFrame {
     /// The fit from the previous frame failed the error threshold and the frame was
     /// re-initialised from the mean shape at the last good pose.
     pub reinitialised: bool,
+    /// Both fits diverged (non-finite values, or landmarks far outside the image): the
+    /// previous frame's landmarks are kept, `error` is [`DIVERGED_ERROR`], and the frame
+    /// counts as lost. Nothing non-finite ever leaves the tracker.
+    pub diverged: bool,
+}
+
+/// The residual recorded for a diverged frame: the largest a grey-level RMS can be.
+pub const DIVERGED_ERROR: f64 = 255.0;
+
+/// Whether a fit can be kept: a finite residual and landmarks within a few image sizes of the
+/// image (a diverging search runs off to 1e32 and beyond).
+fn usable(fit: &FitResult, image: &RgbImage) -> bool {
+    let limit = 4.0 * f64::from(image.width().max(image.height()));
+    fit.error.is_finite()
+        && fit
+            .landmarks
+            .points
+            .iter()
+            .all(|p| p[0].is_finite() && p[1].is_finite() && p[0].abs() < limit && p[1].abs() < limit)
 }
 
 /// Tracks a sequence: frame t starts from frame t−1's fit (DESIGN §4).
@@ -56,17 +75,26 @@ impl<'m> Tracker<'m> {
     pub fn track(&mut self, image: &RgbImage) -> Result<TrackedFrame, FitError> {
         let mut fit = self.fitter.fit(image, &self.previous)?;
         let mut reinitialised = false;
-        if fit.error > self.reinit_error {
+        if !usable(&fit, image) || fit.error > self.reinit_error {
             let shape = &self.fitter.model.shape;
             let start = shape.instance(&self.last_good_pose, &vec![0.0; shape.n_params()]);
             let again = self.fitter.fit(image, &start)?;
             reinitialised = true;
-            if again.error < fit.error {
+            let better = usable(&again, image) && (!usable(&fit, image) || again.error < fit.error);
+            if better {
                 fit = FitResult {
                     iterations: fit.iterations + again.iterations,
                     ..again
                 };
             }
+        }
+        let diverged = !usable(&fit, image);
+        if diverged {
+            fit = FitResult {
+                landmarks: self.previous.clone(),
+                error: DIVERGED_ERROR,
+                ..fit
+            };
         }
         let pose = self
             .fitter
@@ -75,7 +103,7 @@ impl<'m> Tracker<'m> {
             .project(&fit.landmarks)
             .map_err(ModelError::from)?
             .0;
-        if fit.error <= self.reinit_error {
+        if !diverged && fit.error <= self.reinit_error {
             self.last_good_pose = pose;
         }
         self.previous = fit.landmarks.clone();
@@ -85,6 +113,7 @@ impl<'m> Tracker<'m> {
             error: fit.error,
             iterations: fit.iterations,
             reinitialised,
+            diverged,
         })
     }
 }
