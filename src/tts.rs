@@ -4,10 +4,12 @@
 //! espeak-ng is the fallback. Neither is required: without one, `--say` is an error that
 //! gives the install line.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Stdio};
 
 use thiserror::Error;
+
+use crate::video::program_on_path;
 
 /// The one line that installs the preferred engine on Debian/Ubuntu.
 pub const INSTALL_LINE: &str = "apt-get install festival festvox-us-slt-hts";
@@ -63,19 +65,11 @@ impl Engine {
     }
 }
 
-fn on_path(program: &str) -> Option<PathBuf> {
-    std::env::var_os("PATH").and_then(|paths| {
-        std::env::split_paths(&paths)
-            .map(|p| p.join(program))
-            .find(|p| p.is_file())
-    })
-}
-
 /// The engine `speak` would use, if any.
 pub fn available() -> Option<Engine> {
-    if on_path("text2wave").is_some() {
+    if program_on_path("text2wave").is_some() {
         Some(Engine::Festival)
-    } else if on_path("espeak-ng").is_some() {
+    } else if program_on_path("espeak-ng").is_some() {
         Some(Engine::EspeakNg)
     } else {
         None

@@ -81,7 +81,7 @@ pub enum CorpusError {
         reason: String,
     },
     /// A recording could not be tracked or projected.
-    #[error("{path}: {source}")]
+    #[error("{}", with_path(path, source))]
     Encode {
         /// The recording.
         path: PathBuf,
@@ -133,6 +133,13 @@ pub fn read_frames(path: &Path, layout: Layout, fps: f64) -> Result<Frames, Corp
 
 /// Label file extensions tried, in order, beside each `.npy`.
 pub const LABEL_EXTENSIONS: [&str; 4] = ["lab", "TextGrid", "textgrid", "tsv"];
+
+/// `path: cause`, unless the cause already starts with the path (most do).
+fn with_path(path: &Path, cause: &dyn std::fmt::Display) -> String {
+    let cause = cause.to_string();
+    let shown = path.display().to_string();
+    if cause.starts_with(&shown) { cause } else { format!("{shown}: {cause}") }
+}
 
 /// Reads a corpus folder: every `NAME.npy` (frames × `layout` face-space parameters at `fps`)
 /// with `NAME.lab`, `NAME.TextGrid` or `NAME.tsv`. The labels must end within two frames of
