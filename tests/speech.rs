@@ -230,3 +230,52 @@ fn speech_with_unknown_words_is_refused() {
     assert!(!out.exists());
     let _ = Audio { samples: vec![], rate: 1 };
 }
+
+/// A GRID study (recorded speech: his model, a codebook of two of his sentences, a third
+/// held out): every stimulus carries the held-out sentence's real sound, decoded back sample
+/// for sample from time 0.
+#[test]
+fn grid_study_stimuli_carry_the_real_sound() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (train, held) = (tmp.path().join("train"), tmp.path().join("held"));
+    std::fs::create_dir_all(&train).unwrap();
+    std::fs::create_dir_all(&held).unwrap();
+    for (id, dir) in [("bbbf9a", &train), ("bbwtzp", &train), ("bbbs7a", &held)] {
+        for ext in ["mp4", "lab"] {
+            std::fs::copy(grid(&format!("{id}.{ext}")), dir.join(format!("{id}.{ext}"))).unwrap();
+        }
+    }
+    let model = common::root().join("models/grid/model");
+    let p = |x: &Path| x.to_str().unwrap().to_owned();
+    let run = |args: &[&str]| {
+        let o = common::facespace(args);
+        assert!(o.status.success(), "{}", common::text(&o));
+    };
+    let (ct, ch, cb, study) = (
+        tmp.path().join("ct"),
+        tmp.path().join("ch"),
+        tmp.path().join("cb"),
+        tmp.path().join("study"),
+    );
+    run(&["corpus", "from-videos", "--model", &p(&model), &p(&train), "-o", &p(&ct)]);
+    run(&["corpus", "from-videos", "--model", &p(&model), &p(&held), "-o", &p(&ch)]);
+    assert!(ch.join("bbbs7a.m4a").is_file(), "the held-out sentence keeps its sound");
+    run(&["codebook", "build", "--model", &p(&model), "--corpus", &p(&ct), "-o", &p(&cb)]);
+    run(&[
+        "study", "create", "--model", &p(&model), "--codebook", &p(&cb), "--heldout", &p(&ch),
+        "--conditions", "original,blend-n1", "--viewers", "1", "-o", &p(&study),
+    ]);
+    let source = audio::read(&grid("bbbs7a.mp4"), 16_000, 600.0).unwrap();
+    let mut stimuli = 0;
+    for e in std::fs::read_dir(study.join("stimuli")).unwrap() {
+        let path = e.unwrap().path();
+        let heard = audio::read(&path, 16_000, 600.0).unwrap();
+        assert_eq!(heard.samples.len(), source.samples.len(), "{}", path.display());
+        let diff = heard.samples.iter().zip(&source.samples).map(|(a, b)| (a - b).abs()).fold(0f32, f32::max);
+        assert!(diff < 1e-6, "{}: differs by {diff}", path.display());
+        let (seconds, _) = video_duration(&path);
+        assert!((seconds - heard.seconds()).abs() <= 0.04 + 1e-6);
+        stimuli += 1;
+    }
+    assert_eq!(stimuli, 2);
+}
