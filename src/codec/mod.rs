@@ -112,6 +112,14 @@ pub enum CodecError {
         /// The threshold it exceeds.
         threshold: f64,
     },
+    /// The search diverged on the first frame: no face at all there.
+    #[error(
+        "{path}: frame 0: the search diverged — there is no face in it at all (a grey, black or damaged frame?); give the first frame's landmarks with --init, or pass --allow-lost to keep the result anyway"
+    )]
+    FirstFrameDiverged {
+        /// The video.
+        path: PathBuf,
+    },
     /// Most frames were lost.
     #[error(
         "{path}: the face was lost on {lost} of {frames} frames (residual above {threshold} grey levels); this model was probably built for another face: build one from your own frames (README: \"Your own talker\"), or pass --allow-lost to keep the result anyway"
@@ -234,6 +242,9 @@ pub fn track(
             let frame = frame?;
             let t = tracker.track(&frame)?;
             let lost = t.diverged || t.error > options.reinit_error;
+            if t.diverged && tracking.is_empty() && !options.allow_lost {
+                return Err(CodecError::FirstFrameDiverged { path: path.clone() });
+            }
             if lost && tracking.is_empty() && !options.allow_lost {
                 return Err(CodecError::NoFace {
                     path: path.clone(),
