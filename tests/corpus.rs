@@ -292,3 +292,57 @@ fn bad_recordings_are_named_and_left_out() {
     }
     assert!(!corpus.join("damaged.npy").exists() && !corpus.join("other.npy").exists());
 }
+
+/// Issue 22: `--photometric sentence` re-centres each sentence's appearance on the corpus mean
+/// — checked against the formula on sentences with a lighting offset each: every sentence's
+/// appearance mean becomes the frame-weighted grand mean, its motion about that mean is kept
+/// exactly, pose and shape are untouched.
+#[test]
+fn appearance_recentring_removes_per_sentence_offsets_only() {
+    use facespace::corpus::{Sentence, recentre_appearance};
+    use facespace::facespace::{Frames, Layout};
+    let layout = Layout::new(2, 3);
+    let dims = layout.dims();
+    let lengths = [5usize, 8, 3];
+    let offsets = [100.0f32, -40.0, 7.0];
+    let mut sentences: Vec<Sentence> = lengths
+        .iter()
+        .zip(offsets)
+        .enumerate()
+        .map(|(s, (&n, off))| {
+            let values = ndarray::Array2::from_shape_fn((n, dims), |(t, k)| {
+                (k as f32 + 1.0) * (t as f32 * 0.7 + s as f32).sin() + if k >= dims - 3 { off } else { 0.0 }
+            });
+            Sentence {
+                name: format!("s{s}"),
+                source: String::new(),
+                frames: Frames::new(layout, 25.0, values).unwrap(),
+                segments: vec![],
+            }
+        })
+        .collect();
+    let before: Vec<_> = sentences.iter().map(|s| s.frames.values().to_owned()).collect();
+    recentre_appearance(&mut sentences);
+    let app = layout.appearance_range();
+    let total: usize = lengths.iter().sum();
+    for k in app.clone() {
+        let grand: f64 = before.iter().map(|v| v.column(k).iter().map(|&x| x as f64).sum::<f64>()).sum::<f64>() / total as f64;
+        for (s, b) in sentences.iter().zip(&before) {
+            let v = s.frames.values();
+            let n = v.nrows() as f64;
+            let mean_before = b.column(k).iter().map(|&x| x as f64).sum::<f64>() / n;
+            let mean_after = v.column(k).iter().map(|&x| x as f64).sum::<f64>() / n;
+            assert!((mean_after - grand).abs() < 1e-3, "{}: {mean_after} vs {grand}", s.name);
+            for t in 0..v.nrows() {
+                let dev_before = b[[t, k]] as f64 - mean_before;
+                let dev_after = v[[t, k]] as f64 - mean_after;
+                assert!((dev_before - dev_after).abs() < 1e-3);
+            }
+        }
+    }
+    for (s, b) in sentences.iter().zip(&before) {
+        for k in 0..app.start {
+            assert_eq!(s.frames.values().column(k), b.column(k), "pose and shape untouched");
+        }
+    }
+}

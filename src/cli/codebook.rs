@@ -49,9 +49,21 @@ pub struct BuildArgs {
     /// γ of S = exp(−γ D) (default: 1 / median distance).
     #[arg(long)]
     gamma: Option<f64>,
+    /// Photometric normalisation: `sentence` re-centres each sentence's appearance on the
+    /// corpus mean (lighting that drifts between recording sessions stops jumping at joins).
+    #[arg(long, value_enum, default_value_t = PhotometricArg::None)]
+    photometric: PhotometricArg,
     /// Output codebook folder.
     #[arg(short, long)]
     output: PathBuf,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum PhotometricArg {
+    /// The appearance as tracked.
+    None,
+    /// Each sentence's mean appearance replaced by the corpus mean.
+    Sentence,
 }
 
 pub fn run(command: CodebookCommand) -> Result<()> {
@@ -88,6 +100,10 @@ fn build(a: BuildArgs) -> Result<()> {
         a.tier.as_deref(),
         &map,
         options,
+        match a.photometric {
+            PhotometricArg::None => facespace::corpus::Photometric::None,
+            PhotometricArg::Sentence => facespace::corpus::Photometric::Sentence,
+        },
         &mut progress,
     )
     .with_context(|| format!("building a codebook from {}", a.corpus.display()))?;

@@ -245,10 +245,14 @@ impl Codebook {
         tier: Option<&str>,
         map: &phonemes::PhoneMap,
         options: SimilarityOptions,
+        photometric: crate::corpus::Photometric,
         progress: &mut dyn FnMut(Progress),
     ) -> Result<Self, CodebookError> {
-        let sentences =
+        let mut sentences =
             crate::corpus::load_checked(dir, fps, model.layout(), Some(&model.hash()), tier, map)?;
+        if photometric == crate::corpus::Photometric::Sentence {
+            crate::corpus::recentre_appearance(&mut sentences);
+        }
         Codebook::build(
             sentences,
             fps,

@@ -11,6 +11,7 @@ pub use recordings::{DEFAULT_MAX_FAILED, RecordedCorpus, Recorded, Skipped, from
 use std::path::{Path, PathBuf};
 
 use ndarray::Array2;
+use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use crate::facespace::{FacespaceError, Frames, Layout};
@@ -119,6 +120,53 @@ pub struct Sentence {
     pub frames: Frames,
     /// The phone intervals, in seconds from the first frame.
     pub segments: Vec<Segment>,
+}
+
+/// Photometric normalisation of a corpus's appearance before it becomes a codebook.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Photometric {
+    /// The appearance as tracked.
+    #[default]
+    None,
+    /// Each sentence's mean appearance replaced by the corpus's: lighting that drifts between
+    /// recording sessions (a constant offset per sentence in appearance space) stops looking
+    /// like articulation, and segments of different sentences join without a brightness step.
+    Sentence,
+}
+
+/// Re-centres every sentence's appearance parameters on the corpus mean (see
+/// [`Photometric::Sentence`]): per sentence `b_a(t) − mean_t b_a + mean over all frames`.
+/// Pose and shape are untouched, and so is each sentence's motion about its mean.
+pub fn recentre_appearance(sentences: &mut [Sentence]) {
+    let Some(first) = sentences.first() else { return };
+    let range = first.frames.layout().appearance_range();
+    let dims = range.len();
+    let mut grand = vec![0f64; dims];
+    let mut means = Vec::with_capacity(sentences.len());
+    let mut frames = 0usize;
+    for s in sentences.iter() {
+        let v = s.frames.values();
+        let mut m = vec![0f64; dims];
+        for row in v.rows() {
+            for (k, &x) in row.iter().skip(range.start).take(dims).enumerate() {
+                m[k] += x as f64;
+            }
+        }
+        frames += v.nrows();
+        grand.iter_mut().zip(&m).for_each(|(g, &x)| *g += x);
+        let n = v.nrows().max(1) as f64;
+        means.push(m.into_iter().map(|x| x / n).collect::<Vec<_>>());
+    }
+    grand.iter_mut().for_each(|g| *g /= frames.max(1) as f64);
+    for (s, m) in sentences.iter_mut().zip(&means) {
+        let mut v = s.frames.values_mut();
+        for mut row in v.rows_mut() {
+            for k in 0..dims {
+                row[range.start + k] = (row[range.start + k] as f64 - m[k] + grand[k]) as f32;
+            }
+        }
+    }
 }
 
 /// Reads a face-space trajectory file (`frames × layout.dims()`, float32) at `fps`.
