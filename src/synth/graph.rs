@@ -18,7 +18,7 @@ use serde::{Deserialize, Serialize};
 use super::unit::{CodebookFrame, TargetCost, UnitConstants, selection_stats, visual_weights};
 use super::viterbi::cheapest_path;
 use super::{Chosen, PhoneReport, SynthError, Synthesis, Synthesiser, validate_request};
-use crate::codebook::Codebook;
+use crate::codebook::{Codebook, Occurrence};
 use crate::options::{self, InvalidOption};
 use crate::phonemes::{Phone, Segment};
 use crate::rng::Rng;
@@ -31,6 +31,15 @@ pub struct GraphConstants {
     pub min_probability: f64,
     /// Frame pairs sampled to estimate the mean frame distance (σ is half of it).
     pub sigma_samples: usize,
+    /// Candidate units kept per target phone, the best by context similarity (the blend's
+    /// score, C = 1): the stitch search is quadratic in them, so a large codebook (GRID: 1 482
+    /// silences) is cut to these; 0 keeps every one.
+    #[serde(default = "default_max_candidates")]
+    pub max_candidates: usize,
+}
+
+fn default_max_candidates() -> usize {
+    100
 }
 
 impl Default for GraphConstants {
@@ -38,6 +47,7 @@ impl Default for GraphConstants {
         GraphConstants {
             min_probability: 1e-6,
             sigma_samples: 20_000,
+            max_candidates: default_max_candidates(),
         }
     }
 }
@@ -257,11 +267,26 @@ impl Graph {
             .enumerate()
             .map(|(k, g)| {
                 let label = |u: &Unit| codebook.sentences[u.sentence].segments[u.segment].phone;
+                let best = |mut found: Vec<usize>| -> Vec<usize> {
+                    let cap = self.constants.max_candidates;
+                    if cap > 0 && found.len() > cap {
+                        let score = |i: usize| {
+                            let u = &units[i];
+                            let o = Occurrence { sentence: u.sentence, segment: u.segment };
+                            super::blend::context_score(codebook, target, k, o, 1)
+                        };
+                        let mut scored: Vec<(usize, f64)> = found.iter().map(|&i| (i, score(i))).collect();
+                        scored.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+                        found = scored.into_iter().take(cap).map(|(i, _)| i).collect();
+                        found.sort_unstable();
+                    }
+                    found
+                };
                 let same: Vec<usize> = (0..units.len())
                     .filter(|&i| merged(label(&units[i])) == merged(g.phone))
                     .collect();
                 if !same.is_empty() {
-                    return same;
+                    return best(same);
                 }
                 let class: Vec<usize> = (0..units.len())
                     .filter(|&i| label(&units[i]).viseme() == g.phone.viseme())
@@ -271,13 +296,13 @@ impl Graph {
                         "phone {k} /{}/: no unit of its label; used its viseme class",
                         g.phone
                     ));
-                    return class;
+                    return best(class);
                 }
                 warnings.push(format!(
                     "phone {k} /{}/: no unit of its label or viseme class; every unit was a candidate",
                     g.phone
                 ));
-                (0..units.len()).collect()
+                best((0..units.len()).collect())
             })
             .collect();
         let features = Features::new(codebook);
