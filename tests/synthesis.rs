@@ -62,3 +62,45 @@ fn blend_beats_fair_baselines_on_the_test_split() {
     );
     assert!(smoothed.mouth_sd_px < raw.mouth_sd_px);
 }
+
+/// Issue 22's mouth measures ([unitsel] §7) against analytic cases: the inner-mouth height of
+/// known points; flicker 1 for a copy and 2 for doubled motion; eq. 16's mouth PC recovers a
+/// one-parameter appearance motion (|r| > 0.99 with it), scores a copy 1 and an inversion −1.
+#[test]
+fn mouth_measures_on_analytic_cases() {
+    use facespace::eval::mouth::{MouthPc, flicker, inner_mouth_height};
+    use facespace::eval::pearson;
+    use facespace::facespace::Frames;
+    let mut points = vec![[0.0, 0.0]; 68];
+    for (top, bottom, gap) in [(61, 67, 2.0), (62, 66, 4.0), (63, 65, 6.0)] {
+        points[top] = [0.0, 10.0];
+        points[bottom] = [0.0, 10.0 + gap];
+    }
+    assert!((inner_mouth_height(&points) - 4.0).abs() < 1e-12);
+
+    let model = facespace::model::FaceModel::load(&common::root().join("models/demo/model")).unwrap();
+    let layout = model.layout();
+    let first = layout.appearance_range().start;
+    let motion: Vec<f64> = (0..40).map(|k| (0.3 * k as f64).sin()).collect();
+    let frames_with = |amp: f64| {
+        let values = ndarray::Array2::from_shape_fn((40, layout.dims()), |(t, k)| {
+            if k == first { (amp * motion[t]) as f32 } else if k == 0 { 1.0 } else { 0.0 }
+        });
+        Frames::new(layout, 25.0, values).unwrap()
+    };
+    let sd0 = model.appearance.pca.variances[0].sqrt() as f64;
+    let real = frames_with(sd0);
+    let f = flicker(&real, &real);
+    assert!((f[0] - 1.0).abs() < 1e-9);
+    let doubled = frames_with(2.0 * sd0);
+    assert!((flicker(&doubled, &real)[0] - 2.0).abs() < 1e-6);
+
+    let pc = MouthPc::fit(&model, &[&real]).expect("the demo model has lips");
+    let series = pc.series(&real);
+    assert!(pearson(&series, &motion).abs() > 0.99, "{}", pearson(&series, &motion));
+    assert!((pearson(&series, &pc.series(&real)) - 1.0).abs() < 1e-12);
+    let inverted = frames_with(-sd0);
+    assert!(pearson(&pc.series(&inverted), &series) < -0.99);
+    let norm: f64 = pc.axis().iter().map(|v| v * v).sum();
+    assert!((norm - 1.0).abs() < 1e-9);
+}

@@ -4,6 +4,7 @@
 //! they compare ([`systems`]); and of video through face-space, PSNR and SSIM inside the face
 //! mask ([`quality`]).
 
+pub mod mouth;
 pub mod quality;
 pub mod systems;
 

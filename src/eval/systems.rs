@@ -4,7 +4,8 @@
 
 use serde::Serialize;
 
-use super::{Scores, mean_scores, score};
+use super::mouth::{MouthPc, flicker, inner_mouth_height};
+use super::{Scores, landmarks, mean_scores, pearson, score};
 use crate::codebook::Codebook;
 use crate::corpus::Sentence;
 use crate::model::FaceModel;
@@ -77,6 +78,24 @@ pub struct SystemScores {
     /// For systems that select codebook frames: mean TC_avg, SL_avg and VC_avg over the
     /// sentences (\[unitsel\] eq. 12–15).
     pub selection: Option<SelectionMeans>,
+    /// The mouth measures on recorded talkers (\[unitsel\] §7), when the model has lips.
+    pub mouth: Option<MouthScores>,
+}
+
+/// \[unitsel\] §7's measures, means over the sentences.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct MouthScores {
+    /// Eq. 16: Pearson r of the first principal component of the photometrically normalised
+    /// mouth-region appearance (the PCA fitted on the real held-out frames).
+    pub r_pca_mouth: f64,
+    /// Pearson r of the inner-mouth height.
+    pub r_h_inner: f64,
+    /// Synthesised over real inner-mouth height s.d. (articulation amplitude kept).
+    pub inner_sd_ratio: f64,
+    /// Per appearance parameter, the synthesised within-sentence s.d. over the real one's.
+    pub flicker: Vec<f64>,
+    /// The largest of `flicker`.
+    pub flicker_worst: f64,
 }
 
 /// Means of the selection measures over sentences.
@@ -98,11 +117,21 @@ pub fn evaluate(
     heldout: &[Sentence],
     systems: &[System],
 ) -> Result<Vec<SystemScores>, SynthError> {
+    let real: Vec<&crate::facespace::Frames> = heldout.iter().map(|s| &s.frames).collect();
+    let pc = MouthPc::fit(model, &real);
+    let inner = |f: &crate::facespace::Frames| -> Vec<f64> {
+        landmarks(model, f).iter().map(|p| inner_mouth_height(p)).collect()
+    };
+    let sd = |v: &[f64]| {
+        let m = v.iter().sum::<f64>() / v.len().max(1) as f64;
+        (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / v.len().max(1) as f64).sqrt()
+    };
     systems
         .iter()
         .map(|system| {
             let smoothing = system.smoothing.map_or(Smoothing::Off, Smoothing::On);
             let mut selections = Vec::new();
+            let mut mouth = Vec::new();
             let per_sentence = heldout
                 .iter()
                 .map(|s| {
@@ -115,7 +144,19 @@ pub fn evaluate(
                     if let Some(stats) = &u.synthesis.selection {
                         selections.push((stats.tc_avg, stats.sl_avg, stats.vc_avg));
                     }
-                    Ok(score(model, u.variants()[0].1, &s.frames))
+                    let synth = u.variants()[0].1;
+                    if let Some(pc) = &pc {
+                        let n = synth.len().min(s.frames.len());
+                        let (a, b) = (synth.slice(0..n), s.frames.slice(0..n));
+                        let (hi_s, hi_r) = (inner(&a), inner(&b));
+                        mouth.push((
+                            pearson(&pc.series(&a), &pc.series(&b)),
+                            pearson(&hi_s, &hi_r),
+                            sd(&hi_s) / sd(&hi_r).max(1e-9),
+                            flicker(&a, &b),
+                        ));
+                    }
+                    Ok(score(model, synth, &s.frames))
                 })
                 .collect::<Result<Vec<_>, SynthError>>()?;
             let n = selections.len().max(1) as f64;
@@ -124,11 +165,26 @@ pub fn evaluate(
                 sl_avg: selections.iter().map(|s| s.1).sum::<f64>() / n,
                 vc_avg: selections.iter().map(|s| s.2).sum::<f64>() / n,
             });
+            let m = mouth.len().max(1) as f64;
+            let mouth = (!mouth.is_empty()).then(|| {
+                let dims = mouth[0].3.len();
+                let flicker: Vec<f64> = (0..dims)
+                    .map(|k| mouth.iter().map(|x| x.3[k]).sum::<f64>() / m)
+                    .collect();
+                MouthScores {
+                    r_pca_mouth: mouth.iter().map(|x| x.0).sum::<f64>() / m,
+                    r_h_inner: mouth.iter().map(|x| x.1).sum::<f64>() / m,
+                    inner_sd_ratio: mouth.iter().map(|x| x.2).sum::<f64>() / m,
+                    flicker_worst: flicker.iter().copied().fold(0.0, f64::max),
+                    flicker,
+                }
+            });
             Ok(SystemScores {
                 system: system.name.clone(),
                 mean: mean_scores(&per_sentence),
                 per_sentence,
                 selection,
+                mouth,
             })
         })
         .collect()
