@@ -10,26 +10,16 @@ use std::path::PathBuf;
 
 use facespace::codebook::{Codebook, SimilarityOptions};
 use facespace::corpus::{self, Photometric};
+use facespace::eval::mouth::flicker;
 use facespace::model::FaceModel;
 use facespace::phonemes::PhoneMap;
 use facespace::synth::{self, DEFAULT_SMOOTHING, Request, Smoothing, blend::Blend};
-
-fn sd_per_param(v: ndarray::ArrayView2<'_, f32>, range: std::ops::Range<usize>) -> Vec<f64> {
-    range
-        .map(|k| {
-            let c = v.column(k);
-            let m = c.iter().map(|&x| x as f64).sum::<f64>() / c.len() as f64;
-            (c.iter().map(|&x| (x as f64 - m).powi(2)).sum::<f64>() / c.len() as f64).sqrt()
-        })
-        .collect()
-}
 
 fn main() {
     let a: Vec<PathBuf> = std::env::args().skip(1).map(PathBuf::from).collect();
     let model = FaceModel::load(&a[0]).unwrap();
     let range = model.layout().appearance_range();
     let test = corpus::load(&a[2], 25.0, model.layout(), None, &PhoneMap::default()).unwrap();
-    let real: Vec<Vec<f64>> = test.iter().map(|s| sd_per_param(s.frames.values(), range.clone())).collect();
     for photometric in [Photometric::None, Photometric::Sentence] {
         let cb = Codebook::from_corpus(
             &a[1], &model, 25.0, None, &PhoneMap::default(), SimilarityOptions::default(), photometric,
@@ -37,17 +27,16 @@ fn main() {
         )
         .unwrap();
         let mut ratio_sum = vec![0f64; range.len()];
-        for (s, r) in test.iter().zip(&real) {
+        for s in &test {
             let u = synth::synthesise(
                 &Blend::default(),
                 &cb,
                 Request::new(s.segments.clone(), 25.0, Smoothing::On(DEFAULT_SMOOTHING)),
             )
             .unwrap();
-            let sd = sd_per_param(u.synthesis.frames.values(), range.clone());
-            for k in 0..range.len() {
-                ratio_sum[k] += sd[k] / r[k].max(1e-9);
-            }
+            let n = u.synthesis.frames.len().min(s.frames.len());
+            let ratios = flicker(&u.synthesis.frames.slice(0..n), &s.frames.slice(0..n));
+            ratio_sum.iter_mut().zip(&ratios).for_each(|(t, r)| *t += r);
         }
         let ratios: Vec<f64> = ratio_sum.iter().map(|x| x / test.len() as f64).collect();
         let worst = ratios.iter().cloned().fold(0f64, f64::max);

@@ -41,6 +41,13 @@ pub fn pearson(a: &[f64], b: &[f64]) -> f64 {
     }
 }
 
+/// Population standard deviation (0 for fewer than one value).
+pub fn standard_deviation(v: &[f64]) -> f64 {
+    let n = v.len().max(1) as f64;
+    let m = v.iter().sum::<f64>() / n;
+    (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / n).sqrt()
+}
+
 /// Dynamic time warping between two `frames × dims` series with Euclidean frame distance;
 /// the total cost of the best path divided by its length.
 pub fn dtw(a: &[f64], b: &[f64], dims: usize) -> f64 {
@@ -160,7 +167,6 @@ pub fn score(model: &FaceModel, synth: &Frames, real: &Frames) -> Scores {
             })
             .collect::<Vec<_>>()
     };
-    let mean = hs.iter().sum::<f64>() / n.max(1) as f64;
     Scores {
         r_pca: if layout.appearance > 0 {
             pearson(&col(&s, first), &col(&r, first))
@@ -170,7 +176,7 @@ pub fn score(model: &FaceModel, synth: &Frames, real: &Frames) -> Scores {
         r_h: pearson(&hs, &hr),
         rmse_px: (sq / count as f64).sqrt(),
         dtw: dtw(&params(&s), &params(&r), layout.params_range().len()),
-        mouth_sd_px: (hs.iter().map(|h| (h - mean).powi(2)).sum::<f64>() / n.max(1) as f64).sqrt(),
+        mouth_sd_px: standard_deviation(&hs),
     }
 }
 

@@ -148,10 +148,7 @@ pub fn inner_mouth_height(points: &[Point]) -> f64 {
 pub fn flicker(synth: &Frames, real: &Frames) -> Vec<f64> {
     let range = synth.layout().appearance_range();
     let sd = |f: &Frames, k: usize| {
-        let c = f.column(k);
-        let n = c.len().max(1) as f64;
-        let m = c.iter().map(|&v| v as f64).sum::<f64>() / n;
-        (c.iter().map(|&v| (v as f64 - m).powi(2)).sum::<f64>() / n).sqrt()
+        super::standard_deviation(&f.column(k).iter().map(|&v| v as f64).collect::<Vec<_>>())
     };
     range.map(|k| sd(synth, k) / sd(real, k).max(1e-9)).collect()
 }

@@ -5,7 +5,7 @@
 use serde::Serialize;
 
 use super::mouth::{MouthPc, flicker, inner_mouth_height};
-use super::{Scores, landmarks, mean_scores, pearson, score};
+use super::{Scores, landmarks, mean_scores, pearson, score, standard_deviation};
 use crate::codebook::Codebook;
 use crate::corpus::Sentence;
 use crate::model::FaceModel;
@@ -122,10 +122,6 @@ pub fn evaluate(
     let inner = |f: &crate::facespace::Frames| -> Vec<f64> {
         landmarks(model, f).iter().map(|p| inner_mouth_height(p)).collect()
     };
-    let sd = |v: &[f64]| {
-        let m = v.iter().sum::<f64>() / v.len().max(1) as f64;
-        (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / v.len().max(1) as f64).sqrt()
-    };
     systems
         .iter()
         .map(|system| {
@@ -152,7 +148,7 @@ pub fn evaluate(
                         mouth.push((
                             pearson(&pc.series(&a), &pc.series(&b)),
                             pearson(&hi_s, &hi_r),
-                            sd(&hi_s) / sd(&hi_r).max(1e-9),
+                            standard_deviation(&hi_s) / standard_deviation(&hi_r).max(1e-9),
                             flicker(&a, &b),
                         ));
                     }
