@@ -126,19 +126,23 @@ impl AudioTrack {
             chan_conf: t.channel_config()?,
         };
         let timescale = t.timescale();
-        let edit = audio_edit(path)?.and_then(|(skip, keep)| {
-            let scale = timescale as f64;
-            Some(Edit {
-                skip: (skip * scale).round() as u64,
-                keep: (keep? * scale).round() as u64,
-            })
-        });
-        let samples = (1..=t.sample_count())
+        let edit = audio_edit(path)?;
+        let samples: Vec<mp4::Mp4Sample> = (1..=t.sample_count())
             .map(|id| {
                 file.read_sample(track, id)?
                     .ok_or(Mp4Error::MissingSample(id))
             })
             .collect::<Result<_, _>>()?;
+        // An edit list without a duration keeps everything after the priming.
+        let total: u64 = samples.iter().map(|s| s.duration as u64).sum();
+        let edit = edit.map(|(skip, keep)| {
+            let scale = timescale as f64;
+            let skip = (skip * scale).round() as u64;
+            Edit {
+                skip,
+                keep: keep.map_or(total.saturating_sub(skip), |k| (k * scale).round() as u64),
+            }
+        });
         Ok(Some(AudioTrack {
             config,
             timescale,
