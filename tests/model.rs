@@ -508,3 +508,46 @@ fn unreadable_image_and_malformed_pts_are_named() {
     let err = load_training_set(dir.path(), None).unwrap_err();
     assert!(err.to_string().contains("einstein.pts:4"), "{err}");
 }
+
+/// The committed GRID models are what today's `model build` makes of the committed training
+/// frames with the commands of models/grid/README.md, so no stale asset ships: the same mask,
+/// placement (scale, offset, margin) and triangles exactly, and the same PCA means, components
+/// (up to sign) and variances to float rounding. (Not the hash: the appearance PCA's parallel
+/// sums differ in the last bits from run to run — 1e-9 here — and the hash reads bits.)
+#[test]
+fn committed_grid_models_are_rebuilt_exactly() {
+    use facespace::model::FaceModel;
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/grid");
+    let tmp = tempfile::tempdir().unwrap();
+    for (dir, extra) in [("model", None), ("lower", Some("lower-face"))] {
+        let out = tmp.path().join(dir);
+        let training = root.join("training");
+        let mut args = vec!["model", "build", "--images", training.to_str().unwrap(), "--pixels", "20000"];
+        if let Some(r) = extra {
+            args.extend(["--region", r]);
+        }
+        args.extend(["-o", out.to_str().unwrap()]);
+        let o = common::facespace(&args);
+        assert!(o.status.success(), "{}", common::text(&o));
+        let (c, r) = (FaceModel::load(&root.join(dir)).unwrap(), FaceModel::load(&out).unwrap());
+        let stale = format!("models/grid/{dir} is stale: rebuild it (models/grid/README.md)");
+        assert_eq!(r.frame.mask_image(), c.frame.mask_image(), "{stale}: mask");
+        assert_eq!(r.frame.triangles, c.frame.triangles, "{stale}: triangles");
+        assert_eq!(
+            (r.placement.scale, r.placement.offset, r.placement.margin),
+            (c.placement.scale, c.placement.offset, c.placement.margin),
+            "{stale}: placement"
+        );
+        for (name, a, b) in [("shape", &r.shape.pca, &c.shape.pca), ("appearance", &r.appearance.pca, &c.appearance.pca)] {
+            assert_eq!(a.n_components(), b.n_components(), "{stale}: {name} components");
+            let close = |x: &[f32], y: &[f32]| x.iter().zip(y).all(|(p, q)| (p - q).abs() <= 1e-4 * (1.0 + q.abs()));
+            assert!(close(&a.mean, &b.mean) && close(&a.variances, &b.variances), "{stale}: {name} mean/variances");
+            let dim = a.dim();
+            for k in 0..a.n_components() {
+                let (x, y) = (&a.components[k * dim..(k + 1) * dim], &b.components[k * dim..(k + 1) * dim]);
+                let flipped: Vec<f32> = y.iter().map(|v| -v).collect();
+                assert!(close(x, y) || close(x, &flipped), "{stale}: {name} component {k}");
+            }
+        }
+    }
+}
