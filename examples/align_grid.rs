@@ -87,7 +87,7 @@ fn main() {
     let wav_dir = tempfile::tempdir().unwrap();
     let mut decoded = Vec::new();
     for id in &ids {
-        let a = audio::read(&grid.join("clips").join(format!("{id}.mp4")), 16_000, 600.0).unwrap();
+        let a = audio::read(&grid.join("clips").join(format!("{id}.mp4")), 16_000, align::MAX_SECONDS).unwrap();
         audio::write_wav(&wav_dir.path().join(format!("{id}.wav")), &a).unwrap();
         decoded.push(a);
     }
@@ -196,5 +196,4 @@ fn main() {
         Ok(out) => println!("pocketsphinx not measured: {}", String::from_utf8_lossy(&out.stderr).lines().last().unwrap_or("")),
         Err(e) => println!("pocketsphinx not measured: {e}"),
     }
-    let _ = align::MAX_SECONDS;
 }
