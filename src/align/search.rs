@@ -117,8 +117,8 @@ impl Graph {
                             e.exits.push((r, h));
                         }
                     }
-                    // A single-phone HMM keyed by (l, r) must be entered from l and left to r:
-                    // record both keys on the same node (checked in `link`).
+                    // One HMM per (l, r): listed under l among the entries and under r among
+                    // the exits, so it is entered only from l and left only towards r.
                 } else {
                     let firsts: Vec<u32> =
                         lcs.iter().map(|&l| node(&mut g, p[0], l, p[1], WordPosition::Begin)).collect();
@@ -153,8 +153,6 @@ impl Graph {
             })
         };
         let cost = silence_cost();
-        // An HMM of a one-phone word appears in both lists under its (l, r) key; it may only be
-        // left towards its own right context, which `exits` already encodes.
         for j in 0..=n {
             let s = sil_node(&mut g);
             if j == 0 {
