@@ -215,10 +215,6 @@ pub fn from_recordings(
     for ((name, ..), result) in found.iter().zip(results) {
         match result {
             Ok(e) => encoded.push(e),
-            // The acoustic model is shared: its failure is everyone's.
-            Err(e @ CorpusError::Align { .. }) if e.to_string().contains("acoustic model") => {
-                return Err(e);
-            }
             Err(e) => skipped.push(Skipped {
                 name: name.clone(),
                 reason: e.to_string(),
