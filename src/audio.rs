@@ -305,12 +305,17 @@ pub fn resample(audio: &Audio, rate: u32) -> Audio {
     Audio { samples, rate }
 }
 
+/// A sample in −1…1 as a 16-bit PCM value (rounded, clipped at full scale).
+pub fn to_pcm16(x: f32) -> i16 {
+    (x * 32768.0).round().clamp(-32768.0, 32767.0) as i16
+}
+
 /// Writes 16-bit mono PCM WAV (for tests, benchmarks and the TTS path).
 pub fn write_wav(path: &Path, audio: &Audio) -> std::io::Result<()> {
     let data: Vec<u8> = audio
         .samples
         .iter()
-        .flat_map(|&s| ((s * 32768.0).round().clamp(-32768.0, 32767.0) as i16).to_le_bytes())
+        .flat_map(|&s| to_pcm16(s).to_le_bytes())
         .collect();
     let mut out = Vec::with_capacity(44 + data.len());
     out.extend_from_slice(b"RIFF");

@@ -232,7 +232,7 @@ impl Aligner {
             return Err(AlignError::Silent { peak_dbfs });
         }
         // The front end works in int16 units, as pocketsphinx receives them.
-        let pcm: Vec<f32> = samples.iter().map(|&x| (x * 32768.0).round().clamp(-32768.0, 32767.0)).collect();
+        let pcm: Vec<f32> = samples.iter().map(|&x| f32::from(crate::audio::to_pcm16(x))).collect();
         let mut cep = self.frontend.cepstra_warm(&pcm);
         if frontend::cmn(&mut cep).is_none() {
             return Err(AlignError::Silent { peak_dbfs });

@@ -107,7 +107,7 @@ impl AcousticModel {
             path: dir.join(name),
             why,
         };
-        let params = parse_feat_params(&String::from_utf8_lossy(&read("feat.params")?));
+        let params = two_columns(&String::from_utf8_lossy(&read("feat.params")?));
         for (key, want) in [
             ("-feat", "1s_c_d_dd"),
             ("-svspec", "0-12/13-25/26-38"),
@@ -124,13 +124,7 @@ impl AcousticModel {
                 }
             }
         }
-        let fillers = String::from_utf8_lossy(&read("noisedict")?)
-            .lines()
-            .filter_map(|l| {
-                let mut it = l.split_whitespace();
-                Some((it.next()?.to_owned(), it.next()?.to_owned()))
-            })
-            .collect();
+        let fillers = two_columns(&String::from_utf8_lossy(&read("noisedict")?));
 
         let mdef = Mdef::parse(&read("mdef")?).map_err(|why| bad("mdef", why))?;
         let (means_shape, means) = read_s3(&read("means")?).map_err(|why| bad("means", why))?;
@@ -294,8 +288,8 @@ impl AcousticModel {
     }
 }
 
-/// `feat.params`: `-key value` lines.
-fn parse_feat_params(text: &str) -> BTreeMap<String, String> {
+/// `key value` lines (`feat.params`' `-key value`, `noisedict`'s `word PHONE`).
+fn two_columns(text: &str) -> BTreeMap<String, String> {
     text.lines()
         .filter_map(|l| {
             let mut it = l.split_whitespace();

@@ -351,6 +351,23 @@ impl<'a> Scorer<'a> {
     }
 }
 
+/// An HMM's best way out after its last frame: score through the exit transition, and the
+/// history of the state it leaves from.
+fn best_exit(
+    a: &[[f32; STATES + 1]; STATES],
+    score: &[f32; STATES],
+    hist: &[u32; STATES],
+) -> (f32, u32) {
+    let mut best = (f32::NEG_INFINITY, NONE);
+    for s in 0..STATES {
+        let v = score[s] + a[s][STATES];
+        if v > best.0 {
+            best = (v, hist[s]);
+        }
+    }
+    best
+}
+
 /// Frame-synchronous Viterbi over the graph, beam-pruned; phone-level back-pointers.
 pub(super) fn viterbi(model: &AcousticModel, g: &Graph, feats: &[[f32; FEATURE_DIM]]) -> Option<Path> {
     let n = g.nodes.len();
@@ -376,13 +393,7 @@ pub(super) fn viterbi(model: &AcousticModel, g: &Graph, feats: &[[f32; FEATURE_D
             if !active[h] {
                 continue;
             }
-            let a = &model.tmats[g.nodes[h].tmat];
-            for s in 0..STATES {
-                let v = score[h][s] + a[s][STATES];
-                if v > exit[h].0 {
-                    exit[h] = (v, hist[h][s]);
-                }
-            }
+            exit[h] = best_exit(&model.tmats[g.nodes[h].tmat], &score[h], &hist[h]);
         }
         let mut best = ninf;
         for h in 0..n {
@@ -443,13 +454,9 @@ pub(super) fn viterbi(model: &AcousticModel, g: &Graph, feats: &[[f32; FEATURE_D
     let (mut best, mut at) = (ninf, NONE);
     for &h in &g.finals {
         let h = h as usize;
-        let a = &model.tmats[g.nodes[h].tmat];
-        for s in 0..STATES {
-            let v = score[h][s] + a[s][STATES];
-            if v > best {
-                best = v;
-                at = hist[h][s];
-            }
+        let (v, from) = best_exit(&model.tmats[g.nodes[h].tmat], &score[h], &hist[h]);
+        if v > best {
+            (best, at) = (v, from);
         }
     }
     if at == NONE {

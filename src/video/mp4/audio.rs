@@ -57,7 +57,7 @@ impl AudioTrack {
         let pcm: Vec<i16> = audio
             .samples
             .iter()
-            .map(|&x| (x * 32768.0).round().clamp(-32768.0, 32767.0) as i16)
+            .map(|&x| crate::audio::to_pcm16(x))
             .collect();
         // Zeros after the end flush the encoder's delay line (the crate cannot signal the end).
         let padded_len = (pcm.len() + delay as usize).div_ceil(frame) * frame + frame;
