@@ -34,7 +34,11 @@ fn lcs(a: &[phonemes::Segment], b: &[phonemes::Segment]) -> Vec<(usize, usize)> 
     let mut t = vec![vec![0usize; m + 1]; n + 1];
     for i in (0..n).rev() {
         for j in (0..m).rev() {
-            t[i][j] = if a[i].phone == b[j].phone { t[i + 1][j + 1] + 1 } else { t[i + 1][j].max(t[i][j + 1]) };
+            t[i][j] = if a[i].phone == b[j].phone {
+                t[i + 1][j + 1] + 1
+            } else {
+                t[i + 1][j].max(t[i][j + 1])
+            };
         }
     }
     let (mut i, mut j, mut out) = (0, 0, Vec::new());
@@ -55,7 +59,11 @@ fn lcs(a: &[phonemes::Segment], b: &[phonemes::Segment]) -> Vec<(usize, usize)> 
 fn quantiles(v: &mut [f64]) -> (f64, f64) {
     v.sort_by(|a, b| a.partial_cmp(b).unwrap());
     let n = v.len();
-    let median = if n % 2 == 1 { v[n / 2] } else { (v[n / 2 - 1] + v[n / 2]) / 2.0 };
+    let median = if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        (v[n / 2 - 1] + v[n / 2]) / 2.0
+    };
     (median, v[(n as f64 * 0.9) as usize])
 }
 
@@ -68,12 +76,17 @@ fn main() {
     let grid = PathBuf::from(args.get(1).cloned().unwrap_or_else(|| {
         concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/grid-s1").to_owned()
     }));
-    let limit: usize = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(usize::MAX);
+    let limit: usize = args
+        .get(2)
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(usize::MAX);
     let mut ids: Vec<String> = std::fs::read_dir(grid.join("clips"))
         .unwrap()
         .filter_map(|e| {
             let p = e.ok()?.path();
-            if p.extension()? != "mp4" { return None; }
+            if p.extension()? != "mp4" {
+                return None;
+            }
             Some(p.file_stem()?.to_str()?.to_owned())
         })
         .collect();
@@ -87,7 +100,12 @@ fn main() {
     let wav_dir = tempfile::tempdir().unwrap();
     let mut decoded = Vec::new();
     for id in &ids {
-        let a = audio::read(&grid.join("clips").join(format!("{id}.mp4")), 16_000, align::MAX_SECONDS).unwrap();
+        let a = audio::read(
+            &grid.join("clips").join(format!("{id}.mp4")),
+            16_000,
+            align::MAX_SECONDS,
+        )
+        .unwrap();
         audio::write_wav(&wav_dir.path().join(format!("{id}.wav")), &a).unwrap();
         decoded.push(a);
     }
@@ -128,12 +146,17 @@ fn main() {
         }
         // Phones against pocketsphinx: the speech phones' starts and ends, when the phone
         // sequences agree (they differ only where another pronunciation won).
-        let reference =
-            phonemes::read_htk(&grid.join("phones").join(format!("{id}.lab")), &PhoneMap::default())
-                .unwrap();
+        let reference = phonemes::read_htk(
+            &grid.join("phones").join(format!("{id}.lab")),
+            &PhoneMap::default(),
+        )
+        .unwrap();
         let ours = result.segments();
         let speech = |s: &[phonemes::Segment]| -> Vec<phonemes::Segment> {
-            s.iter().filter(|p| p.phone != phonemes::Phone::SIL).copied().collect()
+            s.iter()
+                .filter(|p| p.phone != phonemes::Phone::SIL)
+                .copied()
+                .collect()
         };
         let (r, o) = (speech(&reference), speech(&ours));
         if r.len() != o.len() || r.iter().zip(&o).any(|(a, b)| a.phone != b.phone) {
@@ -157,17 +180,37 @@ fn main() {
     let (wm, w90) = quantiles(&mut word_d);
     let (wsm, _) = quantiles(&mut word_start_d);
     let (wem, _) = quantiles(&mut word_end_d);
-    println!("GRID s1 (recorded speech), {} clips, {:.0} s of audio; {} aligned, {} failed", ids.len(), audio_seconds, aligned, failed.len());
+    println!(
+        "GRID s1 (recorded speech), {} clips, {:.0} s of audio; {} aligned, {} failed",
+        ids.len(),
+        audio_seconds,
+        aligned,
+        failed.len()
+    );
     for f in &failed {
         println!("  failed: {f}");
     }
     println!(
         "phones vs phones/ (pocketsphinx): {} boundaries ({} clips chose another pronunciation somewhere; {} of {} reference phones unpaired): median |Δ| {:.1} ms, 90th pct {:.1} ms, {:.1} % ≤ 10 ms, {:.1} % ≤ 20 ms, {:.1} % ≤ 40 ms",
-        phone_d.len(), mismatched, unpaired, total_ref, pm * 1e3, p90 * 1e3, within(&phone_d, 10.0), within(&phone_d, 20.0), within(&phone_d, 40.0)
+        phone_d.len(),
+        mismatched,
+        unpaired,
+        total_ref,
+        pm * 1e3,
+        p90 * 1e3,
+        within(&phone_d, 10.0),
+        within(&phone_d, 20.0),
+        within(&phone_d, 40.0)
     );
     println!(
         "words vs align/ (corpus): {} boundaries: median |Δ| {:.1} ms (starts {:.1}, ends {:.1}), 90th pct {:.1} ms, {:.1} % ≤ 40 ms, {:.1} % ≤ 80 ms",
-        word_d.len(), wm * 1e3, wsm * 1e3, wem * 1e3, w90 * 1e3, within(&word_d, 40.0), within(&word_d, 80.0)
+        word_d.len(),
+        wm * 1e3,
+        wsm * 1e3,
+        wem * 1e3,
+        w90 * 1e3,
+        within(&word_d, 40.0),
+        within(&word_d, 80.0)
     );
     println!(
         "speed (one thread): model load {load_ms:.0} ms; {:.2} ms per clip, {:.0}× real time",
@@ -178,7 +221,12 @@ fn main() {
     let list = wav_dir.path().join("list.tsv");
     std::fs::write(&list, texts.join("\n")).unwrap();
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/pocketsphinx_align.py");
-    match Command::new("python3").arg(&script).arg(wav_dir.path()).arg(&list).output() {
+    match Command::new("python3")
+        .arg(&script)
+        .arg(wav_dir.path())
+        .arg(&list)
+        .output()
+    {
         Ok(out) if out.status.success() => {
             let text = String::from_utf8_lossy(&out.stdout);
             print!("{text}");
@@ -193,7 +241,13 @@ fn main() {
                 );
             }
         }
-        Ok(out) => println!("pocketsphinx not measured: {}", String::from_utf8_lossy(&out.stderr).lines().last().unwrap_or("")),
+        Ok(out) => println!(
+            "pocketsphinx not measured: {}",
+            String::from_utf8_lossy(&out.stderr)
+                .lines()
+                .last()
+                .unwrap_or("")
+        ),
         Err(e) => println!("pocketsphinx not measured: {e}"),
     }
 }

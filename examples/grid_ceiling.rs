@@ -16,14 +16,19 @@ use facespace::phonemes::PhoneMap;
 fn main() {
     let a: Vec<PathBuf> = std::env::args().skip(1).map(PathBuf::from).collect();
     let model = FaceModel::load(&a[0]).unwrap();
-    let load = |p: &PathBuf| corpus::load(p, 25.0, model.layout(), None, &PhoneMap::default()).unwrap();
+    let load =
+        |p: &PathBuf| corpus::load(p, 25.0, model.layout(), None, &PhoneMap::default()).unwrap();
     let (tracked, again) = (load(&a[1]), load(&a[2]));
     let frames: Vec<_> = tracked.iter().map(|s| &s.frames).collect();
     let pc = MouthPc::fit(&model, &frames).unwrap();
     let inner = |f: &facespace::facespace::Frames| -> Vec<f64> {
-        landmarks(&model, f).iter().map(|p| inner_mouth_height(p)).collect()
+        landmarks(&model, f)
+            .iter()
+            .map(|p| inner_mouth_height(p))
+            .collect()
     };
-    let (mut r_pca, mut r_h, mut sd_ratio, mut worst) = (0.0, 0.0, 0.0, vec![0.0; model.layout().appearance]);
+    let (mut r_pca, mut r_h, mut sd_ratio, mut worst) =
+        (0.0, 0.0, 0.0, vec![0.0; model.layout().appearance]);
     let mut scores = Vec::new();
     let n = tracked.len() as f64;
     for (s, t) in tracked.iter().zip(&again) {
@@ -42,6 +47,9 @@ fn main() {
         "ceiling (re-tracked with --refine 3 vs tracked), {} test sentences: r_pca (eq. 16) {r_pca:.3}, inner r_h {r_h:.3}, inner s.d. {sd_ratio:.2}×, flicker worst {:.2}; whole-face r_pca {:.3}, outer r_h {:.3}, RMSE {:.3} px, DTW {:.1}",
         tracked.len(),
         worst.iter().cloned().fold(0.0, f64::max),
-        m.r_pca, m.r_h, m.rmse_px, m.dtw
+        m.r_pca,
+        m.r_h,
+        m.rmse_px,
+        m.dtw
     );
 }

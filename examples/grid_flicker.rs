@@ -22,7 +22,13 @@ fn main() {
     let test = corpus::load(&a[2], 25.0, model.layout(), None, &PhoneMap::default()).unwrap();
     for photometric in [Photometric::None, Photometric::Sentence] {
         let cb = Codebook::from_corpus(
-            &a[1], &model, 25.0, None, &PhoneMap::default(), SimilarityOptions::default(), photometric,
+            &a[1],
+            &model,
+            25.0,
+            None,
+            &PhoneMap::default(),
+            SimilarityOptions::default(),
+            photometric,
             &mut facespace::no_progress,
         )
         .unwrap();
@@ -43,7 +49,13 @@ fn main() {
         let over = ratios.iter().filter(|&&x| x > 1.5).count();
         println!(
             "{photometric:?}: synthesised / real within-sentence s.d., mean over {} test sentences: b_a1 {:.2}, b_a2 {:.2}, b_a3 {:.2}; worst parameter {:.2}; {} of {} parameters above 1.5×",
-            test.len(), ratios[0], ratios[1], ratios[2], worst, over, ratios.len()
+            test.len(),
+            ratios[0],
+            ratios[1],
+            ratios[2],
+            worst,
+            over,
+            ratios.len()
         );
     }
 }

@@ -103,21 +103,31 @@ pub fn read_native(path: &Path, max_seconds: f64) -> Result<Audio, AudioError> {
 }
 
 fn read_at(path: &Path, rate: Option<u32>, max_seconds: f64) -> Result<Audio, AudioError> {
-    let io = |source| AudioError::Io { path: path.to_owned(), source };
+    let io = |source| AudioError::Io {
+        path: path.to_owned(),
+        source,
+    };
     let file = crate::manifest::open_regular(path).map_err(io)?;
     match decode_native(path, file, max_seconds) {
         Ok(a) if is_mp4(path) => trim_to_edit_list(path, a),
         Ok(a) => Ok(a),
         Err(AudioError::Unsupported { why, .. }) => match system_ffmpeg() {
             Some(ffmpeg) => decode_ffmpeg(&ffmpeg, path, rate.unwrap_or(48_000), max_seconds),
-            None => Err(AudioError::Unsupported { path: path.to_owned(), why }),
+            None => Err(AudioError::Unsupported {
+                path: path.to_owned(),
+                why,
+            }),
         },
         Err(e) => Err(e),
     }
 }
 
 fn is_mp4(path: &Path) -> bool {
-    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase();
     matches!(ext.as_str(), "mp4" | "m4a" | "m4v" | "mov")
 }
 
@@ -142,25 +152,37 @@ fn trim_to_edit_list(path: &Path, mut audio: Audio) -> Result<Audio, AudioError>
 }
 
 fn decode_native(path: &Path, file: std::fs::File, max_seconds: f64) -> Result<Audio, AudioError> {
-    let unsupported = |why: String| AudioError::Unsupported { path: path.to_owned(), why };
+    let unsupported = |why: String| AudioError::Unsupported {
+        path: path.to_owned(),
+        why,
+    };
     let mut hint = Hint::new();
     if let Some(ext) = path.extension().and_then(|e| e.to_str()) {
         hint.with_extension(&ext.to_ascii_lowercase());
     }
     let stream = MediaSourceStream::new(Box::new(file), Default::default());
     let probed = symphonia::default::get_probe()
-        .format(&hint, stream, &FormatOptions::default(), &MetadataOptions::default())
+        .format(
+            &hint,
+            stream,
+            &FormatOptions::default(),
+            &MetadataOptions::default(),
+        )
         .map_err(|e| unsupported(format!("not a WAV or MP4/M4A file ({e})")))?;
     let mut format = probed.format;
     let track = format
         .tracks()
         .iter()
         .find(|t| t.codec_params.codec != CODEC_TYPE_NULL && t.codec_params.sample_rate.is_some())
-        .ok_or_else(|| AudioError::NoAudio { path: path.to_owned() })?;
+        .ok_or_else(|| AudioError::NoAudio {
+            path: path.to_owned(),
+        })?;
     let id = track.id;
     let rate = track.codec_params.sample_rate.unwrap_or(0);
     if rate == 0 {
-        return Err(AudioError::NoAudio { path: path.to_owned() });
+        return Err(AudioError::NoAudio {
+            path: path.to_owned(),
+        });
     }
     let too_long = |frames: u64| AudioError::TooLong {
         path: path.to_owned(),
@@ -221,16 +243,33 @@ fn decode_native(path: &Path, file: std::fs::File, max_seconds: f64) -> Result<A
 }
 
 /// `ffmpeg -i PATH -f s16le -ac 1 -ar RATE -`, read as it streams, stopped past the limit.
-fn decode_ffmpeg(ffmpeg: &Path, path: &Path, rate: u32, max_seconds: f64) -> Result<Audio, AudioError> {
+fn decode_ffmpeg(
+    ffmpeg: &Path,
+    path: &Path,
+    rate: u32,
+    max_seconds: f64,
+) -> Result<Audio, AudioError> {
     let mut child = Command::new(ffmpeg)
         .args(["-nostdin", "-v", "error", "-i"])
         .arg(path)
-        .args(["-vn", "-f", "s16le", "-ac", "1", "-ar", &rate.to_string(), "-"])
+        .args([
+            "-vn",
+            "-f",
+            "s16le",
+            "-ac",
+            "1",
+            "-ar",
+            &rate.to_string(),
+            "-",
+        ])
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .stderr(Stdio::null())
         .spawn()
-        .map_err(|source| AudioError::Io { path: path.to_owned(), source })?;
+        .map_err(|source| AudioError::Io {
+            path: path.to_owned(),
+            source,
+        })?;
     let mut out = child.stdout.take().expect("piped stdout");
     let max_samples = (max_seconds * rate as f64) as usize;
     let mut samples = Vec::new();
@@ -243,7 +282,10 @@ fn decode_ffmpeg(ffmpeg: &Path, path: &Path, rate: u32, max_seconds: f64) -> Res
             Err(source) => {
                 let _ = child.kill();
                 let _ = child.wait();
-                return Err(AudioError::Io { path: path.to_owned(), source });
+                return Err(AudioError::Io {
+                    path: path.to_owned(),
+                    source,
+                });
             }
         };
         let mut bytes = &chunk[..n];
@@ -264,9 +306,15 @@ fn decode_ffmpeg(ffmpeg: &Path, path: &Path, rate: u32, max_seconds: f64) -> Res
             });
         }
     }
-    let status = child.wait().map_err(|source| AudioError::Io { path: path.to_owned(), source })?;
+    let status = child.wait().map_err(|source| AudioError::Io {
+        path: path.to_owned(),
+        source,
+    })?;
     if !status.success() {
-        return Err(AudioError::Ffmpeg { path: path.to_owned(), status: status.to_string() });
+        return Err(AudioError::Ffmpeg {
+            path: path.to_owned(),
+            status: status.to_string(),
+        });
     }
     Ok(Audio { samples, rate })
 }
@@ -278,7 +326,10 @@ const SINC_HALF_WIDTH: f64 = 16.0;
 /// frequency (× 0.95), evaluated at each output instant. Unchanged when the rates agree.
 pub fn resample(audio: &Audio, rate: u32) -> Audio {
     if audio.rate == rate || audio.samples.is_empty() {
-        return Audio { samples: audio.samples.clone(), rate };
+        return Audio {
+            samples: audio.samples.clone(),
+            rate,
+        };
     }
     let ratio = rate as f64 / audio.rate as f64;
     // Cut-off relative to the input rate, and the kernel's half-width in input samples.
@@ -295,7 +346,11 @@ pub fn resample(audio: &Audio, rate: u32) -> Audio {
             for (i, &v) in x.iter().enumerate().take(hi + 1).skip(lo) {
                 let d = i as f64 - centre;
                 let arg = std::f64::consts::PI * cutoff * d;
-                let sinc = if arg.abs() < 1e-12 { 1.0 } else { arg.sin() / arg };
+                let sinc = if arg.abs() < 1e-12 {
+                    1.0
+                } else {
+                    arg.sin() / arg
+                };
                 let window = 0.5 + 0.5 * (std::f64::consts::PI * d / half).cos();
                 acc += v as f64 * cutoff * sinc * window;
             }

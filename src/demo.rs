@@ -1,9 +1,17 @@
-//! The whole pipeline on the committed demo data (`facespace demo`, the README's first
-//! command): build a lower-face region model from the talker's training frames, generate the
-//! demo corpus from its real face-space points, build the codebook, synthesise a sentence
-//! that is not in the corpus by top-N blending and by unit selection, and write each smoothed
-//! and unsmoothed with a blind side-by-side — the lower face synthesised, the rest of the face (eyes, brows, blinks, head motion) from a
-//! real stretch of the talker's video, whose tracked pose the synthesis replays.
+//! The whole pipeline on committed data (`facespace demo`, the README's first command).
+//!
+//! **GRID s1** (the default, recorded): a test-split sentence that is not in the codebook is
+//! aligned from its own sound and words, synthesised by top-N blending (the system and λ
+//! chosen on GRID's validation split) and by unit selection from the codebook of his 741
+//! kept training sentences, drawn over the sentence's own video (its tracked pose replayed,
+//! the synthesis re-lit to its lighting), and written with its sound: smoothed, unsmoothed,
+//! the blind A/B side-by-side, and the real recording beside the synthesis.
+//!
+//! **FGNet** (`--talker fgnet`, generated): build a lower-face region model from the
+//! talker's training frames, generate the demo corpus from its real face-space points, build
+//! the codebook, and synthesise a sentence that is not in the corpus the same ways over a
+//! real stretch of his video (the rest of the face — eyes, brows, blinks, head motion — from
+//! the video, whose tracked pose the synthesis replays).
 
 use std::path::{Path, PathBuf};
 
@@ -23,23 +31,60 @@ use crate::synth::output::{self, OutputError, OutputOptions, Report};
 use crate::synth::unit::UnitSelection;
 use crate::synth::{DEFAULT_SMOOTHING, Request, Smoothing, SynthError, synthesise};
 
-/// The demo utterance; it must not be one of the corpus sentences.
+/// The FGNet demo utterance; it must not be one of the corpus sentences.
 pub const DEMO_TEXT: &str = "A brave pilot found the hidden map.";
+
+/// Smoothing weight λ for GRID s1: the value `facespace eval --validation` chose on his 73
+/// validation sentences (lowest mean DTW of blend N = 3; BENCHMARKS.md).
+pub const GRID_SMOOTHING: f64 = 3e-5;
+
+/// Examples blended per phone for GRID s1: N = 5 had the best mouth r_pca (eq. 16) and
+/// inner-mouth r_h of N = 1/3/5 on his validation sentences (BENCHMARKS.md).
+pub const GRID_TOP_N: usize = 5;
+
+fn committed(path: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(path)
+}
 
 /// The demo model and its training frames, in the source tree.
 pub fn default_model() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("models/demo/model")
+    committed("models/demo/model")
 }
 
 /// The demo model's training frames with their landmarks.
 pub fn default_training() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("models/demo/training")
+    committed("models/demo/training")
 }
 
 /// 100 frames of the talker's video (frames 1500–1599 of the FGNet sequence), the demo's
 /// background.
 pub fn default_background() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("models/demo/background.mp4")
+    committed("models/demo/background.mp4")
+}
+
+/// GRID s1's full-face model (`models/grid/README.md`).
+pub fn grid_model() -> PathBuf {
+    committed("models/grid/model")
+}
+
+/// GRID s1's codebook: his 741 kept training sentences, appearance re-centred per sentence.
+pub fn grid_codebook() -> PathBuf {
+    committed("models/grid/codebook")
+}
+
+/// A GRID s1 test-split recording (not in the codebook), its words in `bbbf9a.txt` beside it.
+pub fn grid_clip() -> PathBuf {
+    committed("models/grid/demo/bbbf9a.mp4")
+}
+
+/// Whose face the demo shows.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Talker {
+    /// GRID speaker 1: recorded sentences with their sound.
+    #[default]
+    Grid,
+    /// The FGNet talker: a corpus generated over his real face-space points.
+    Fgnet,
 }
 
 /// What can go wrong in the demo.
@@ -49,6 +94,25 @@ pub enum DemoError {
     /// The text is one of the corpus sentences.
     #[error("{0:?} is a corpus sentence; the demo synthesises unseen text")]
     SeenText(String),
+    /// The recording is one of the codebook's sentences.
+    #[error("{0} is a codebook sentence; the demo synthesises a held-out one (GRID's test split)")]
+    SeenClip(PathBuf),
+    /// The recording's words could not be read.
+    #[error("{path}: the words of the recording could not be read ({source}); give --text")]
+    Words {
+        /// The transcript expected beside the recording.
+        path: PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// The recording's sound could not be aligned with its words.
+    #[error("aligning {path}: {source}")]
+    Align {
+        /// The recording.
+        path: PathBuf,
+        /// The cause.
+        source: crate::align::AlignError,
+    },
     /// The model or its training frames could not be loaded.
     #[error(transparent)]
     Model(#[from] ModelError),
@@ -76,48 +140,41 @@ pub enum DemoError {
 }
 
 /// Options of [`run`].
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Default)]
 pub struct DemoOptions {
     /// Output folder.
     pub output: PathBuf,
-    /// The text to synthesise (not a corpus sentence).
-    pub text: String,
-    /// The model folder.
-    pub model: PathBuf,
-    /// Its training frames with `.pts` landmarks.
-    pub training: PathBuf,
-    /// A video of the talker to draw the synthesised lower face over.
-    pub background: PathBuf,
+    /// Whose face.
+    pub talker: Talker,
+    /// GRID: the recording to synthesise (default [`grid_clip`]); FGNet: the video to draw
+    /// over (default [`default_background`]).
+    pub clip: Option<PathBuf>,
+    /// GRID: the recording's words (default: `NAME.txt` beside it); FGNet: the text to
+    /// synthesise (default [`DEMO_TEXT`]; not a corpus sentence).
+    pub text: Option<String>,
     /// Which renderer draws.
     pub renderer: RendererChoice,
-}
-
-impl Default for DemoOptions {
-    fn default() -> Self {
-        DemoOptions {
-            output: PathBuf::from("out/demo"),
-            text: DEMO_TEXT.into(),
-            model: default_model(),
-            training: default_training(),
-            background: default_background(),
-            renderer: RendererChoice::Auto,
-        }
-    }
 }
 
 /// What the demo did.
 #[derive(Clone, Debug)]
 pub struct DemoReport {
+    /// Whose face.
+    pub talker: Talker,
+    /// The model drawn.
+    pub model: PathBuf,
     /// Shape parameters of the model.
     pub shape_params: usize,
     /// Appearance parameters of the model.
     pub appearance_params: usize,
-    /// Real training frames the corpus draws on.
-    pub training_frames: usize,
-    /// Appearance parameters of the lower-face region model.
-    pub region_appearance_params: usize,
-    /// Generated training sentences in the codebook.
-    pub sentences: usize,
+    /// The lower-face region model's appearance parameters (FGNet).
+    pub region_appearance_params: Option<usize>,
+    /// What the codebook holds, in words (the corpus named recorded or generated).
+    pub corpus: String,
+    /// The text spoken.
+    pub text: String,
+    /// The video drawn over.
+    pub background: PathBuf,
     /// Phones of the utterance.
     pub phones: usize,
     /// Frames of the utterance.
@@ -141,7 +198,10 @@ pub fn run(options: &DemoOptions, progress: impl FnMut(Progress)) -> Result<Demo
         &options.output,
         "demo",
         |staged| {
-            report = Some(run_into(options, staged, progress)?);
+            report = Some(match options.talker {
+                Talker::Grid => grid_into(options, staged, progress)?,
+                Talker::Fgnet => fgnet_into(options, staged, progress)?,
+            });
             Ok(())
         },
         |source| {
@@ -154,12 +214,138 @@ pub fn run(options: &DemoOptions, progress: impl FnMut(Progress)) -> Result<Demo
     Ok(report.expect("the demo ran"))
 }
 
-/// [`run`] writing into `w`; the report names the files where they will be (`options.output`).
-fn run_into(
+/// The GRID demo (see the module docs) writing into `w`; the report names the files where
+/// they will be (`options.output`).
+fn grid_into(
     options: &DemoOptions,
-    w: &std::path::Path,
+    w: &Path,
     mut progress: impl FnMut(Progress),
 ) -> Result<DemoReport, DemoError> {
+    let model_path = grid_model();
+    let model = FaceModel::load(&model_path)?;
+    let cb = Codebook::load(&grid_codebook())?;
+    cb.check_model(&model)?;
+    let clip = options.clip.clone().unwrap_or_else(grid_clip);
+    let stem = clip.file_stem().map(|s| s.to_string_lossy().into_owned());
+    if cb.sentences.iter().any(|s| Some(&s.name) == stem.as_ref()) {
+        return Err(DemoError::SeenClip(clip));
+    }
+    let words = match &options.text {
+        Some(t) => t.clone(),
+        None => {
+            let path = clip.with_extension("txt");
+            std::fs::read_to_string(&path).map_err(|source| DemoError::Words { path, source })?
+        }
+    };
+    // Speech in: the recording's own sound, aligned with its words, times the face.
+    let align_error = |source| DemoError::Align {
+        path: clip.clone(),
+        source,
+    };
+    let alignment = crate::align::Aligner::load_default(&[])
+        .and_then(|a| a.align_file(&clip, &words))
+        .map_err(align_error)?;
+    let target = alignment.segments();
+    let fps = crate::video::Source::open(&clip)
+        .map_err(BackdropError::from)?
+        .info()
+        .fps;
+    let backdrop = Backdrop::video(
+        &model,
+        &clip,
+        PoseMode::Replay,
+        crate::synth::frame_count(&target, fps),
+        &EncodeOptions::default(),
+        crate::no_progress,
+    )?;
+    let request = Request {
+        pose: backdrop.pose.clone(),
+        ..Request::new(target, fps, Smoothing::Ab(GRID_SMOOTHING))
+    };
+    let chosen = choose_renderer(options.renderer, &model, Some(DEFAULT_FEATHER))?;
+    let renderer = chosen.renderer.as_ref();
+    let words = words.trim();
+    let output_options = OutputOptions {
+        audio: Some(&clip),
+        seed: 1,
+        real: Some(&backdrop.tracked),
+        text: Some(words),
+        beside_background: true,
+    };
+    let blend = Blend {
+        top_n: GRID_TOP_N,
+        ..Blend::default()
+    };
+    let mut utterance = synthesise(&blend, &cb, request.clone())?;
+    backdrop.match_lighting(&model, &cb, &mut utterance);
+    let report = output::write(
+        w,
+        renderer,
+        &utterance,
+        backdrop.background()?,
+        &output_options,
+        &mut progress,
+    )?;
+    let mut unit = synthesise(&UnitSelection::default(), &cb, request)?;
+    backdrop.match_lighting(&model, &cb, &mut unit);
+    let unit_report = output::write(
+        &w.join("unit"),
+        renderer,
+        &unit,
+        backdrop.background()?,
+        &output_options,
+        &mut progress,
+    )?;
+    alignment
+        .write(&w.join("utterance.TextGrid"))
+        .and_then(|()| phonemes::write_labels(&w.join("utterance.lab"), &utterance.target))?;
+    let o = &options.output;
+    Ok(DemoReport {
+        talker: Talker::Grid,
+        model: model_path,
+        shape_params: model.shape.n_params(),
+        appearance_params: model.appearance.n_params(),
+        region_appearance_params: None,
+        corpus: format!(
+            "{} recorded GRID s1 training sentences (appearance re-centred per sentence)",
+            cb.sentences.len()
+        ),
+        text: words.to_owned(),
+        background: clip.clone(),
+        phones: utterance.target.len(),
+        frames: utterance.synthesis.frames.len(),
+        renderer_note: chosen.note.clone(),
+        report,
+        unit_report,
+        files: vec![
+            (
+                "real recording | synthesis, with sound",
+                o.join("beside_background.mp4"),
+            ),
+            ("smoothed video", o.join("smoothed/video.mp4")),
+            ("smoothed frames", o.join("smoothed/frames")),
+            ("unsmoothed video", o.join("unsmoothed/video.mp4")),
+            (
+                "blind side by side (order in key.json)",
+                o.join("side_by_side.mp4"),
+            ),
+            ("trajectory plot (with the real one)", o.join("plot.png")),
+            ("unit selection (same files)", o.join("unit")),
+            ("words and phones aligned", o.join("utterance.TextGrid")),
+            ("phone timings", o.join("utterance.lab")),
+        ],
+    })
+}
+
+/// The FGNet demo (see the module docs) writing into `w`; the report names the files where
+/// they will be (`options.output`).
+fn fgnet_into(
+    options: &DemoOptions,
+    w: &Path,
+    mut progress: impl FnMut(Progress),
+) -> Result<DemoReport, DemoError> {
+    let text = options.text.clone().unwrap_or_else(|| DEMO_TEXT.to_owned());
+    let background = options.clip.clone().unwrap_or_else(default_background);
     let normalise = |s: &str| {
         s.to_lowercase()
             .chars()
@@ -168,12 +354,13 @@ fn run_into(
     };
     if generator::SENTENCES
         .iter()
-        .any(|s| normalise(s) == normalise(&options.text))
+        .any(|s| normalise(s) == normalise(&text))
     {
-        return Err(DemoError::SeenText(options.text.clone()));
+        return Err(DemoError::SeenText(text));
     }
-    let model = FaceModel::load(&options.model)?;
-    let frames = load_training_set(&options.training, None)?;
+    let model_path = default_model();
+    let model = FaceModel::load(&model_path)?;
+    let frames = load_training_set(&default_training(), None)?;
     let o = &options.output;
     // The lower face from the same frames: the rest of the face comes from the background.
     let region = FaceModel::build(
@@ -198,15 +385,15 @@ fn run_into(
         &mut crate::no_progress,
     )?;
     cb.save(&w.join("codebook"))?;
-    let target = phonemes::text_to_segments(&options.text, &cb.mean_durations())?;
+    let target = phonemes::text_to_segments(&text, &cb.mean_durations())?;
     // Frames at the background's own rate, so its motion plays at the recorded speed.
-    let fps = crate::video::Source::open(&options.background)
+    let fps = crate::video::Source::open(&background)
         .map_err(BackdropError::from)?
         .info()
         .fps;
     let backdrop = Backdrop::video(
         &model,
-        &options.background,
+        &background,
         PoseMode::Replay,
         crate::synth::frame_count(&target, fps),
         &EncodeOptions::default(),
@@ -220,7 +407,7 @@ fn run_into(
     let renderer = chosen.renderer.as_ref();
     let output_options = OutputOptions {
         seed: 1,
-        text: Some(&options.text),
+        text: Some(&text),
         ..OutputOptions::default()
     };
     // The same sentence by both modes: top-N blending in `o`, unit selection in `o/unit`.
@@ -246,11 +433,17 @@ fn run_into(
     )?;
     phonemes::write_labels(&w.join("utterance.lab"), &utterance.target)?;
     Ok(DemoReport {
+        talker: Talker::Fgnet,
+        model: model_path,
         shape_params: model.shape.n_params(),
         appearance_params: model.appearance.n_params(),
-        training_frames: frames.len(),
-        region_appearance_params: region.appearance.n_params(),
-        sentences,
+        region_appearance_params: Some(region.appearance.n_params()),
+        corpus: format!(
+            "{sentences} generated sentences (trajectories generated over the real face-space points of {} frames, not recorded)",
+            frames.len()
+        ),
+        text,
+        background,
         phones: utterance.target.len(),
         frames: utterance.synthesis.frames.len(),
         renderer_note: chosen.note.clone(),

@@ -117,12 +117,22 @@ pub fn speak(text: &str, out: &Path) -> Result<Engine, TtsError> {
             );
             // Without the HTS voice, Festival's default voice.
             if with_voice.is_err() {
-                run(engine, Command::new("text2wave").arg(&input).arg("-o").arg(out))?;
+                run(
+                    engine,
+                    Command::new("text2wave").arg(&input).arg("-o").arg(out),
+                )?;
             }
             Ok(Engine::Festival)
         }
         Some(Engine::EspeakNg) => {
-            run("espeak-ng", Command::new("espeak-ng").arg("-w").arg(out).arg("--").arg(text))?;
+            run(
+                "espeak-ng",
+                Command::new("espeak-ng")
+                    .arg("-w")
+                    .arg(out)
+                    .arg("--")
+                    .arg(text),
+            )?;
             Ok(Engine::EspeakNg)
         }
         None => Err(TtsError::Missing),

@@ -34,9 +34,10 @@ fn clip_audio(id: &str) -> Audio {
 /// (tests/reference/mfcc_pocketsphinx.py), fresh and with the noise estimate warmed.
 #[test]
 fn mfcc_front_end_matches_pocketsphinx() {
-    let reference: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(grid().join("mfcc_pocketsphinx.json")).unwrap())
-            .unwrap();
+    let reference: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(grid().join("mfcc_pocketsphinx.json")).unwrap(),
+    )
+    .unwrap();
     let fe = frontend::FrontEnd::new();
     for id in CLIPS {
         // The WAV path of `audio::read`, 16-bit PCM.
@@ -44,8 +45,12 @@ fn mfcc_front_end_matches_pocketsphinx() {
         let pcm: Vec<f32> = a.samples.iter().map(|x| (x * 32768.0).round()).collect();
         for (kind, mut cep) in [("fresh", fe.cepstra(&pcm)), ("warm", fe.cepstra_warm(&pcm))] {
             let mean = frontend::cmn(&mut cep).unwrap();
-            let want: Vec<f64> =
-                reference[id][kind].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+            let want: Vec<f64> = reference[id][kind]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_f64().unwrap())
+                .collect();
             for (k, (&got, &want)) in mean.iter().zip(&want).enumerate() {
                 let tol = 2e-3 + 1e-4 * want.abs();
                 assert!(
@@ -70,11 +75,16 @@ fn grid_clips_align_within_tolerance_of_their_reference_labels() {
     let mut word_d = Vec::new();
     for id in CLIPS {
         let a = clip_audio(id);
-        let result = aligner().align(&a.samples, a.rate, &transcript(id)).unwrap();
+        let result = aligner()
+            .align(&a.samples, a.rate, &transcript(id))
+            .unwrap();
         let reference =
             phonemes::read_htk(&grid().join(format!("{id}.lab")), &PhoneMap::default()).unwrap();
         let speech = |s: &[phonemes::Segment]| -> Vec<phonemes::Segment> {
-            s.iter().filter(|p| p.phone != Phone::SIL).copied().collect()
+            s.iter()
+                .filter(|p| p.phone != Phone::SIL)
+                .copied()
+                .collect()
         };
         let (r, o) = (speech(&reference), speech(&result.segments()));
         assert_eq!(
@@ -91,8 +101,12 @@ fn grid_clips_align_within_tolerance_of_their_reference_labels() {
             .lines()
             .filter_map(|l| {
                 let v: Vec<&str> = l.split_whitespace().collect();
-                (v[2] != "sil" && v[2] != "sp")
-                    .then(|| (v[0].parse::<f64>().unwrap() / 25e3, v[1].parse::<f64>().unwrap() / 25e3))
+                (v[2] != "sil" && v[2] != "sp").then(|| {
+                    (
+                        v[0].parse::<f64>().unwrap() / 25e3,
+                        v[1].parse::<f64>().unwrap() / 25e3,
+                    )
+                })
             })
             .collect();
         assert_eq!(result.words.len(), words.len());
@@ -107,14 +121,23 @@ fn grid_clips_align_within_tolerance_of_their_reference_labels() {
         }
         assert!((result.phones.last().unwrap().end - result.frames as f64 * 0.01).abs() < 1e-9);
     }
-    let share = |v: &[f64], s: f64| v.iter().filter(|&&d| d <= s + 1e-9).count() as f64 / v.len() as f64;
+    let share =
+        |v: &[f64], s: f64| v.iter().filter(|&&d| d <= s + 1e-9).count() as f64 / v.len() as f64;
     let median = |v: &mut Vec<f64>| {
         v.sort_by(|a, b| a.partial_cmp(b).unwrap());
         v[v.len() / 2]
     };
-    assert!(share(&phone_d, 0.020) >= 0.90, "phones within 20 ms: {}", share(&phone_d, 0.020));
+    assert!(
+        share(&phone_d, 0.020) >= 0.90,
+        "phones within 20 ms: {}",
+        share(&phone_d, 0.020)
+    );
     assert!(median(&mut phone_d) <= 0.010);
-    assert!(share(&word_d, 0.080) >= 0.92, "words within 80 ms: {}", share(&word_d, 0.080));
+    assert!(
+        share(&word_d, 0.080) >= 0.92,
+        "words within 80 ms: {}",
+        share(&word_d, 0.080)
+    );
     assert!(median(&mut word_d) <= 0.020);
 }
 
@@ -130,7 +153,9 @@ fn mp4_audio_follows_its_edit_list() {
 #[test]
 fn textgrid_has_word_and_phone_tiers_and_reads_back() {
     let a = clip_audio("bbbf9a");
-    let result = aligner().align(&a.samples, a.rate, &transcript("bbbf9a")).unwrap();
+    let result = aligner()
+        .align(&a.samples, a.rate, &transcript("bbbf9a"))
+        .unwrap();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("out.TextGrid");
     result.write(&path).unwrap();
@@ -152,7 +177,10 @@ fn textgrid_has_word_and_phone_tiers_and_reads_back() {
     // The .lab form is HTK phones.
     let lab = dir.path().join("out.lab");
     result.write(&lab).unwrap();
-    assert_eq!(phonemes::read_htk(&lab, &PhoneMap::default()).unwrap(), segs);
+    assert_eq!(
+        phonemes::read_htk(&lab, &PhoneMap::default()).unwrap(),
+        segs
+    );
 }
 
 /// A band-limited resampler: a 1 kHz sine at 44.1 kHz becomes the same sine sampled at 16 kHz.
@@ -160,7 +188,9 @@ fn textgrid_has_word_and_phone_tiers_and_reads_back() {
 fn resampling_keeps_a_sine() {
     let f = 1000.0;
     let input = Audio {
-        samples: (0..44_100).map(|i| (2.0 * std::f64::consts::PI * f * i as f64 / 44_100.0).sin() as f32 * 0.5).collect(),
+        samples: (0..44_100)
+            .map(|i| (2.0 * std::f64::consts::PI * f * i as f64 / 44_100.0).sin() as f32 * 0.5)
+            .collect(),
         rate: 44_100,
     };
     let out = audio::resample(&input, 16_000);
@@ -172,11 +202,18 @@ fn resampling_keeps_a_sine() {
     }
     // Above the new Nyquist frequency a tone is removed, not aliased.
     let high = Audio {
-        samples: (0..44_100).map(|i| (2.0 * std::f64::consts::PI * 12_000.0 * i as f64 / 44_100.0).sin() as f32).collect(),
+        samples: (0..44_100)
+            .map(|i| (2.0 * std::f64::consts::PI * 12_000.0 * i as f64 / 44_100.0).sin() as f32)
+            .collect(),
         rate: 44_100,
     };
     let out = audio::resample(&high, 16_000);
-    let rms = (out.samples[200..15_800].iter().map(|v| (v * v) as f64).sum::<f64>() / 15_600.0).sqrt();
+    let rms = (out.samples[200..15_800]
+        .iter()
+        .map(|v| (v * v) as f64)
+        .sum::<f64>()
+        / 15_600.0)
+        .sqrt();
     assert!(rms < 0.02, "12 kHz tone leaks through at rms {rms}");
 }
 
@@ -196,15 +233,31 @@ fn other_sample_formats_are_converted() {
     let back = audio::read(&path, 16_000, 600.0).unwrap();
     assert_eq!(back.rate, 16_000);
     assert!((back.samples.len() as i64 - a.samples.len() as i64).abs() <= 1);
-    let result = aligner().align(&back.samples, back.rate, &transcript("bbbf9a")).unwrap();
+    let result = aligner()
+        .align(&back.samples, back.rate, &transcript("bbbf9a"))
+        .unwrap();
     assert_eq!(result.words.len(), 6);
-    let reference = aligner().align(&a.samples, a.rate, &transcript("bbbf9a")).unwrap();
+    let reference = aligner()
+        .align(&a.samples, a.rate, &transcript("bbbf9a"))
+        .unwrap();
     // 8-bit samples add noise at −48 dB: the words keep their places, but for the first
     // word's onset, an initial /b/ closure that silence borders (the reference's own weak spot).
     for (k, (x, y)) in result.words.iter().zip(&reference.words).enumerate() {
         let tol = if k == 0 { 0.15 } else { 0.031 };
-        assert!((x.start - y.start).abs() <= tol, "{} {} vs {}", x.word, x.start, y.start);
-        assert!((x.end - y.end).abs() <= 0.031, "{} {} vs {}", x.word, x.end, y.end);
+        assert!(
+            (x.start - y.start).abs() <= tol,
+            "{} {} vs {}",
+            x.word,
+            x.start,
+            y.start
+        );
+        assert!(
+            (x.end - y.end).abs() <= 0.031,
+            "{} {} vs {}",
+            x.word,
+            x.end,
+            y.end
+        );
     }
 }
 
@@ -230,7 +283,9 @@ fn wav_bytes(format: u16, channels: u16, rate: u32, bits: u16, data: &[u8]) -> V
 #[test]
 fn words_missing_from_the_dictionary_are_all_named_and_a_dict_file_adds_them() {
     let a = clip_audio("bbbf9a");
-    let err = aligner().align(&a.samples, a.rate, "bin blurg by f nine zorp").unwrap_err();
+    let err = aligner()
+        .align(&a.samples, a.rate, "bin blurg by f nine zorp")
+        .unwrap_err();
     match &err {
         AlignError::OutOfDictionary(w) => assert_eq!(w, &["blurg", "zorp"]),
         e => panic!("{e}"),
@@ -240,11 +295,16 @@ fn words_missing_from_the_dictionary_are_all_named_and_a_dict_file_adds_them() {
     let dict = dir.path().join("extra.dict");
     std::fs::write(&dict, "blurg B L UW\nzorp AH G EH N\n").unwrap();
     let with = Aligner::load_default(&[dict.clone()]).unwrap();
-    let r = with.align(&a.samples, a.rate, "bin blurg by f nine zorp").unwrap();
+    let r = with
+        .align(&a.samples, a.rate, "bin blurg by f nine zorp")
+        .unwrap();
     assert_eq!(r.words[1].word, "blurg");
     // A bad line is named with its file and line.
     std::fs::write(&dict, "ok OW K EY\nbad QQ X\n").unwrap();
-    let e = Aligner::load_default(&[dict.clone()]).err().unwrap().to_string();
+    let e = Aligner::load_default(&[dict.clone()])
+        .err()
+        .unwrap()
+        .to_string();
     assert!(e.contains("extra.dict:2") && e.contains("QQ"), "{e}");
 }
 
@@ -252,13 +312,28 @@ fn words_missing_from_the_dictionary_are_all_named_and_a_dict_file_adds_them() {
 fn empty_silent_non_finite_and_overlong_inputs_are_refused() {
     let a = aligner();
     let text = transcript("bbbf9a");
-    assert!(matches!(a.align(&[], 16_000, &text), Err(AlignError::EmptyAudio { samples: 0 })));
-    assert!(matches!(a.align(&vec![0.0; 48_000], 16_000, &text), Err(AlignError::Silent { .. })));
+    assert!(matches!(
+        a.align(&[], 16_000, &text),
+        Err(AlignError::EmptyAudio { samples: 0 })
+    ));
+    assert!(matches!(
+        a.align(&vec![0.0; 48_000], 16_000, &text),
+        Err(AlignError::Silent { .. })
+    ));
     let mut nan = clip_audio("bbbf9a").samples;
     nan[1000] = f32::NAN;
-    assert!(matches!(a.align(&nan, 16_000, &text), Err(AlignError::NotFinite { index: 1000 })));
-    assert!(matches!(a.align(&vec![0.1; 1000], 44_100, &text), Err(AlignError::SampleRate(44_100))));
-    assert!(matches!(a.align(&vec![0.1; 1000], 16_000, " ,. "), Err(AlignError::NoWords)));
+    assert!(matches!(
+        a.align(&nan, 16_000, &text),
+        Err(AlignError::NotFinite { index: 1000 })
+    ));
+    assert!(matches!(
+        a.align(&vec![0.1; 1000], 44_100, &text),
+        Err(AlignError::SampleRate(44_100))
+    ));
+    assert!(matches!(
+        a.align(&vec![0.1; 1000], 16_000, " ,. "),
+        Err(AlignError::NoWords)
+    ));
     // A transcript too long for the audio: 20 sentences in 3 s.
     let clip = clip_audio("bbbf9a");
     let long = vec![text.trim(); 20].join(" ");
@@ -267,7 +342,10 @@ fn empty_silent_non_finite_and_overlong_inputs_are_refused() {
     assert!(e.to_string().contains("too long for the audio"));
     // Past the length limit, refused before any work.
     let over = vec![0.1f32; (align::MAX_SECONDS * 16_000.0) as usize + 16];
-    assert!(matches!(a.align(&over, 16_000, &text), Err(AlignError::TooLong { .. })));
+    assert!(matches!(
+        a.align(&over, 16_000, &text),
+        Err(AlignError::TooLong { .. })
+    ));
 }
 
 #[test]
@@ -279,7 +357,10 @@ fn bad_audio_files_get_clear_errors() {
     std::fs::write(&text, "bin blue by f nine again\n").unwrap();
     let e = audio::read(&text, 16_000, 600.0).unwrap_err();
     assert!(
-        matches!(e, AudioError::Unsupported { .. } | AudioError::Decode { .. } | AudioError::Ffmpeg { .. }),
+        matches!(
+            e,
+            AudioError::Unsupported { .. } | AudioError::Decode { .. } | AudioError::Ffmpeg { .. }
+        ),
         "{e}"
     );
     assert!(e.to_string().contains("words.wav"));
@@ -289,7 +370,10 @@ fn bad_audio_files_get_clear_errors() {
     let e = audio::read(&odd, 16_000, 600.0).unwrap_err();
     assert!(e.to_string().contains("odd.wav"), "{e}");
     // Missing, a folder, and an MP4 without sound (the committed video fixture).
-    assert!(matches!(audio::read(&d.join("none.wav"), 16_000, 600.0), Err(AudioError::Io { .. })));
+    assert!(matches!(
+        audio::read(&d.join("none.wav"), 16_000, 600.0),
+        Err(AudioError::Io { .. })
+    ));
     assert!(audio::read(d, 16_000, 600.0).is_err());
     let silent_video = common::root().join("models/demo/background.mp4");
     let e = audio::read(&silent_video, 16_000, 600.0).unwrap_err();
@@ -299,7 +383,10 @@ fn bad_audio_files_get_clear_errors() {
     let empty = d.join("empty.wav");
     std::fs::write(&empty, wav_bytes(1, 1, 16_000, 16, &[])).unwrap();
     let a = audio::read(&empty, 16_000, 600.0).unwrap();
-    assert!(matches!(aligner().align(&a.samples, a.rate, "bin"), Err(AlignError::EmptyAudio { .. })));
+    assert!(matches!(
+        aligner().align(&a.samples, a.rate, "bin"),
+        Err(AlignError::EmptyAudio { .. })
+    ));
 }
 
 /// A 10-hour WAV (a sparse file: its header declares 1.15 GB of samples) is refused from its
@@ -314,7 +401,12 @@ fn a_ten_hour_file_is_refused_in_bounded_memory() {
     header[4..8].copy_from_slice(&(36 + n).to_le_bytes());
     header[len - 4..].copy_from_slice(&n.to_le_bytes());
     std::fs::write(&path, &header).unwrap();
-    std::fs::OpenOptions::new().write(true).open(&path).unwrap().set_len(len as u64 + n as u64).unwrap();
+    std::fs::OpenOptions::new()
+        .write(true)
+        .open(&path)
+        .unwrap()
+        .set_len(len as u64 + n as u64)
+        .unwrap();
     let before = peak_rss_kb();
     let started = std::time::Instant::now();
     let e = audio::read(&path, 16_000, align::MAX_SECONDS).unwrap_err();
@@ -322,13 +414,22 @@ fn a_ten_hour_file_is_refused_in_bounded_memory() {
     assert!(e.to_string().contains("ten-hours.wav"));
     assert!(started.elapsed().as_secs() < 20);
     if let (Some(b), Some(a)) = (before, peak_rss_kb()) {
-        assert!(a.saturating_sub(b) < 200_000, "peak RSS grew by {} kB", a - b);
+        assert!(
+            a.saturating_sub(b) < 200_000,
+            "peak RSS grew by {} kB",
+            a - b
+        );
     }
 }
 
 fn peak_rss_kb() -> Option<u64> {
     let s = std::fs::read_to_string("/proc/self/status").ok()?;
-    s.lines().find(|l| l.starts_with("VmHWM:"))?.split_whitespace().nth(1)?.parse().ok()
+    s.lines()
+        .find(|l| l.starts_with("VmHWM:"))?
+        .split_whitespace()
+        .nth(1)?
+        .parse()
+        .ok()
 }
 
 /// `corpus from-videos` with a transcript and no labels: a frame folder of the demo talker,
@@ -351,7 +452,10 @@ fn corpus_from_videos_aligns_transcripts() {
     assert_eq!(n, 50);
     // 2.0 s of speech: bbbf9a from 0.5 s (its words run 0.74 … 2.12 s).
     let a = clip_audio("bbbf9a");
-    let cut = Audio { samples: a.samples[8_000..40_000].to_vec(), rate: 16_000 };
+    let cut = Audio {
+        samples: a.samples[8_000..40_000].to_vec(),
+        rate: 16_000,
+    };
     audio::write_wav(&input.join("take1.wav"), &cut).unwrap();
     std::fs::write(input.join("take1.txt"), transcript("bbbf9a")).unwrap();
     let out = dir.path().join("corpus");
@@ -366,8 +470,16 @@ fn corpus_from_videos_aligns_transcripts() {
     ]);
     assert!(o.status.success(), "{}", common::text(&o));
     let lab = phonemes::read_htk(&out.join("take1.lab"), &PhoneMap::default()).unwrap();
-    let whole = aligner().align(&a.samples, a.rate, &transcript("bbbf9a")).unwrap().segments();
-    let speech = |s: &[phonemes::Segment]| s.iter().filter(|p| p.phone != Phone::SIL).copied().collect::<Vec<_>>();
+    let whole = aligner()
+        .align(&a.samples, a.rate, &transcript("bbbf9a"))
+        .unwrap()
+        .segments();
+    let speech = |s: &[phonemes::Segment]| {
+        s.iter()
+            .filter(|p| p.phone != Phone::SIL)
+            .copied()
+            .collect::<Vec<_>>()
+    };
     let (cut_phones, whole_phones) = (speech(&lab), speech(&whole));
     assert_eq!(cut_phones.len(), whole_phones.len());
     let close = cut_phones
@@ -375,7 +487,11 @@ fn corpus_from_videos_aligns_transcripts() {
         .zip(&whole_phones)
         .filter(|(c, w)| (c.start + 0.5 - w.start).abs() <= 0.021)
         .count();
-    assert!(close as f64 >= 0.9 * cut_phones.len() as f64, "{close} of {}", cut_phones.len());
+    assert!(
+        close as f64 >= 0.9 * cut_phones.len() as f64,
+        "{close} of {}",
+        cut_phones.len()
+    );
     assert!(out.join("take1.npy").is_file());
 }
 

@@ -96,11 +96,18 @@ fn errors_are_reported_not_panicked() {
     );
 }
 
-/// `facespace demo` writes everything it promises; the MP4 has one frame per synthesised frame.
+/// `facespace demo --talker fgnet` writes everything it promises; the MP4 has one frame per
+/// synthesised frame. (The GRID demo, the default: tests/grid_demo.rs.)
 #[test]
-fn demo_writes_its_outputs() {
+fn fgnet_demo_writes_its_outputs() {
     let tmp = tempfile::tempdir().unwrap();
-    let o = facespace(&["demo", "-o", tmp.path().to_str().unwrap()]);
+    let o = facespace(&[
+        "demo",
+        "--talker",
+        "fgnet",
+        "-o",
+        tmp.path().to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", text(&o));
     let t = text(&o);
     assert!(t.contains("not recorded") && t.contains("done in"), "{t}");
@@ -138,6 +145,8 @@ fn demo_writes_its_outputs() {
     // A corpus sentence is refused: the demo shows unseen text.
     let o = facespace(&[
         "demo",
+        "--talker",
+        "fgnet",
         "-o",
         tmp.path().to_str().unwrap(),
         "--text",

@@ -267,27 +267,58 @@ fn bad_recordings_are_named_and_left_out() {
     std::fs::write(dir.join("damaged.mp4"), &video[..video.len() * 2 / 3]).unwrap();
     std::fs::write(dir.join("damaged.lab"), "0 20000000 sil\n").unwrap();
     // Another face, with its own labels.
-    std::fs::copy(common::root().join("tests/data/grid/bbbf9a.mp4"), dir.join("other.mp4")).unwrap();
-    std::fs::copy(common::root().join("tests/data/grid/bbbf9a.lab"), dir.join("other.lab")).unwrap();
+    std::fs::copy(
+        common::root().join("tests/data/grid/bbbf9a.mp4"),
+        dir.join("other.mp4"),
+    )
+    .unwrap();
+    std::fs::copy(
+        common::root().join("tests/data/grid/bbbf9a.lab"),
+        dir.join("other.lab"),
+    )
+    .unwrap();
     let init = common::root().join("tests/data/clip/01000.pts");
 
     let corpus = tmp.path().join("corpus");
-    let o = common::facespace(&["corpus", "from-videos", &p(&dir), "--init", &p(&init), "-o", &p(&corpus)]);
+    let o = common::facespace(&[
+        "corpus",
+        "from-videos",
+        &p(&dir),
+        "--init",
+        &p(&init),
+        "-o",
+        &p(&corpus),
+    ]);
     let t = common::text(&o);
     assert_eq!(o.status.code(), Some(1), "{t}");
-    assert!(t.contains("2 of 5 recordings could not be used") && t.contains("--max-failed"), "{t}");
+    assert!(
+        t.contains("2 of 5 recordings could not be used") && t.contains("--max-failed"),
+        "{t}"
+    );
     assert!(t.contains("damaged") && t.contains("other"), "{t}");
     assert!(!corpus.exists());
 
     let o = common::facespace(&[
-        "corpus", "from-videos", &p(&dir), "--init", &p(&init), "--max-failed", "0.5", "-o", &p(&corpus),
+        "corpus",
+        "from-videos",
+        &p(&dir),
+        "--init",
+        &p(&init),
+        "--max-failed",
+        "0.5",
+        "-o",
+        &p(&corpus),
     ]);
     let t = common::text(&o);
     assert!(o.status.success(), "{t}");
-    assert!(t.contains("left out damaged") && t.contains("left out other"), "{t}");
+    assert!(
+        t.contains("left out damaged") && t.contains("left out other"),
+        "{t}"
+    );
     assert!(t.contains("2 of 5 recordings left out"), "{t}");
     for k in 0..3 {
-        let v: ndarray::ArrayD<f32> = facespace::npy::read(&corpus.join(format!("good{k}.npy"))).unwrap();
+        let v: ndarray::ArrayD<f32> =
+            facespace::npy::read(&corpus.join(format!("good{k}.npy"))).unwrap();
         assert!(v.iter().all(|x| x.is_finite()));
     }
     assert!(!corpus.join("damaged.npy").exists() && !corpus.join("other.npy").exists());
@@ -311,7 +342,8 @@ fn appearance_recentring_removes_per_sentence_offsets_only() {
         .enumerate()
         .map(|(s, (&n, off))| {
             let values = ndarray::Array2::from_shape_fn((n, dims), |(t, k)| {
-                (k as f32 + 1.0) * (t as f32 * 0.7 + s as f32).sin() + if k >= dims - 3 { off } else { 0.0 }
+                (k as f32 + 1.0) * (t as f32 * 0.7 + s as f32).sin()
+                    + if k >= dims - 3 { off } else { 0.0 }
             });
             Sentence {
                 name: format!("s{s}"),
@@ -321,18 +353,29 @@ fn appearance_recentring_removes_per_sentence_offsets_only() {
             }
         })
         .collect();
-    let before: Vec<_> = sentences.iter().map(|s| s.frames.values().to_owned()).collect();
+    let before: Vec<_> = sentences
+        .iter()
+        .map(|s| s.frames.values().to_owned())
+        .collect();
     recentre_appearance(&mut sentences);
     let app = layout.appearance_range();
     let total: usize = lengths.iter().sum();
     for k in app.clone() {
-        let grand: f64 = before.iter().map(|v| v.column(k).iter().map(|&x| x as f64).sum::<f64>()).sum::<f64>() / total as f64;
+        let grand: f64 = before
+            .iter()
+            .map(|v| v.column(k).iter().map(|&x| x as f64).sum::<f64>())
+            .sum::<f64>()
+            / total as f64;
         for (s, b) in sentences.iter().zip(&before) {
             let v = s.frames.values();
             let n = v.nrows() as f64;
             let mean_before = b.column(k).iter().map(|&x| x as f64).sum::<f64>() / n;
             let mean_after = v.column(k).iter().map(|&x| x as f64).sum::<f64>() / n;
-            assert!((mean_after - grand).abs() < 1e-3, "{}: {mean_after} vs {grand}", s.name);
+            assert!(
+                (mean_after - grand).abs() < 1e-3,
+                "{}: {mean_after} vs {grand}",
+                s.name
+            );
             for t in 0..v.nrows() {
                 let dev_before = b[[t, k]] as f64 - mean_before;
                 let dev_after = v[[t, k]] as f64 - mean_after;
@@ -342,7 +385,11 @@ fn appearance_recentring_removes_per_sentence_offsets_only() {
     }
     for (s, b) in sentences.iter().zip(&before) {
         for k in 0..app.start {
-            assert_eq!(s.frames.values().column(k), b.column(k), "pose and shape untouched");
+            assert_eq!(
+                s.frames.values().column(k),
+                b.column(k),
+                "pose and shape untouched"
+            );
         }
     }
 }

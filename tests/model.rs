@@ -522,14 +522,24 @@ fn committed_grid_models_are_rebuilt_exactly() {
     for (dir, extra) in [("model", None), ("lower", Some("lower-face"))] {
         let out = tmp.path().join(dir);
         let training = root.join("training");
-        let mut args = vec!["model", "build", "--images", training.to_str().unwrap(), "--pixels", "20000"];
+        let mut args = vec![
+            "model",
+            "build",
+            "--images",
+            training.to_str().unwrap(),
+            "--pixels",
+            "20000",
+        ];
         if let Some(r) = extra {
             args.extend(["--region", r]);
         }
         args.extend(["-o", out.to_str().unwrap()]);
         let o = common::facespace(&args);
         assert!(o.status.success(), "{}", common::text(&o));
-        let (c, r) = (FaceModel::load(&root.join(dir)).unwrap(), FaceModel::load(&out).unwrap());
+        let (c, r) = (
+            FaceModel::load(&root.join(dir)).unwrap(),
+            FaceModel::load(&out).unwrap(),
+        );
         let stale = format!("models/grid/{dir} is stale: rebuild it (models/grid/README.md)");
         assert_eq!(r.frame.mask_image(), c.frame.mask_image(), "{stale}: mask");
         assert_eq!(r.frame.triangles, c.frame.triangles, "{stale}: triangles");
@@ -538,15 +548,35 @@ fn committed_grid_models_are_rebuilt_exactly() {
             (c.placement.scale, c.placement.offset, c.placement.margin),
             "{stale}: placement"
         );
-        for (name, a, b) in [("shape", &r.shape.pca, &c.shape.pca), ("appearance", &r.appearance.pca, &c.appearance.pca)] {
-            assert_eq!(a.n_components(), b.n_components(), "{stale}: {name} components");
-            let close = |x: &[f32], y: &[f32]| x.iter().zip(y).all(|(p, q)| (p - q).abs() <= 1e-4 * (1.0 + q.abs()));
-            assert!(close(&a.mean, &b.mean) && close(&a.variances, &b.variances), "{stale}: {name} mean/variances");
+        for (name, a, b) in [
+            ("shape", &r.shape.pca, &c.shape.pca),
+            ("appearance", &r.appearance.pca, &c.appearance.pca),
+        ] {
+            assert_eq!(
+                a.n_components(),
+                b.n_components(),
+                "{stale}: {name} components"
+            );
+            let close = |x: &[f32], y: &[f32]| {
+                x.iter()
+                    .zip(y)
+                    .all(|(p, q)| (p - q).abs() <= 1e-4 * (1.0 + q.abs()))
+            };
+            assert!(
+                close(&a.mean, &b.mean) && close(&a.variances, &b.variances),
+                "{stale}: {name} mean/variances"
+            );
             let dim = a.dim();
             for k in 0..a.n_components() {
-                let (x, y) = (&a.components[k * dim..(k + 1) * dim], &b.components[k * dim..(k + 1) * dim]);
+                let (x, y) = (
+                    &a.components[k * dim..(k + 1) * dim],
+                    &b.components[k * dim..(k + 1) * dim],
+                );
                 let flipped: Vec<f32> = y.iter().map(|v| -v).collect();
-                assert!(close(x, y) || close(x, &flipped), "{stale}: {name} component {k}");
+                assert!(
+                    close(x, y) || close(x, &flipped),
+                    "{stale}: {name} component {k}"
+                );
             }
         }
     }

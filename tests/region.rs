@@ -189,6 +189,7 @@ fn demo_frames_show_no_background_inside_the_face() {
     let dir = tempfile::tempdir().unwrap();
     let options = facespace::demo::DemoOptions {
         output: dir.path().join("demo"),
+        talker: facespace::demo::Talker::Fgnet,
         ..Default::default()
     };
     facespace::demo::run(&options, facespace::no_progress).unwrap();

@@ -50,7 +50,12 @@ fn closes_within(height: &[f64], start: f64, end: f64, fps: f64) -> Result<(), S
     let middle = (start + end) / 2.0 * fps;
     let k = (1..height.len() - 1)
         .filter(|&k| height[k] <= height[k - 1] && height[k] <= height[k + 1])
-        .min_by(|&a, &b| (a as f64 - middle).abs().partial_cmp(&(b as f64 - middle).abs()).unwrap())
+        .min_by(|&a, &b| {
+            (a as f64 - middle)
+                .abs()
+                .partial_cmp(&(b as f64 - middle).abs())
+                .unwrap()
+        })
         .ok_or("the lips never close")?;
     let t = k as f64 / fps;
     if t < start - 1.0 / fps - 1e-9 || t > end + 1.0 / fps + 1e-9 {
@@ -60,7 +65,10 @@ fn closes_within(height: &[f64], start: f64, end: f64, fps: f64) -> Result<(), S
     let hi = (((end + 0.15) * fps).ceil() as usize).min(height.len() - 1);
     let widest = height[lo..=hi].iter().fold(0f64, |m, &v| m.max(v));
     if height[k] > 0.5 * widest {
-        return Err(format!("frame {k} opens {:.2} px of {widest:.2}: not a closure", height[k]));
+        return Err(format!(
+            "frame {k} opens {:.2} px of {widest:.2}: not a closure",
+            height[k]
+        ));
     }
     Ok(())
 }
@@ -76,7 +84,9 @@ fn lag(a: &[f32], b: &[f32], max: i64) -> i64 {
             })
             .sum()
     };
-    (-max..=max).max_by(|&x, &y| score(x).partial_cmp(&score(y)).unwrap()).unwrap()
+    (-max..=max)
+        .max_by(|&x, &y| score(x).partial_cmp(&score(y)).unwrap())
+        .unwrap()
 }
 
 fn synth(args: &[&str], out: &Path) -> String {
@@ -117,32 +127,63 @@ fn grid_speech_drives_the_face_in_sync() {
         let mp4 = grid(&format!("{id}.mp4"));
         let txt = grid(&format!("{id}.txt"));
         synth(
-            &["--audio", mp4.to_str().unwrap(), "--transcript", txt.to_str().unwrap(), "--smooth", "off"],
+            &[
+                "--audio",
+                mp4.to_str().unwrap(),
+                "--transcript",
+                txt.to_str().unwrap(),
+                "--smooth",
+                "off",
+            ],
             &out,
         );
         let height = inner_mouth_height(&out);
-        let alignment = aligner.align_file(&mp4, &std::fs::read_to_string(&txt).unwrap()).unwrap();
+        let alignment = aligner
+            .align_file(&mp4, &std::fs::read_to_string(&txt).unwrap())
+            .unwrap();
         let bilabial = [Phone::parse("p"), Phone::parse("b"), Phone::parse("m")];
         let mut shifted_pass = 0;
         let mut count = 0;
-        for seg in alignment.segments().iter().filter(|s| bilabial.contains(&Some(s.phone))) {
+        for seg in alignment
+            .segments()
+            .iter()
+            .filter(|s| bilabial.contains(&Some(s.phone)))
+        {
             if let Err(why) = closes_within(&height, seg.start, seg.end, fps) {
-                panic!("{id}: /{}/ {:.2}–{:.2} s: {why}", seg.phone, seg.start, seg.end);
+                panic!(
+                    "{id}: /{}/ {:.2}–{:.2} s: {why}",
+                    seg.phone, seg.start, seg.end
+                );
             }
             // The check can fail: three frames off, most closures miss.
-            shifted_pass += closes_within(&height, seg.start + 0.12, seg.end + 0.12, fps).is_ok() as usize;
+            shifted_pass +=
+                closes_within(&height, seg.start + 0.12, seg.end + 0.12, fps).is_ok() as usize;
             count += 1;
         }
-        assert!(shifted_pass * 2 <= count, "{id}: {shifted_pass} of {count} pass 3 frames off");
+        assert!(
+            shifted_pass * 2 <= count,
+            "{id}: {shifted_pass} of {count} pass 3 frames off"
+        );
         closures += count;
         // The sound in the MP4 is the recording's, from time 0.
         let video = out.join("video.mp4");
         let back = audio::read(&video, 16_000, 600.0).unwrap();
         let source = audio::read(&mp4, 16_000, 600.0).unwrap();
-        assert_eq!(lag(&source.samples[4_000..36_000], &back.samples[4_000..36_000], 400), 0);
+        assert_eq!(
+            lag(
+                &source.samples[4_000..36_000],
+                &back.samples[4_000..36_000],
+                400
+            ),
+            0
+        );
         let (seconds, frames) = video_duration(&video);
         assert_eq!(frames as usize, height.len());
-        assert!((seconds - back.seconds()).abs() <= 1.0 / fps + 1e-6, "video {seconds} s, sound {} s", back.seconds());
+        assert!(
+            (seconds - back.seconds()).abs() <= 1.0 / fps + 1e-6,
+            "video {seconds} s, sound {} s",
+            back.seconds()
+        );
     }
     assert!(closures >= 5, "{closures} bilabials checked");
 }
@@ -155,12 +196,27 @@ fn wav_speech_is_encoded_and_in_sync() {
     let out = dir.path().join("s");
     let wav = grid("bbbs7a.wav");
     let txt = grid("bbbs7a.txt");
-    synth(&["--audio", wav.to_str().unwrap(), "--transcript", txt.to_str().unwrap()], &out);
+    synth(
+        &[
+            "--audio",
+            wav.to_str().unwrap(),
+            "--transcript",
+            txt.to_str().unwrap(),
+        ],
+        &out,
+    );
     let video = out.join("video.mp4");
     let back = audio::read(&video, 16_000, 600.0).unwrap();
     let source = audio::read(&wav, 16_000, 600.0).unwrap();
     assert!((back.samples.len() as i64 - source.samples.len() as i64).abs() <= 1);
-    assert_eq!(lag(&source.samples[4_000..36_000], &back.samples[4_000..36_000], 400), 0);
+    assert_eq!(
+        lag(
+            &source.samples[4_000..36_000],
+            &back.samples[4_000..36_000],
+            400
+        ),
+        0
+    );
     // A lossy codec, but the same speech: correlation well above 0.9.
     let (a, b) = (&source.samples[4_000..44_000], &back.samples[4_000..44_000]);
     let dot: f64 = a.iter().zip(b).map(|(x, y)| (x * y) as f64).sum();
@@ -188,7 +244,11 @@ fn say_speaks_or_says_how_to_install_an_engine() {
         let peak = back.samples.iter().fold(0f32, |m, x| m.max(x.abs()));
         assert!(peak > 0.05, "the speech is audible (peak {peak})");
         let (seconds, _) = video_duration(&out.join("video.mp4"));
-        assert!((seconds - back.seconds()).abs() <= 0.04 + 1e-6, "{seconds} vs {}", back.seconds());
+        assert!(
+            (seconds - back.seconds()).abs() <= 0.04 + 1e-6,
+            "{seconds} vs {}",
+            back.seconds()
+        );
     } else {
         eprintln!("no text-to-speech engine installed: only the missing-engine case is tested");
     }
@@ -196,7 +256,14 @@ fn say_speaks_or_says_how_to_install_an_engine() {
     let cb = codebook();
     let out = dir.path().join("none");
     let o = std::process::Command::new(env!("CARGO_BIN_EXE_facespace"))
-        .args(["synth", "--codebook", cb.to_str().unwrap(), "--say", "Move the big boat.", "-o"])
+        .args([
+            "synth",
+            "--codebook",
+            cb.to_str().unwrap(),
+            "--say",
+            "Move the big boat.",
+            "-o",
+        ])
         .arg(&out)
         .env("PATH", dir.path())
         .output()
@@ -241,7 +308,11 @@ fn grid_study_stimuli_carry_the_real_sound() {
     std::fs::create_dir_all(&held).unwrap();
     for (id, dir) in [("bbbf9a", &train), ("bbwtzp", &train), ("bbbs7a", &held)] {
         for ext in ["mp4", "lab"] {
-            std::fs::copy(grid(&format!("{id}.{ext}")), dir.join(format!("{id}.{ext}"))).unwrap();
+            std::fs::copy(
+                grid(&format!("{id}.{ext}")),
+                dir.join(format!("{id}.{ext}")),
+            )
+            .unwrap();
         }
     }
     let model = common::root().join("models/grid/model");
@@ -256,21 +327,71 @@ fn grid_study_stimuli_carry_the_real_sound() {
         tmp.path().join("cb"),
         tmp.path().join("study"),
     );
-    run(&["corpus", "from-videos", "--model", &p(&model), &p(&train), "-o", &p(&ct)]);
-    run(&["corpus", "from-videos", "--model", &p(&model), &p(&held), "-o", &p(&ch)]);
-    assert!(ch.join("bbbs7a.m4a").is_file(), "the held-out sentence keeps its sound");
-    run(&["codebook", "build", "--model", &p(&model), "--corpus", &p(&ct), "-o", &p(&cb)]);
     run(&[
-        "study", "create", "--model", &p(&model), "--codebook", &p(&cb), "--heldout", &p(&ch),
-        "--conditions", "original,blend-n1", "--viewers", "1", "-o", &p(&study),
+        "corpus",
+        "from-videos",
+        "--model",
+        &p(&model),
+        &p(&train),
+        "-o",
+        &p(&ct),
+    ]);
+    run(&[
+        "corpus",
+        "from-videos",
+        "--model",
+        &p(&model),
+        &p(&held),
+        "-o",
+        &p(&ch),
+    ]);
+    assert!(
+        ch.join("bbbs7a.m4a").is_file(),
+        "the held-out sentence keeps its sound"
+    );
+    run(&[
+        "codebook",
+        "build",
+        "--model",
+        &p(&model),
+        "--corpus",
+        &p(&ct),
+        "-o",
+        &p(&cb),
+    ]);
+    run(&[
+        "study",
+        "create",
+        "--model",
+        &p(&model),
+        "--codebook",
+        &p(&cb),
+        "--heldout",
+        &p(&ch),
+        "--conditions",
+        "original,blend-n1",
+        "--viewers",
+        "1",
+        "-o",
+        &p(&study),
     ]);
     let source = audio::read(&grid("bbbs7a.mp4"), 16_000, 600.0).unwrap();
     let mut stimuli = 0;
     for e in std::fs::read_dir(study.join("stimuli")).unwrap() {
         let path = e.unwrap().path();
         let heard = audio::read(&path, 16_000, 600.0).unwrap();
-        assert_eq!(heard.samples.len(), source.samples.len(), "{}", path.display());
-        let diff = heard.samples.iter().zip(&source.samples).map(|(a, b)| (a - b).abs()).fold(0f32, f32::max);
+        assert_eq!(
+            heard.samples.len(),
+            source.samples.len(),
+            "{}",
+            path.display()
+        );
+        let diff = heard
+            .samples
+            .iter()
+            .zip(&source.samples)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0f32, f32::max);
         assert!(diff < 1e-6, "{}: differs by {diff}", path.display());
         let (seconds, _) = video_duration(&path);
         assert!((seconds - heard.seconds()).abs() <= 0.04 + 1e-6);

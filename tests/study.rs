@@ -456,11 +456,17 @@ fn stimuli_carry_the_sentence_sound_and_an_unanswered_study_is_not_analysed() {
             "no sound track in {}",
             s.id
         );
-        let heard = facespace::audio::read(&study.join("stimuli").join(s.file_name()), 16_000, 600.0)
-            .unwrap();
+        let heard =
+            facespace::audio::read(&study.join("stimuli").join(s.file_name()), 16_000, 600.0)
+                .unwrap();
         assert_eq!(heard.samples.len(), source.samples.len(), "{}", s.id);
         // Copied packet for packet with the edit list: the same samples from time 0.
-        let diff = heard.samples.iter().zip(&source.samples).map(|(a, b)| (a - b).abs()).fold(0f32, f32::max);
+        let diff = heard
+            .samples
+            .iter()
+            .zip(&source.samples)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0f32, f32::max);
         assert!(diff < 1e-6, "{}: sound differs by {diff}", s.id);
     }
     let err = facespace::study::analyse(&study).unwrap_err().to_string();

@@ -78,13 +78,20 @@ fn mouth_measures_on_analytic_cases() {
     }
     assert!((inner_mouth_height(&points) - 4.0).abs() < 1e-12);
 
-    let model = facespace::model::FaceModel::load(&common::root().join("models/demo/model")).unwrap();
+    let model =
+        facespace::model::FaceModel::load(&common::root().join("models/demo/model")).unwrap();
     let layout = model.layout();
     let first = layout.appearance_range().start;
     let motion: Vec<f64> = (0..40).map(|k| (0.3 * k as f64).sin()).collect();
     let frames_with = |amp: f64| {
         let values = ndarray::Array2::from_shape_fn((40, layout.dims()), |(t, k)| {
-            if k == first { (amp * motion[t]) as f32 } else if k == 0 { 1.0 } else { 0.0 }
+            if k == first {
+                (amp * motion[t]) as f32
+            } else if k == 0 {
+                1.0
+            } else {
+                0.0
+            }
         });
         Frames::new(layout, 25.0, values).unwrap()
     };
@@ -97,7 +104,11 @@ fn mouth_measures_on_analytic_cases() {
 
     let pc = MouthPc::fit(&model, &[&real]).expect("the demo model has lips");
     let series = pc.series(&real);
-    assert!(pearson(&series, &motion).abs() > 0.99, "{}", pearson(&series, &motion));
+    assert!(
+        pearson(&series, &motion).abs() > 0.99,
+        "{}",
+        pearson(&series, &motion)
+    );
     assert!((pearson(&series, &pc.series(&real)) - 1.0).abs() < 1e-12);
     let inverted = frames_with(-sd0);
     assert!(pearson(&pc.series(&inverted), &series) < -0.99);

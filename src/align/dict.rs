@@ -46,10 +46,15 @@ fn read_text(path: &Path) -> Result<String, AlignError> {
         why: e.to_string(),
     };
     let mut raw = Vec::new();
-    crate::manifest::open_regular(path).map_err(io)?.read_to_end(&mut raw).map_err(io)?;
+    crate::manifest::open_regular(path)
+        .map_err(io)?
+        .read_to_end(&mut raw)
+        .map_err(io)?;
     if raw.starts_with(&[0x1f, 0x8b]) {
         let mut s = String::new();
-        flate2::read::GzDecoder::new(&raw[..]).read_to_string(&mut s).map_err(io)?;
+        flate2::read::GzDecoder::new(&raw[..])
+            .read_to_string(&mut s)
+            .map_err(io)?;
         Ok(s)
     } else {
         String::from_utf8(raw).map_err(|_| AlignError::Dictionary {
@@ -69,9 +74,17 @@ impl Dictionary {
         if lines.last() == Some(&(text.len() as u32)) {
             lines.pop();
         }
-        let d = Dictionary { text, lines, added: HashMap::new(), path: path.to_owned() };
+        let d = Dictionary {
+            text,
+            lines,
+            added: HashMap::new(),
+            path: path.to_owned(),
+        };
         // Bisection needs sorted headwords: check it once, cheaply, on a sample.
-        let heads: Vec<&str> = (0..d.lines.len()).step_by(997).filter_map(|i| d.head(i)).collect();
+        let heads: Vec<&str> = (0..d.lines.len())
+            .step_by(997)
+            .filter_map(|i| d.head(i))
+            .collect();
         if heads.windows(2).any(|w| w[0] > w[1]) {
             return Err(AlignError::Dictionary {
                 path: path.to_owned(),
@@ -84,7 +97,10 @@ impl Dictionary {
 
     fn line(&self, i: usize) -> &str {
         let start = self.lines[i] as usize;
-        let end = self.lines.get(i + 1).map_or(self.text.len(), |&e| e as usize);
+        let end = self
+            .lines
+            .get(i + 1)
+            .map_or(self.text.len(), |&e| e as usize);
         self.text[start..end].trim_end()
     }
 
@@ -99,9 +115,16 @@ impl Dictionary {
     }
 
     /// Adds `word PHONES…` lines (`#` starts a comment; a `(n)` suffix marks an alternative).
-    pub fn add_text(&mut self, text: &str, path: &Path, model: &AcousticModel) -> Result<(), AlignError> {
+    pub fn add_text(
+        &mut self,
+        text: &str,
+        path: &Path,
+        model: &AcousticModel,
+    ) -> Result<(), AlignError> {
         for (n, line) in text.lines().enumerate() {
-            let Some((word, phones)) = split_entry(line) else { continue };
+            let Some((word, phones)) = split_entry(line) else {
+                continue;
+            };
             let pron = parse_pron(phones, model).map_err(|why| AlignError::Dictionary {
                 path: path.to_owned(),
                 line: n + 1,
@@ -130,7 +153,9 @@ impl Dictionary {
         let first = lo;
         let mut prons = Vec::new();
         for i in first..self.lines.len() {
-            let Some((head, phones)) = split_entry(self.line(i)) else { break };
+            let Some((head, phones)) = split_entry(self.line(i)) else {
+                break;
+            };
             if head != word {
                 break;
             }
@@ -152,7 +177,11 @@ impl Dictionary {
     }
 
     /// Every pronunciation of every word; all the words missing are named in one error.
-    pub fn pronunciations(&self, words: &[String], model: &AcousticModel) -> Result<Vec<Vec<Vec<u8>>>, AlignError> {
+    pub fn pronunciations(
+        &self,
+        words: &[String],
+        model: &AcousticModel,
+    ) -> Result<Vec<Vec<Vec<u8>>>, AlignError> {
         let mut found = Vec::with_capacity(words.len());
         let mut missing: Vec<String> = Vec::new();
         for w in words {
@@ -178,10 +207,15 @@ impl Dictionary {
 }
 
 /// Phone names → CI ids (upper case, stress digits dropped; fillers refused).
-fn parse_pron(phones: std::str::SplitWhitespace<'_>, model: &AcousticModel) -> Result<Vec<u8>, String> {
+fn parse_pron(
+    phones: std::str::SplitWhitespace<'_>,
+    model: &AcousticModel,
+) -> Result<Vec<u8>, String> {
     let mut pron = Vec::new();
     for p in phones {
-        let name = p.trim_end_matches(|c: char| c.is_ascii_digit()).to_ascii_uppercase();
+        let name = p
+            .trim_end_matches(|c: char| c.is_ascii_digit())
+            .to_ascii_uppercase();
         match model.ci(&name).filter(|&c| !model.is_filler(c)) {
             Some(c) => pron.push(c as u8),
             None => return Err(format!("{p:?} is not a phone of the acoustic model")),

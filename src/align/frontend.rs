@@ -65,7 +65,9 @@ impl FrontEnd {
         let window = (0..FRAME_SIZE)
             .map(|i| {
                 let i = i.min(FRAME_SIZE - 1 - i);
-                (0.54 - 0.46 * (2.0 * std::f64::consts::PI * i as f64 / (FRAME_SIZE as f64 - 1.0)).cos())
+                (0.54
+                    - 0.46
+                        * (2.0 * std::f64::consts::PI * i as f64 / (FRAME_SIZE as f64 - 1.0)).cos())
                     as f32
             })
             .collect();
@@ -104,7 +106,11 @@ impl FrontEnd {
         let n = N_FILTERS as f64;
         let dct = (0..N_CEP)
             .map(|i| {
-                let scale = if i == 0 { (1.0 / n).sqrt() } else { (2.0 / n).sqrt() };
+                let scale = if i == 0 {
+                    (1.0 / n).sqrt()
+                } else {
+                    (2.0 / n).sqrt()
+                };
                 let lifter = 1.0 + LIFTER / 2.0 * (i as f64 * std::f64::consts::PI / LIFTER).sin();
                 std::array::from_fn(|j| {
                     let c = if i == 0 {
@@ -161,7 +167,13 @@ impl FrontEnd {
     /// `ln(e + 1e-4)`, the DCT and the lifter.
     fn cepstrum(&self, energies: &[f64; N_FILTERS]) -> [f32; N_CEP] {
         let logs = energies.map(|e| (e + LOG_FLOOR).ln());
-        std::array::from_fn(|i| self.dct[i].iter().zip(&logs).map(|(c, l)| c * l).sum::<f64>() as f32)
+        std::array::from_fn(|i| {
+            self.dct[i]
+                .iter()
+                .zip(&logs)
+                .map(|(c, l)| c * l)
+                .sum::<f64>() as f32
+        })
     }
 
     /// The mel filter energies of every frame (before noise removal).
@@ -177,7 +189,11 @@ impl FrontEnd {
             buf.iter_mut().for_each(|c| *c = Complex32::new(0.0, 0.0));
             for k in 0..len {
                 // Pre-emphasis runs over the continuous signal (`pre_emphasis_prior`).
-                let prior = if start + k == 0 { 0.0 } else { samples[start + k - 1] };
+                let prior = if start + k == 0 {
+                    0.0
+                } else {
+                    samples[start + k - 1]
+                };
                 let x = samples[start + k] - PRE_EMPHASIS * prior;
                 buf[k].re = x * self.window[k];
             }
@@ -187,7 +203,11 @@ impl FrontEnd {
             }
             out.push(std::array::from_fn(|i| {
                 let f = &self.filters[i];
-                f.weights.iter().zip(&power[f.start..]).map(|(&w, &p)| w as f64 * p as f64).sum()
+                f.weights
+                    .iter()
+                    .zip(&power[f.start..])
+                    .map(|(&w, &p)| w as f64 * p as f64)
+                    .sum()
             }));
         }
         out
@@ -300,7 +320,11 @@ impl NoiseRemoval {
         }
         let gain: [f64; N_FILTERS] = std::array::from_fn(|i| {
             let s = signal[i].max(self.floor[i]);
-            let g = if s < MAX_GAIN * self.power[i] { s / self.power[i] } else { MAX_GAIN };
+            let g = if s < MAX_GAIN * self.power[i] {
+                s / self.power[i]
+            } else {
+                MAX_GAIN
+            };
             g.max(1.0 / MAX_GAIN)
         });
         for (i, v) in spec.iter_mut().enumerate() {

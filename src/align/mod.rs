@@ -93,10 +93,14 @@ pub enum AlignError {
         frames: usize,
     },
     /// The search found no path (the beam lost every hypothesis).
-    #[error("no alignment reaches the end of the words at the end of the audio: is this the right transcript?")]
+    #[error(
+        "no alignment reaches the end of the words at the end of the audio: is this the right transcript?"
+    )]
     NoPath,
     /// Audio longer than [`MAX_SECONDS`].
-    #[error("the audio lasts {seconds:.0} s; at most {max:.0} s are aligned at once: split it at pauses")]
+    #[error(
+        "the audio lasts {seconds:.0} s; at most {max:.0} s are aligned at once: split it at pauses"
+    )]
     TooLong {
         /// Its duration (or as far as it was read), seconds.
         seconds: f64,
@@ -218,13 +222,18 @@ impl Aligner {
         let prons = self.dict.pronunciations(&words, &self.model)?;
         let seconds = samples.len() as f64 / rate as f64;
         if seconds > MAX_SECONDS {
-            return Err(AlignError::TooLong { seconds, max: MAX_SECONDS });
+            return Err(AlignError::TooLong {
+                seconds,
+                max: MAX_SECONDS,
+            });
         }
         if let Some(index) = samples.iter().position(|x| !x.is_finite()) {
             return Err(AlignError::NotFinite { index });
         }
         if samples.len() < frontend::FRAME_SIZE {
-            return Err(AlignError::EmptyAudio { samples: samples.len() });
+            return Err(AlignError::EmptyAudio {
+                samples: samples.len(),
+            });
         }
         let peak = samples.iter().fold(0f32, |m, &x| m.max(x.abs()));
         let peak_dbfs = 20.0 * (peak.max(1e-10) as f64).log10();
@@ -232,17 +241,27 @@ impl Aligner {
             return Err(AlignError::Silent { peak_dbfs });
         }
         // The front end works in int16 units, as pocketsphinx receives them.
-        let pcm: Vec<f32> = samples.iter().map(|&x| f32::from(crate::audio::to_pcm16(x))).collect();
+        let pcm: Vec<f32> = samples
+            .iter()
+            .map(|&x| f32::from(crate::audio::to_pcm16(x)))
+            .collect();
         let mut cep = self.frontend.cepstra_warm(&pcm);
         if frontend::cmn(&mut cep).is_none() {
             return Err(AlignError::Silent { peak_dbfs });
         }
         let feats = frontend::features(&cep);
-        let phones: usize = prons.iter().map(|p| p.iter().map(Vec::len).min().unwrap_or(0)).sum();
+        let phones: usize = prons
+            .iter()
+            .map(|p| p.iter().map(Vec::len).min().unwrap_or(0))
+            .sum();
         let prons: Vec<&[Vec<u8>]> = prons.iter().map(Vec::as_slice).collect();
         let needed = phones * model::STATES;
         if feats.len() < needed {
-            return Err(AlignError::TranscriptTooLong { phones, needed, frames: feats.len() });
+            return Err(AlignError::TranscriptTooLong {
+                phones,
+                needed,
+                frames: feats.len(),
+            });
         }
         let graph = search::Graph::build(&self.model, &words, &prons);
         let path = search::viterbi(&self.model, &graph, &feats).ok_or(AlignError::NoPath)?;
@@ -257,7 +276,11 @@ impl Alignment {
         use crate::phonemes::{Tier, format_textgrid};
         let words = Tier {
             name: "words",
-            intervals: self.words.iter().map(|w| (w.start, w.end, w.word.clone())).collect(),
+            intervals: self
+                .words
+                .iter()
+                .map(|w| (w.start, w.end, w.word.clone()))
+                .collect(),
         };
         let phones = Tier {
             name: "phones",
@@ -280,7 +303,10 @@ impl Alignment {
             .is_some_and(|e| e.eq_ignore_ascii_case("textgrid"));
         if is_textgrid {
             crate::atomic::write_file(path, self.textgrid().as_bytes()).map_err(|source| {
-                crate::phonemes::PhonemeError::Io { path: path.into(), source }
+                crate::phonemes::PhonemeError::Io {
+                    path: path.into(),
+                    source,
+                }
             })
         } else {
             crate::phonemes::write_labels(path, &self.segments())

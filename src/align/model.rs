@@ -161,7 +161,10 @@ impl AcousticModel {
         }
         let expected = n_codebooks * STREAMS * n_density * STREAM_DIM;
         if means.len() != expected || vars.len() != expected {
-            return Err(bad("means", format!("{} values, expected {expected}", means.len())));
+            return Err(bad(
+                "means",
+                format!("{} values, expected {expected}", means.len()),
+            ));
         }
         let (t_means, t_inv, log_norm) = gaussians(&means, &vars, n_codebooks, n_density);
 
@@ -180,7 +183,10 @@ impl AcousticModel {
             .map(normalise_tmat)
             .collect();
         if mdef.phones.iter().any(|p| p.tmat >= tmats.len()) {
-            return Err(bad("mdef", "a phone names a transition matrix that does not exist".into()));
+            return Err(bad(
+                "mdef",
+                "a phone names a transition matrix that does not exist".into(),
+            ));
         }
 
         let n_senones = mdef.n_senones;
@@ -252,14 +258,25 @@ impl AcousticModel {
         use WordPosition::*;
         let all = [Internal, Begin, End, Single];
         let try_all = |l, r| {
-            self.lookup(b, l, r, pos)
-                .or_else(|| all.iter().filter(|&&p| p != pos).find_map(|&p| self.lookup(b, l, r, p)))
+            self.lookup(b, l, r, pos).or_else(|| {
+                all.iter()
+                    .filter(|&&p| p != pos)
+                    .find_map(|&p| self.lookup(b, l, r, p))
+            })
         };
         if let Some(p) = try_all(l, r) {
             return p;
         }
-        let new_l = if self.ci_filler[l] || matches!(pos, Begin | Single) { self.sil } else { l };
-        let new_r = if self.ci_filler[r] || matches!(pos, End | Single) { self.sil } else { r };
+        let new_l = if self.ci_filler[l] || matches!(pos, Begin | Single) {
+            self.sil
+        } else {
+            l
+        };
+        let new_r = if self.ci_filler[r] || matches!(pos, End | Single) {
+            self.sil
+        } else {
+            r
+        };
         if (new_l, new_r) != (l, r)
             && let Some(p) = try_all(new_l, new_r)
         {
@@ -308,7 +325,9 @@ fn normalise_tmat(raw: &[f32]) -> [[f32; STATES + 1]; STATES] {
         if sum > 0.0 {
             p.iter_mut().for_each(|v| *v /= sum);
         }
-        p.iter_mut().filter(|v| **v > 0.0).for_each(|v| *v = v.max(1e-4));
+        p.iter_mut()
+            .filter(|v| **v > 0.0)
+            .for_each(|v| *v = v.max(1e-4));
         let sum: f64 = p.iter().sum();
         for (to, &v) in p.iter().enumerate() {
             if v > 0.0 {
@@ -357,9 +376,17 @@ struct Reader<'a> {
 
 impl<'a> Reader<'a> {
     fn take(&mut self, n: usize) -> Result<&'a [u8], String> {
-        let end = self.at.checked_add(n).filter(|&e| e <= self.bytes.len()).ok_or_else(|| {
-            format!("truncated: {n} more bytes wanted at byte {} of {}", self.at, self.bytes.len())
-        })?;
+        let end = self
+            .at
+            .checked_add(n)
+            .filter(|&e| e <= self.bytes.len())
+            .ok_or_else(|| {
+                format!(
+                    "truncated: {n} more bytes wanted at byte {} of {}",
+                    self.at,
+                    self.bytes.len()
+                )
+            })?;
         let s = &self.bytes[self.at..end];
         self.at = end;
         Ok(s)
@@ -391,14 +418,15 @@ pub(crate) fn read_s3(bytes: &[u8]) -> Result<(Vec<u32>, Vec<f32>), String> {
         .position(|w| w == b"endhdr\n")
         .ok_or("the header has no `endhdr`")?;
     let header = String::from_utf8_lossy(&bytes[3..end]);
-    let checksummed = header.lines().any(|l| l.trim_start().starts_with("chksum0"));
-    let mut r = Reader {
-        bytes,
-        at: end + 7,
-    };
+    let checksummed = header
+        .lines()
+        .any(|l| l.trim_start().starts_with("chksum0"));
+    let mut r = Reader { bytes, at: end + 7 };
     let magic = r.u32()?;
     if magic != 0x1122_3344 {
-        return Err(format!("byte-order magic {magic:#x}: only little-endian files are read"));
+        return Err(format!(
+            "byte-order magic {magic:#x}: only little-endian files are read"
+        ));
     }
     let data_start = r.at;
     // The shape words precede the element count; read words until their product (and the
@@ -483,7 +511,9 @@ fn read_sendump(bytes: &[u8], n_density: usize, n_senones: usize) -> Result<Vec<
         }
     }
     if clusters != 0 {
-        return Err(format!("clustered mixture weights (cluster_count {clusters}) are not read"));
+        return Err(format!(
+            "clustered mixture weights (cluster_count {clusters}) are not read"
+        ));
     }
     let rows = r.count("rows", 1 << 16)?;
     let cols = r.count("columns", 1 << 20)?;
@@ -496,7 +526,10 @@ fn read_sendump(bytes: &[u8], n_density: usize, n_senones: usize) -> Result<Vec<
     if r.at != bytes.len() {
         return Err(format!("{} bytes after the weights", bytes.len() - r.at));
     }
-    Ok(data.iter().map(|&q| -(q as f64 * SHIFTED_LOG_UNIT) as f32).collect())
+    Ok(data
+        .iter()
+        .map(|&q| -(q as f64 * SHIFTED_LOG_UNIT) as f32)
+        .collect())
 }
 
 /// The binary model definition (`bin_mdef.h`).
@@ -520,7 +553,9 @@ impl Mdef {
     fn parse(bytes: &[u8]) -> Result<Self, String> {
         let mut r = Reader { bytes, at: 0 };
         if r.take(4)? != b"BMDF" {
-            return Err("not a binary model definition (no BMDF marker; text mdef is not read)".into());
+            return Err(
+                "not a binary model definition (no BMDF marker; text mdef is not read)".into(),
+            );
         }
         let version = r.i32()?;
         if version != 1 {
@@ -532,7 +567,9 @@ impl Mdef {
         let n_phone = r.count("n_phone", 1 << 20)?;
         let n_emit = r.count("n_emit_state", 16)?;
         if n_emit != STATES {
-            return Err(format!("{n_emit} emitting states per phone, expected {STATES}"));
+            return Err(format!(
+                "{n_emit} emitting states per phone, expected {STATES}"
+            ));
         }
         let _n_ci_sen = r.count("n_ci_sen", 1 << 16)?;
         let n_sen = r.count("n_sen", 1 << 16)?;
@@ -545,7 +582,10 @@ impl Mdef {
         let mut ci_names = Vec::with_capacity(n_ci);
         for _ in 0..n_ci {
             let rest = &bytes[r.at..];
-            let len = rest.iter().position(|&b| b == 0).ok_or("unterminated phone name")?;
+            let len = rest
+                .iter()
+                .position(|&b| b == 0)
+                .ok_or("unterminated phone name")?;
             ci_names.push(String::from_utf8_lossy(&rest[..len]).into_owned());
             r.at += len + 1;
         }
@@ -568,7 +608,9 @@ impl Mdef {
             let ssid = i32::from_le_bytes(b[0..4].try_into().unwrap());
             let tmat = i32::from_le_bytes(b[4..8].try_into().unwrap());
             if ssid < 0 || ssid as usize >= n_sseq || tmat < 0 {
-                return Err(format!("phone {pid}: senone sequence {ssid} or matrix {tmat} out of range"));
+                return Err(format!(
+                    "phone {pid}: senone sequence {ssid} or matrix {tmat} out of range"
+                ));
             }
             if pid < n_ci {
                 ci_filler[pid] = b[8] != 0;
@@ -587,7 +629,9 @@ impl Mdef {
         }
         let sseq_size = r.count("senone sequence size", 1 << 24)?;
         if sseq_size != n_sseq * STATES {
-            return Err(format!("{sseq_size} senone ids for {n_sseq} sequences of {STATES}"));
+            return Err(format!(
+                "{sseq_size} senone ids for {n_sseq} sequences of {STATES}"
+            ));
         }
         let raw = r.take(sseq_size * 2)?;
         let mut sseq = Vec::with_capacity(n_sseq);
@@ -602,11 +646,16 @@ impl Mdef {
             sseq.push(s);
         }
         for n in &tree {
-            if n.n_down > 0 && (n.down_or_pid < 0 || (n.down_or_pid as usize + n.n_down as usize) > tree.len()) {
+            if n.n_down > 0
+                && (n.down_or_pid < 0 || (n.down_or_pid as usize + n.n_down as usize) > tree.len())
+            {
                 return Err("triphone tree points outside itself".into());
             }
         }
-        let sil = ci_names.iter().position(|n| n == "SIL").ok_or("no SIL phone")?;
+        let sil = ci_names
+            .iter()
+            .position(|n| n == "SIL")
+            .ok_or("no SIL phone")?;
         Ok(Mdef {
             ci_names,
             ci_filler,

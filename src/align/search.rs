@@ -2,7 +2,7 @@
 //! Viterbi search with phone-level back-pointers.
 
 use super::frontend::FEATURE_DIM;
-use super::model::{AcousticModel, STATES, STREAMS, STREAM_DIM, TOP_N, WordPosition};
+use super::model::{AcousticModel, STATES, STREAM_DIM, STREAMS, TOP_N, WordPosition};
 use super::{Alignment, TimedPhone, TimedWord};
 
 const FRAMES_PER_SECOND: f64 = 100.0;
@@ -76,7 +76,11 @@ impl Graph {
         };
         let contexts = |i: usize, first: bool| -> Vec<usize> {
             let mut c = vec![sil];
-            let neighbour = if first { i.checked_sub(1) } else { Some(i + 1).filter(|&j| j < n) };
+            let neighbour = if first {
+                i.checked_sub(1)
+            } else {
+                Some(i + 1).filter(|&j| j < n)
+            };
             if let Some(j) = neighbour {
                 for p in prons[j] {
                     let ph = if first { *p.last().unwrap() } else { p[0] } as usize;
@@ -120,8 +124,10 @@ impl Graph {
                     // One HMM per (l, r): listed under l among the entries and under r among
                     // the exits, so it is entered only from l and left only towards r.
                 } else {
-                    let firsts: Vec<u32> =
-                        lcs.iter().map(|&l| node(&mut g, p[0], l, p[1], WordPosition::Begin)).collect();
+                    let firsts: Vec<u32> = lcs
+                        .iter()
+                        .map(|&l| node(&mut g, p[0], l, p[1], WordPosition::Begin))
+                        .collect();
                     let mut tails = firsts.clone();
                     for k in 1..len - 1 {
                         let h = node(&mut g, p[k], p[k - 1], p[k + 1], WordPosition::Internal);
@@ -227,7 +233,10 @@ impl Graph {
         for (k, &(node, start)) in path.entries.iter().enumerate() {
             let end = path.entries.get(k + 1).map_or(frames as u32, |e| e.1);
             // Divided, not multiplied by 0.01, so that times read back from files compare equal.
-            let (start, end) = (start as f64 / FRAMES_PER_SECOND, end as f64 / FRAMES_PER_SECOND);
+            let (start, end) = (
+                start as f64 / FRAMES_PER_SECOND,
+                end as f64 / FRAMES_PER_SECOND,
+            );
             let n = &self.nodes[node as usize];
             let word = n.word.map(|(i, v)| {
                 match timed_words.last_mut() {
@@ -369,7 +378,11 @@ fn best_exit(
 }
 
 /// Frame-synchronous Viterbi over the graph, beam-pruned; phone-level back-pointers.
-pub(super) fn viterbi(model: &AcousticModel, g: &Graph, feats: &[[f32; FEATURE_DIM]]) -> Option<Path> {
+pub(super) fn viterbi(
+    model: &AcousticModel,
+    g: &Graph,
+    feats: &[[f32; FEATURE_DIM]],
+) -> Option<Path> {
     let n = g.nodes.len();
     let ninf = f32::NEG_INFINITY;
     let mut score = vec![[ninf; STATES]; n];
@@ -397,7 +410,11 @@ pub(super) fn viterbi(model: &AcousticModel, g: &Graph, feats: &[[f32; FEATURE_D
         }
         let mut best = ninf;
         for h in 0..n {
-            let (mut entry, mut entry_hist) = if t == 0 { (start_cost[h], NONE) } else { (ninf, NONE) };
+            let (mut entry, mut entry_hist) = if t == 0 {
+                (start_cost[h], NONE)
+            } else {
+                (ninf, NONE)
+            };
             for &(p, c) in &g.preds[h] {
                 let v = exit[p as usize].0 + c;
                 if v > entry {

@@ -13,7 +13,11 @@ pub struct AlignArgs {
     /// The recording: WAV, MP4/M4A (AAC), or any format a system ffmpeg reads.
     audio: PathBuf,
     /// The words spoken.
-    #[arg(long, conflicts_with = "transcript", required_unless_present = "transcript")]
+    #[arg(
+        long,
+        conflicts_with = "transcript",
+        required_unless_present = "transcript"
+    )]
     text: Option<String>,
     /// A text file holding the words spoken.
     #[arg(long)]
@@ -37,14 +41,19 @@ pub fn run(a: AlignArgs) -> Result<()> {
         (None, None) => bail!("give the words with --text or --transcript"),
     };
     let started = Instant::now();
-    let dir = a.acoustic_model.clone().unwrap_or_else(align::default_model_dir);
+    let dir = a
+        .acoustic_model
+        .clone()
+        .unwrap_or_else(align::default_model_dir);
     let aligner = Aligner::load(&dir, &a.dicts)?;
     let loaded = started.elapsed().as_secs_f64();
     let speech = audio::read(&a.audio, align::frontend::SAMPLE_RATE, align::MAX_SECONDS)?;
     let result = aligner
         .align(&speech.samples, speech.rate, &text)
         .with_context(|| format!("aligning {}", a.audio.display()))?;
-    result.write(&a.output).with_context(|| format!("writing {}", a.output.display()))?;
+    result
+        .write(&a.output)
+        .with_context(|| format!("writing {}", a.output.display()))?;
     println!(
         "{} words, {} phones over {:.2} s → {} (model {:.0} ms, total {:.0} ms)",
         result.words.len(),

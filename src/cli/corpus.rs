@@ -136,7 +136,10 @@ fn from_videos(a: FromVideosArgs) -> Result<()> {
     };
     let (bar, progress) = progress_bar();
     if !(0.0..=1.0).contains(&a.max_failed) {
-        anyhow::bail!("--max-failed {} is not a share between 0 and 1", a.max_failed);
+        anyhow::bail!(
+            "--max-failed {} is not a share between 0 and 1",
+            a.max_failed
+        );
     }
     let made = facespace::corpus::from_recordings(
         &model,

@@ -3,26 +3,40 @@
 use std::path::PathBuf;
 
 use anyhow::Result;
-use clap::Args;
-use facespace::demo::{self, DEMO_TEXT, DemoOptions};
+use clap::{Args, ValueEnum};
+use facespace::demo::{self, DemoOptions, Talker};
 
 use super::progress_bar;
 
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, ValueEnum)]
+pub enum TalkerArg {
+    /// GRID speaker 1: a recorded test sentence, synthesised from its own sound.
+    #[default]
+    Grid,
+    /// The FGNet talker over a corpus generated from his real face-space points.
+    Fgnet,
+}
+
 #[derive(Args)]
+#[command(
+    after_help = "Example: facespace demo -o out/demo   (then open out/demo/beside_background.mp4)"
+)]
 pub struct DemoArgs {
     /// Output folder.
     #[arg(short, long, default_value = "out/demo")]
     output: PathBuf,
-    /// Text to synthesise (not a corpus sentence).
-    #[arg(long, default_value = DEMO_TEXT)]
-    text: String,
-    #[arg(long, default_value = super::DEMO_MODEL)]
-    model: PathBuf,
-    #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/models/demo/training"))]
-    training: PathBuf,
-    /// A video of the talker to draw the synthesised lower face over.
-    #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/models/demo/background.mp4"))]
-    background: PathBuf,
+    /// Whose face: GRID s1 (recorded, with sound) or FGNet (generated corpus).
+    #[arg(long, value_enum, default_value_t)]
+    talker: TalkerArg,
+    /// GRID: a recording of a sentence not in his codebook, its words in NAME.txt beside it
+    /// (default: the committed test sentence models/grid/demo/bbbf9a.mp4). FGNet: the video
+    /// to draw the lower face over (default: models/demo/background.mp4).
+    #[arg(long)]
+    clip: Option<PathBuf>,
+    /// GRID: the words of the recording (default: NAME.txt beside it). FGNet: the text to
+    /// synthesise, not a corpus sentence (default: "A brave pilot found the hidden map.").
+    #[arg(long)]
+    text: Option<String>,
     /// Which renderer draws.
     #[arg(long, value_enum, default_value_t)]
     renderer: super::RendererArg,
@@ -33,10 +47,12 @@ pub fn run(a: DemoArgs) -> Result<()> {
     let (bar, progress) = progress_bar();
     let options = DemoOptions {
         output: a.output,
+        talker: match a.talker {
+            TalkerArg::Grid => Talker::Grid,
+            TalkerArg::Fgnet => Talker::Fgnet,
+        },
+        clip: a.clip,
         text: a.text,
-        model: a.model,
-        training: a.training,
-        background: a.background,
         renderer: a.renderer.choice(),
     };
     let r = demo::run(&options, progress)?;
@@ -44,26 +60,26 @@ pub fn run(a: DemoArgs) -> Result<()> {
     if let Some(note) = &r.renderer_note {
         eprintln!("note: {note}");
     }
-    println!(
-        "model {} ({} shape + {} appearance parameters, from {} real frames); its lower-face region model: {} appearance parameters",
-        options.model.display(),
+    print!(
+        "model {} ({} shape + {} appearance parameters)",
+        super::shown(&r.model),
         r.shape_params,
         r.appearance_params,
-        r.training_frames,
-        r.region_appearance_params
     );
+    match r.region_appearance_params {
+        Some(n) => println!("; its lower-face region model: {n} appearance parameters"),
+        None => println!(),
+    }
+    println!("codebook: {}", r.corpus);
     println!(
-        "demo corpus: {} generated sentences (trajectories generated over real face-space points, not recorded)",
-        r.sentences
-    );
-    println!(
-        "synthesised {:?}: {} phones, {} frames at {} fps ({}), over {} (pose {})",
-        options.text,
+        "synthesised {:?}: {} phones, {} frames at {} fps ({}; {}), over {} (pose {})",
+        r.text,
         r.phones,
         r.frames,
         r.report.fps,
+        r.report.method,
         r.report.renderer,
-        options.background.display(),
+        super::shown(&r.background),
         r.report.pose
     );
     if let Some(s) = &r.unit_report.selection {
@@ -75,9 +91,12 @@ pub fn run(a: DemoArgs) -> Result<()> {
             s.vc_avg
         );
     }
+    for w in r.report.warnings.iter().chain(&r.unit_report.warnings) {
+        println!("  warning: {w}");
+    }
     println!("wrote to {}:", options.output.display());
     for (what, path) in &r.files {
-        println!("  {what:<38} {}", path.display());
+        println!("  {what:<40} {}", path.display());
     }
     println!("done in {:.1} s", clock.elapsed().as_secs_f64());
     Ok(())

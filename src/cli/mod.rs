@@ -231,3 +231,10 @@ fn tracking_line(s: &TrackingSummary, seconds: f64) -> String {
         s.lost,
     )
 }
+
+/// A path as a user reads it: relative to the working folder when it lies below it.
+fn shown(path: &std::path::Path) -> String {
+    let here = std::env::current_dir().ok();
+    here.and_then(|h| path.strip_prefix(h).ok().map(|p| p.display().to_string()))
+        .unwrap_or_else(|| path.display().to_string())
+}

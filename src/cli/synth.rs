@@ -121,6 +121,10 @@ pub struct SynthArgs {
     /// Seed of the blind A/B order.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Also write beside_background.mp4: the background as it is (over a sentence's own
+    /// video, the real recording) beside the synthesis drawn on it.
+    #[arg(long, requires = "background")]
+    beside_background: bool,
     /// Speech to drive the face and mux into the MP4s: WAV or MP4/M4A (AAC), other formats
     /// through a system ffmpeg. With --text or --transcript it is aligned to those words;
     /// with --labels the labels time the face.
@@ -247,6 +251,7 @@ pub fn run(a: SynthArgs) -> Result<()> {
     let mut utterance = synthesise(synthesiser.as_ref(), &cb, request)?;
     if let Some(b) = &backdrop {
         b.anchor_region(&model, &mut utterance)?;
+        b.match_lighting(&model, &cb, &mut utterance);
     }
     let synth_ms = clock.elapsed().as_secs_f64() * 1e3;
     let background = match backdrop {
@@ -266,6 +271,7 @@ pub fn run(a: SynthArgs) -> Result<()> {
             seed: a.seed,
             real: real.as_ref(),
             text: words.as_deref().or(a.text.as_deref()),
+            beside_background: a.beside_background,
         },
         progress,
     )

@@ -31,6 +31,9 @@ struct Manifest {
     layout: Layout,
     model_hash: Option<String>,
     options: SimilarityOptions,
+    /// Absent in codebooks written before it was recorded: none.
+    #[serde(default)]
+    photometric: crate::corpus::Photometric,
     /// The phone order of S and M's rows and columns.
     phones: Vec<String>,
     /// (array file, sentence).
@@ -60,6 +63,7 @@ impl Codebook {
             layout: self.layout,
             model_hash: self.model_hash.clone(),
             options: self.options.clone(),
+            photometric: self.photometric,
             phones: PHONES.iter().map(|s| s.to_string()).collect(),
             sentences: self
                 .sentences
@@ -137,6 +141,7 @@ impl Codebook {
             m.options,
             &mut crate::no_progress,
         )?;
+        cb.photometric = m.photometric;
         // The stored matrices are what was computed at build time; keep them (a Python user
         // may read them), after checking they are what this build computes.
         let close = |a: &Array2<f64>, b: &Array2<f64>| {

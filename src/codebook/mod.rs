@@ -105,6 +105,10 @@ pub struct Codebook {
     pub model_hash: Option<String>,
     /// The constants S and M were computed with.
     pub options: SimilarityOptions,
+    /// The photometric normalisation its sentences had ([`crate::corpus::Photometric`]):
+    /// with `Sentence`, synthesis has the corpus's mean lighting and is re-lit for the
+    /// background it is drawn on ([`crate::synth::backdrop::Backdrop::match_lighting`]).
+    pub photometric: crate::corpus::Photometric,
     /// The corpus sentences.
     pub sentences: Vec<Sentence>,
     /// One PCHIP trajectory per sentence over all dims (pose included).
@@ -219,6 +223,7 @@ impl Codebook {
             layout,
             model_hash,
             options,
+            photometric: crate::corpus::Photometric::None,
             sentences,
             trajectories,
             occurrences,
@@ -253,14 +258,34 @@ impl Codebook {
         if photometric == crate::corpus::Photometric::Sentence {
             crate::corpus::recentre_appearance(&mut sentences);
         }
-        Codebook::build(
+        let mut cb = Codebook::build(
             sentences,
             fps,
             model.layout(),
             Some(model.hash()),
             options,
             progress,
-        )
+        )?;
+        cb.photometric = photometric;
+        Ok(cb)
+    }
+
+    /// The mean appearance over every frame of every sentence (with
+    /// [`crate::corpus::Photometric::Sentence`], the mean each sentence was re-centred on).
+    pub fn appearance_mean(&self) -> Vec<f64> {
+        let range = self.layout.appearance_range();
+        let mut sum = vec![0f64; range.len()];
+        let mut frames = 0usize;
+        for s in &self.sentences {
+            for row in s.frames.values().rows() {
+                sum.iter_mut()
+                    .zip(row.iter().skip(range.start))
+                    .for_each(|(a, &x)| *a += f64::from(x));
+                frames += 1;
+            }
+        }
+        sum.iter_mut().for_each(|a| *a /= frames.max(1) as f64);
+        sum
     }
 
     /// Checks that the codebook's frames are `model`'s: the recorded model hash (when there

@@ -6,7 +6,7 @@
 pub mod demo;
 mod recordings;
 
-pub use recordings::{DEFAULT_MAX_FAILED, RecordedCorpus, Recorded, Skipped, from_recordings};
+pub use recordings::{DEFAULT_MAX_FAILED, Recorded, RecordedCorpus, Skipped, from_recordings};
 
 use std::path::{Path, PathBuf};
 
@@ -51,7 +51,9 @@ pub enum CorpusError {
         dir: PathBuf,
     },
     /// A trajectory without labels.
-    #[error("{npy}: no label file of the same name (.lab, .TextGrid or .tsv; beside a video, a .txt transcript is aligned)")]
+    #[error(
+        "{npy}: no label file of the same name (.lab, .TextGrid or .tsv; beside a video, a .txt transcript is aligned)"
+    )]
     MissingLabels {
         /// The trajectory.
         npy: PathBuf,
@@ -139,7 +141,9 @@ pub enum Photometric {
 /// [`Photometric::Sentence`]): per sentence `b_a(t) − mean_t b_a + mean over all frames`.
 /// Pose and shape are untouched, and so is each sentence's motion about its mean.
 pub fn recentre_appearance(sentences: &mut [Sentence]) {
-    let Some(first) = sentences.first() else { return };
+    let Some(first) = sentences.first() else {
+        return;
+    };
     let range = first.frames.layout().appearance_range();
     let dims = range.len();
     let mut grand = vec![0f64; dims];
@@ -186,7 +190,11 @@ pub const LABEL_EXTENSIONS: [&str; 4] = ["lab", "TextGrid", "textgrid", "tsv"];
 fn with_path(path: &Path, cause: &dyn std::fmt::Display) -> String {
     let cause = cause.to_string();
     let shown = path.display().to_string();
-    if cause.starts_with(&shown) { cause } else { format!("{shown}: {cause}") }
+    if cause.starts_with(&shown) {
+        cause
+    } else {
+        format!("{shown}: {cause}")
+    }
 }
 
 /// Reads a corpus folder: every `NAME.npy` (frames × `layout` face-space parameters at `fps`)

@@ -20,7 +20,10 @@ fn align_transcript(
     video: &Path,
     transcript: &Path,
 ) -> Result<Vec<phonemes::Segment>, CorpusError> {
-    let fail = |reason: String| CorpusError::Align { path: video.to_owned(), reason };
+    let fail = |reason: String| CorpusError::Align {
+        path: video.to_owned(),
+        reason,
+    };
     let text = std::fs::read_to_string(transcript).map_err(|source| CorpusError::Io {
         path: transcript.to_owned(),
         source,
@@ -158,10 +161,12 @@ pub fn from_recordings(
     let found = recordings(dir)?;
     // The aligner is loaded once, and only when some recording has just a transcript.
     let aligner = if found.iter().any(|f| matches!(f.2, Timings::Transcript(_))) {
-        Some(align::Aligner::load_default(&[]).map_err(|e| CorpusError::Align {
-            path: align::default_model_dir(),
-            reason: e.to_string(),
-        })?)
+        Some(
+            align::Aligner::load_default(&[]).map_err(|e| CorpusError::Align {
+                path: align::default_model_dir(),
+                reason: e.to_string(),
+            })?,
+        )
     } else {
         None
     };
@@ -227,7 +232,10 @@ pub fn from_recordings(
             failed: skipped.len(),
             total: found.len(),
             max_share: max_failed,
-            reasons: skipped.iter().map(|s| format!("{}: {}", s.name, s.reason)).collect(),
+            reasons: skipped
+                .iter()
+                .map(|s| format!("{}: {}", s.name, s.reason))
+                .collect(),
         });
     }
     let fps = encoded[0].4.frames.fps();

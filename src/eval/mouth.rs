@@ -46,7 +46,13 @@ impl MouthAppearance {
         let grey = |values: &[f32]| -> Vec<f64> {
             mouth
                 .iter()
-                .map(|&i| values[3 * i..3 * i + 3].iter().map(|&v| v as f64).sum::<f64>() / 3.0)
+                .map(|&i| {
+                    values[3 * i..3 * i + 3]
+                        .iter()
+                        .map(|&v| v as f64)
+                        .sum::<f64>()
+                        / 3.0
+                })
                 .collect()
         };
         let dim = pca.dim();
@@ -68,7 +74,9 @@ impl MouthAppearance {
         }
         let n = t.len() as f64;
         let mean = t.iter().sum::<f64>() / n;
-        let sd = (t.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt().max(1e-9);
+        let sd = (t.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n)
+            .sqrt()
+            .max(1e-9);
         t.iter_mut().for_each(|v| *v = (*v - mean) / sd);
         t
     }
@@ -88,7 +96,11 @@ impl MouthPc {
         let mouth = MouthAppearance::new(model)?;
         let textures: Vec<Vec<f64>> = sentences
             .iter()
-            .flat_map(|f| f.iter().map(|p| mouth.normalised(p.appearance)).collect::<Vec<_>>())
+            .flat_map(|f| {
+                f.iter()
+                    .map(|p| mouth.normalised(p.appearance))
+                    .collect::<Vec<_>>()
+            })
             .collect();
         if textures.len() < 2 {
             return None;
@@ -101,12 +113,24 @@ impl MouthPc {
         centre.iter_mut().for_each(|c| *c /= textures.len() as f64);
         // Power iteration from a fixed start (the first frame's deviation, plus a constant so
         // that it is never orthogonal to everything).
-        let mut axis: Vec<f64> = textures[0].iter().zip(&centre).map(|(v, c)| v - c + 1e-3).collect();
+        let mut axis: Vec<f64> = textures[0]
+            .iter()
+            .zip(&centre)
+            .map(|(v, c)| v - c + 1e-3)
+            .collect();
         for _ in 0..100 {
             let mut next = vec![0f64; d];
             for t in &textures {
-                let proj: f64 = t.iter().zip(&centre).zip(&axis).map(|((v, c), a)| (v - c) * a).sum();
-                next.iter_mut().zip(t).zip(&centre).for_each(|((n, v), c)| *n += proj * (v - c));
+                let proj: f64 = t
+                    .iter()
+                    .zip(&centre)
+                    .zip(&axis)
+                    .map(|((v, c), a)| (v - c) * a)
+                    .sum();
+                next.iter_mut()
+                    .zip(t)
+                    .zip(&centre)
+                    .for_each(|((n, v), c)| *n += proj * (v - c));
             }
             let norm = next.iter().map(|v| v * v).sum::<f64>().sqrt();
             if norm == 0.0 {
@@ -115,7 +139,11 @@ impl MouthPc {
             next.iter_mut().for_each(|v| *v /= norm);
             axis = next;
         }
-        Some(MouthPc { mouth, centre, axis })
+        Some(MouthPc {
+            mouth,
+            centre,
+            axis,
+        })
     }
 
     /// Each frame's coordinate on the component.
@@ -124,7 +152,11 @@ impl MouthPc {
             .iter()
             .map(|p| {
                 let t = self.mouth.normalised(p.appearance);
-                t.iter().zip(&self.centre).zip(&self.axis).map(|((v, c), a)| (v - c) * a).sum()
+                t.iter()
+                    .zip(&self.centre)
+                    .zip(&self.axis)
+                    .map(|((v, c), a)| (v - c) * a)
+                    .sum()
             })
             .collect()
     }
@@ -150,5 +182,7 @@ pub fn flicker(synth: &Frames, real: &Frames) -> Vec<f64> {
     let sd = |f: &Frames, k: usize| {
         super::standard_deviation(&f.column(k).iter().map(|&v| v as f64).collect::<Vec<_>>())
     };
-    range.map(|k| sd(synth, k) / sd(real, k).max(1e-9)).collect()
+    range
+        .map(|k| sd(synth, k) / sd(real, k).max(1e-9))
+        .collect()
 }

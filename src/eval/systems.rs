@@ -120,7 +120,10 @@ pub fn evaluate(
     let real: Vec<&crate::facespace::Frames> = heldout.iter().map(|s| &s.frames).collect();
     let pc = MouthPc::fit(model, &real);
     let inner = |f: &crate::facespace::Frames| -> Vec<f64> {
-        landmarks(model, f).iter().map(|p| inner_mouth_height(p)).collect()
+        landmarks(model, f)
+            .iter()
+            .map(|p| inner_mouth_height(p))
+            .collect()
     };
     systems
         .iter()

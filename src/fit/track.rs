@@ -39,11 +39,9 @@ pub const DIVERGED_ERROR: f64 = 255.0;
 fn usable(fit: &FitResult, image: &RgbImage) -> bool {
     let limit = 4.0 * f64::from(image.width().max(image.height()));
     fit.error.is_finite()
-        && fit
-            .landmarks
-            .points
-            .iter()
-            .all(|p| p[0].is_finite() && p[1].is_finite() && p[0].abs() < limit && p[1].abs() < limit)
+        && fit.landmarks.points.iter().all(|p| {
+            p[0].is_finite() && p[1].is_finite() && p[0].abs() < limit && p[1].abs() < limit
+        })
 }
 
 /// Tracks a sequence: frame t starts from frame t−1's fit (DESIGN §4).

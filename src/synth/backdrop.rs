@@ -67,6 +67,12 @@ pub struct Backdrop {
     pub pose: Pose,
     /// The tracked landmarks of the background frames, in the order they are shown.
     pub landmarks: Vec<Landmarks>,
+    /// The background's face-space trajectory (every frame tracked, projected into the
+    /// tracker's space, in recorded order): the real trajectory when the background is the
+    /// utterance's own take.
+    pub tracked: crate::facespace::Frames,
+    /// [`FaceModel::hash`] of the tracker: `tracked` is in its space.
+    pub tracker_hash: String,
     frames: Frames,
 }
 
@@ -117,6 +123,54 @@ impl Backdrop {
         Ok(true)
     }
 
+    /// Re-lights synthesis from a codebook whose appearance was re-centred per sentence
+    /// ([`Photometric::Sentence`](crate::corpus::Photometric::Sentence)): every variant's
+    /// appearance moves by (this background's tracked mean − the codebook's mean), so the face
+    /// takes this take's lighting instead of the corpus average — exactly undoing the
+    /// re-centring when the background is the sentence's own take. Only when the background
+    /// was tracked with `model` itself (the same appearance space); returns whether it did.
+    pub fn match_lighting(
+        &self,
+        model: &FaceModel,
+        codebook: &crate::codebook::Codebook,
+        utterance: &mut super::Utterance,
+    ) -> bool {
+        if codebook.photometric != crate::corpus::Photometric::Sentence
+            || self.tracker_hash != model.hash()
+            || self.tracked.layout() != utterance.synthesis.frames.layout()
+            || self.tracked.is_empty()
+        {
+            return false;
+        }
+        let range = self.tracked.layout().appearance_range();
+        let corpus = codebook.appearance_mean();
+        let here = self.tracked.values();
+        let n = here.nrows() as f64;
+        let shift: Vec<f32> = range
+            .clone()
+            .zip(&corpus)
+            .map(|(k, c)| {
+                (here.column(k).iter().map(|&x| f64::from(x)).sum::<f64>() / n - c) as f32
+            })
+            .collect();
+        let relight = |frames: &mut crate::facespace::Frames| {
+            let mut v = frames.values_mut();
+            for mut row in v.rows_mut() {
+                for (k, d) in range.clone().zip(&shift) {
+                    row[k] += d;
+                }
+            }
+        };
+        relight(&mut utterance.synthesis.frames);
+        if let Some(smoothed) = &mut utterance.smoothed {
+            relight(smoothed);
+        }
+        utterance
+            .pose
+            .push_str("; appearance re-lit to the background's mean");
+        true
+    }
+
     /// One image: the face found in it (grid search, then the AAM fit) gives the pose.
     pub fn still(tracker: &FaceModel, image: RgbImage) -> Result<Backdrop, BackdropError> {
         let fitter = Fitter::new(tracker, FitOptions::default(), 2)?;
@@ -126,10 +180,18 @@ impl Backdrop {
             .shape
             .project(&fit.landmarks)
             .map_err(|e| FitError::Model(e.into()))?;
+        let mut row = vec![0f32; tracker.layout().dims()];
+        tracker
+            .project_into(&image, &fit.landmarks, &mut row)
+            .map_err(|e| FitError::Model(e.into()))?;
+        let tracked = crate::facespace::Frames::from_rows(tracker.layout(), 1.0, row)
+            .map_err(CodecError::from)?;
         Ok(Backdrop {
             frames: Frames::Still(image),
             pose: Pose::Hold(pose),
             landmarks: vec![fit.landmarks],
+            tracked,
+            tracker_hash: tracker.hash(),
         })
     }
 
@@ -145,7 +207,19 @@ impl Backdrop {
         progress: impl FnMut(Progress),
     ) -> Result<Backdrop, BackdropError> {
         let source = Source::open(path)?;
-        let (landmarks, tracking) = codec::track_landmarks(tracker, source, options, progress)?;
+        let fps = source.info().fps;
+        let dims = tracker.layout().dims();
+        let (mut landmarks, mut values) = (Vec::new(), Vec::<f32>::new());
+        let tracking = codec::track(tracker, source, options, progress, |image, t| {
+            let start = values.len();
+            values.resize(start + dims, 0.0);
+            tracker.project_into(&image, &t.landmarks, &mut values[start..])?;
+            landmarks.push(t.landmarks.clone());
+            Ok(())
+        })?;
+        let tracked = crate::facespace::Frames::from_rows(tracker.layout(), fps, values)
+            .map_err(CodecError::from)?;
+        let tracker_hash = tracker.hash();
         let poses: Vec<_> = tracking
             .iter()
             .map(|t| crate::shape::Similarity::from_array(t.pose))
@@ -160,11 +234,15 @@ impl Backdrop {
                 frames: Frames::Still(first()?),
                 pose: Pose::Hold(poses[0]),
                 landmarks: vec![landmarks[0].clone()],
+                tracked,
+                tracker_hash,
             },
             PoseMode::Replay if poses.len() >= frames => Backdrop {
                 frames: Frames::Video(path.into()),
                 pose: Pose::Replay(poses[..frames].to_vec()),
                 landmarks: landmarks[..frames].to_vec(),
+                tracked,
+                tracker_hash,
             },
             PoseMode::Replay => {
                 let source = Source::open(path)?;
@@ -187,6 +265,8 @@ impl Backdrop {
                     frames: Frames::Loop(images),
                     pose: Pose::Replay(poses),
                     landmarks: shown,
+                    tracked,
+                    tracker_hash,
                 }
             }
         })

@@ -1,8 +1,9 @@
 //! Writing an utterance: for each variant `trajectory.npy` (frames × face-space),
 //! `landmarks.npy` (frames × landmarks × 2), `frames/` (PNG) and `video.mp4` (`.y4m` when a
 //! side is odd); for an A/B comparison both variants in `smoothed/` and `unsmoothed/`, a blind
-//! `side_by_side.mp4` whose order a seeded coin decides, and its `key.json`; then `plot.png`
-//! and `report.json`. Frames are rendered and written batch by batch (memory does not grow
+//! `side_by_side.mp4` whose order a seeded coin decides, and its `key.json`; on request
+//! `beside_background.mp4`, the background as recorded (left) beside the synthesis drawn on
+//! it (right, the smoothed variant when there is one); then `plot.png` and `report.json`. Frames are rendered and written batch by batch (memory does not grow
 //! with the utterance).
 
 use std::path::{Path, PathBuf};
@@ -58,6 +59,9 @@ pub struct OutputOptions<'a> {
     pub real: Option<&'a Frames>,
     /// The text spoken, recorded in the report.
     pub text: Option<&'a str>,
+    /// Also write `beside_background.mp4`: the background frames as they are (over a
+    /// sentence's own take: the real recording) beside the synthesis drawn on them.
+    pub beside_background: bool,
 }
 
 /// Which variant is on which side of the blind side-by-side.
@@ -213,16 +217,33 @@ pub fn write(
         }
         None => None,
     };
+    let mut beside = match options.beside_background {
+        true => {
+            let wide = (2 * size.0, size.1);
+            Some(Sink::create(
+                &video_path(dir, "beside_background", wide),
+                wide.0,
+                wide.1,
+                fps,
+                options.audio,
+            )?)
+        }
+        false => None,
+    };
     let total = variants[0].1.len();
     pipeline(
         total,
         |range| -> Result<Vec<Vec<RgbImage>>, OutputError> {
             let canvases = background.canvases(range.len(), total)?;
-            let mut per_variant = Vec::with_capacity(variants.len());
+            let mut per_variant = Vec::with_capacity(variants.len() + 1);
             for (_, frames) in &variants {
                 let mut c = canvases.clone();
                 renderer.render_batch(frames, range.start, &mut c)?;
                 per_variant.push(c);
+            }
+            if options.beside_background {
+                // Last: the background as it is.
+                per_variant.push(canvases);
             }
             // Frame-major: one item per frame holding every variant's image.
             Ok((0..range.len())
@@ -242,6 +263,10 @@ pub fn write(
                 };
                 sink.write(&video::side_by_side(l, r))?;
             }
+            if let (Some(sink), Some(plain)) = (&mut beside, images.last()) {
+                // The variants come smoothed first (`Utterance::variants`).
+                sink.write(&video::side_by_side(plain, &images[0]))?;
+            }
             Ok(())
         },
         progress,
@@ -251,6 +276,9 @@ pub fn write(
         s.video.finish()?;
     }
     if let Some(sink) = side_by_side {
+        sink.finish()?;
+    }
+    if let Some(sink) = beside {
         sink.finish()?;
     }
     let io = |path: PathBuf| move |source| OutputError::Io { path, source };

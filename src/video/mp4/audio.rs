@@ -27,7 +27,9 @@ pub struct AudioTrack {
 }
 
 /// AAC's sampling frequencies (ISO/IEC 14496-3 Table 1.18), ascending.
-const AAC_RATES: [u32; 9] = [8_000, 11_025, 12_000, 16_000, 22_050, 24_000, 32_000, 44_100, 48_000];
+const AAC_RATES: [u32; 9] = [
+    8_000, 11_025, 12_000, 16_000, 22_050, 24_000, 32_000, 44_100, 48_000,
+];
 
 impl AudioTrack {
     /// Encodes mono samples as AAC-LC (CBR, 48 kb/s below 32 kHz, else 64 kb/s; rates AAC
@@ -35,7 +37,9 @@ impl AudioTrack {
     /// delay and the padding of the last frame: decoded, the track is `audio` sample for
     /// sample in time.
     pub fn encode(audio: &crate::audio::Audio) -> Result<Self, Mp4Error> {
-        use fdk_aac::enc::{AudioObjectType, BitRate, ChannelMode, Encoder, EncoderParams, Transport};
+        use fdk_aac::enc::{
+            AudioObjectType, BitRate, ChannelMode, Encoder, EncoderParams, Transport,
+        };
         let audio = if AAC_RATES.contains(&audio.rate) {
             std::borrow::Cow::Borrowed(audio)
         } else {
@@ -84,10 +88,13 @@ impl AudioTrack {
         let needed = (pcm.len() as u64 + delay).div_ceil(frame as u64) as usize;
         samples.truncate(needed.max(1));
         let freq_index = mp4::SampleFreqIndex::try_from(
-            [96_000u32, 88_200, 64_000, 48_000, 44_100, 32_000, 24_000, 22_050, 16_000, 12_000, 11_025, 8_000]
-                .iter()
-                .position(|&r| r == rate)
-                .expect("an AAC rate") as u8,
+            [
+                96_000u32, 88_200, 64_000, 48_000, 44_100, 32_000, 24_000, 22_050, 16_000, 12_000,
+                11_025, 8_000,
+            ]
+            .iter()
+            .position(|&r| r == rate)
+            .expect("an AAC rate") as u8,
         )?;
         Ok(AudioTrack {
             config: mp4::AacConfig {
@@ -98,7 +105,10 @@ impl AudioTrack {
             },
             timescale: rate,
             samples,
-            edit: Some(Edit { skip: delay, keep: pcm.len() as u64 }),
+            edit: Some(Edit {
+                skip: delay,
+                keep: pcm.len() as u64,
+            }),
         })
     }
 
@@ -270,15 +280,30 @@ fn boxes(bytes: &[u8], start: usize, end: usize) -> Vec<([u8; 4], usize, usize)>
 /// Inserts `edts`/`elst` (one entry: `edit.keep` samples from media time `edit.skip`) after
 /// the `tkhd` of track `track`, growing `trak` and `moov`. The `moov` must follow `mdat` (as
 /// the mp4 crate writes it), so no chunk offset moves.
-fn insert_edit_list(bytes: &mut Vec<u8>, track: u32, edit: Edit, timescale: u32) -> Result<(), Mp4Error> {
-    let bad = |why: &str| Mp4Error::Io(std::io::Error::other(format!("writing the edit list: {why}")));
+fn insert_edit_list(
+    bytes: &mut Vec<u8>,
+    track: u32,
+    edit: Edit,
+    timescale: u32,
+) -> Result<(), Mp4Error> {
+    let bad = |why: &str| {
+        Mp4Error::Io(std::io::Error::other(format!(
+            "writing the edit list: {why}"
+        )))
+    };
     let top = boxes(bytes, 0, bytes.len());
-    let (_, moov_start, moov_end) = *top.iter().find(|b| &b.0 == b"moov").ok_or_else(|| bad("no moov"))?;
+    let (_, moov_start, moov_end) = *top
+        .iter()
+        .find(|b| &b.0 == b"moov")
+        .ok_or_else(|| bad("no moov"))?;
     if top.iter().any(|b| &b.0 == b"mdat" && b.1 > moov_start) {
         return Err(bad("moov precedes mdat"));
     }
     let children = boxes(bytes, moov_start + 8, moov_end);
-    let mvhd = children.iter().find(|b| &b.0 == b"mvhd").ok_or_else(|| bad("no mvhd"))?;
+    let mvhd = children
+        .iter()
+        .find(|b| &b.0 == b"mvhd")
+        .ok_or_else(|| bad("no mvhd"))?;
     let v = bytes[mvhd.1 + 8];
     let ts_at = mvhd.1 + 12 + if v == 1 { 16 } else { 8 };
     let movie_scale = u32::from_be_bytes(bytes[ts_at..ts_at + 4].try_into().unwrap()).max(1);
@@ -287,14 +312,17 @@ fn insert_edit_list(bytes: &mut Vec<u8>, track: u32, edit: Edit, timescale: u32)
             continue;
         }
         let inner = boxes(bytes, trak_start + 8, trak_end);
-        let Some(&(_, tkhd_start, tkhd_end)) = inner.iter().find(|b| &b.0 == b"tkhd") else { continue };
+        let Some(&(_, tkhd_start, tkhd_end)) = inner.iter().find(|b| &b.0 == b"tkhd") else {
+            continue;
+        };
         let v = bytes[tkhd_start + 8];
         let id_at = tkhd_start + 12 + if v == 1 { 16 } else { 8 };
         let id = u32::from_be_bytes(bytes[id_at..id_at + 4].try_into().unwrap());
         if id != track || inner.iter().any(|b| &b.0 == b"edts") {
             continue;
         }
-        let duration = (edit.keep as f64 * movie_scale as f64 / timescale.max(1) as f64).round() as u32;
+        let duration =
+            (edit.keep as f64 * movie_scale as f64 / timescale.max(1) as f64).round() as u32;
         let media_time = u32::try_from(edit.skip).map_err(|_| bad("priming too long"))?;
         let mut edts = Vec::with_capacity(36);
         edts.extend_from_slice(&36u32.to_be_bytes());
@@ -335,7 +363,11 @@ pub fn audio_edit(path: &Path) -> Result<Option<(f64, Option<f64>)>, Mp4Error> {
         .edts
         .as_ref()
         .and_then(|e| e.elst.as_ref())
-        .and_then(|l| l.entries.iter().find(|e| e.media_time as i64 >= 0 && e.media_time != u64::MAX));
+        .and_then(|l| {
+            l.entries
+                .iter()
+                .find(|e| e.media_time as i64 >= 0 && e.media_time != u64::MAX)
+        });
     Ok(Some(match entry {
         Some(e) => (
             e.media_time as f64 / media_scale,
