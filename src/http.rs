@@ -1,17 +1,56 @@
-//! The small local web server behind `annotate` and `study serve`: loopback only unless told
-//! otherwise, one request at a time (each answer is written before the next is read), bounded
-//! request bodies, and handlers that map a parsed request to a reply.
+//! The small local web server behind `annotate` and `study serve` (issue 27's promises):
+//! - loopback only unless told otherwise;
+//! - one event loop (mio) over non-blocking sockets, no thread per connection: at most
+//!   [`Limits::connections`] are held (fewer when the open-file limit is lower), and when full
+//!   the connection idle longest is dropped for the new one, so a flood of idle or stalled
+//!   connections never shuts out a real client, and nothing panics when resources run out
+//!   (refusals are reported once through the notice callback);
+//! - deadlines on a request's headers and on its body, bounded header and body sizes;
+//! - `Host` must be `localhost` or an IP literal (a DNS-rebinding page's name is refused);
+//!   a POST needs a same-origin `Origin` and a JSON body (`Content-Type: application/json`),
+//!   so no cross-site form or page can write;
+//! - handlers run one at a time in the loop (each answer is on disk before the next request
+//!   is read) and map a parsed request to a reply; every reply closes its connection.
 
-use std::io::Read;
+use std::collections::HashMap;
+use std::io::{Read, Write};
 use std::net::{SocketAddr, ToSocketAddrs};
 use std::path::Path;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
+use mio::net::{TcpListener, TcpStream};
+use mio::{Events, Interest, Poll, Token};
 use serde_json::Value;
 use thiserror::Error;
 
-/// Largest request body read (1 MiB); a longer one is cut and fails to parse.
-const MAX_BODY: u64 = 1 << 20;
+/// Largest request body read (1 MiB); a longer one is refused.
+const MAX_BODY: usize = 1 << 20;
+/// Largest request head (request line and headers).
+const MAX_HEAD: usize = 16 << 10;
+
+/// What the server holds to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Limits {
+    /// Connections held at once (capped again by the open-file limit).
+    pub connections: usize,
+    /// Time from accepting a connection to its complete request head.
+    pub head: Duration,
+    /// Time from the head to the complete body.
+    pub body: Duration,
+    /// Time to send a reply.
+    pub write: Duration,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Limits {
+            connections: 4096,
+            head: Duration::from_secs(5),
+            body: Duration::from_secs(10),
+            write: Duration::from_secs(30),
+        }
+    }
+}
 
 /// What can go wrong starting a server.
 #[derive(Debug, Error)]
@@ -33,7 +72,10 @@ pub enum HttpError {
 }
 
 /// A bound server.
-pub struct Server(tiny_http::Server);
+pub struct Server {
+    listener: std::net::TcpListener,
+    limits: Limits,
+}
 
 /// A request as the handlers see it.
 #[derive(Clone, Debug, PartialEq)]
@@ -116,75 +158,448 @@ impl Server {
         {
             return Err(HttpError::NotLoopback(*a));
         }
-        tiny_http::Server::http(first)
-            .map(Server)
-            .map_err(|e| bind(e.to_string()))
+        let listener = std::net::TcpListener::bind(first).map_err(|e| bind(e.to_string()))?;
+        listener
+            .set_nonblocking(true)
+            .map_err(|e| bind(e.to_string()))?;
+        Ok(Server {
+            listener,
+            limits: Limits::default(),
+        })
+    }
+
+    /// The same server holding to other limits.
+    pub fn with_limits(mut self, limits: Limits) -> Self {
+        self.limits = limits;
+        self
     }
 
     /// The server's address as a URL ending in `/`.
     pub fn url(&self) -> String {
-        match self.0.server_addr().to_ip() {
-            Some(a) => format!("http://{a}/"),
-            None => "http://localhost/".into(),
+        match self.listener.local_addr() {
+            Ok(a) => format!("http://{a}/"),
+            Err(_) => "http://localhost/".into(),
         }
     }
 
-    /// Answers requests with `handle` until `stop` returns true (checked between requests and
-    /// every 100 ms).
-    pub fn serve(&self, mut handle: impl FnMut(&Request) -> Reply, stop: impl Fn() -> bool) {
+    /// Answers requests with `handle` until `stop` returns true (checked at least every
+    /// 100 ms); `notice` hears, once per episode, of connections refused or dropped for want
+    /// of resources.
+    pub fn serve(
+        &self,
+        mut handle: impl FnMut(&Request) -> Reply,
+        stop: impl Fn() -> bool,
+        mut notice: impl FnMut(String),
+    ) {
+        let Ok(mut looped) = EventLoop::new(self, &mut notice) else {
+            return;
+        };
         while !stop() {
-            match self.0.recv_timeout(Duration::from_millis(100)) {
-                Ok(Some(request)) => answer(request, &mut handle),
-                Ok(None) => {}
-                Err(_) => break,
-            }
+            looped.turn(&mut handle, &mut notice);
         }
     }
 }
 
-fn answer(mut request: tiny_http::Request, handle: &mut impl FnMut(&Request) -> Reply) {
-    let url = request.url().to_owned();
-    let (path, query) = url.split_once('?').unwrap_or((&url, ""));
-    let post = match request.method() {
-        tiny_http::Method::Get => Some(false),
-        tiny_http::Method::Post => Some(true),
-        _ => None,
+const LISTENER: Token = Token(usize::MAX);
+
+/// Where a connection is.
+enum Stage {
+    /// Reading the request (head and body).
+    Reading,
+    /// Sending the reply; `usize` bytes sent.
+    Writing(Vec<u8>, usize),
+    /// Reply sent and the write side shut: reading what the peer still sends (a body
+    /// refused before it was read), so that closing does not reset the reply away.
+    Draining,
+}
+
+struct Connection {
+    stream: TcpStream,
+    input: Vec<u8>,
+    stage: Stage,
+    /// When the current stage must be done.
+    deadline: Instant,
+    /// Whether the head has been read (the deadline then covers the body).
+    head_done: bool,
+}
+
+struct EventLoop {
+    poll: Poll,
+    events: Events,
+    listener: TcpListener,
+    connections: HashMap<Token, Connection>,
+    next: usize,
+    limits: Limits,
+    capacity: usize,
+    port: u16,
+    /// A resource notice was given and not yet cleared.
+    noticed: bool,
+}
+
+/// Connections the open-file limit leaves room for (64 descriptors kept for files).
+fn descriptor_room() -> usize {
+    let mut limit = libc::rlimit {
+        rlim_cur: 0,
+        rlim_max: 0,
     };
-    let mut body = String::new();
-    let reply = match (post, percent_decode(path)) {
-        (None, _) => Reply::error(405, "only GET and POST"),
-        (_, None) => Reply::error(400, "bad path encoding"),
-        (Some(post), Some(path)) => {
-            let read = if post {
-                request
-                    .as_reader()
-                    .take(MAX_BODY)
-                    .read_to_string(&mut body)
-                    .map(|_| ())
+    // SAFETY: getrlimit writes one rlimit into the struct it is given.
+    let ok = unsafe { libc::getrlimit(libc::RLIMIT_NOFILE, &mut limit) } == 0;
+    if ok {
+        (limit.rlim_cur as usize).saturating_sub(64).max(16)
+    } else {
+        1024
+    }
+}
+
+impl EventLoop {
+    fn new(server: &Server, notice: &mut impl FnMut(String)) -> std::io::Result<Self> {
+        let poll = Poll::new().inspect_err(|e| notice(format!("cannot poll: {e}")))?;
+        let std_listener = server
+            .listener
+            .try_clone()
+            .inspect_err(|e| notice(format!("cannot listen: {e}")))?;
+        let port = std_listener.local_addr().map(|a| a.port()).unwrap_or(0);
+        let mut listener = TcpListener::from_std(std_listener);
+        poll.registry()
+            .register(&mut listener, LISTENER, Interest::READABLE)?;
+        Ok(EventLoop {
+            poll,
+            events: Events::with_capacity(1024),
+            listener,
+            connections: HashMap::new(),
+            next: 0,
+            limits: server.limits,
+            capacity: server.limits.connections.min(descriptor_room()),
+            port,
+            noticed: false,
+        })
+    }
+
+    fn turn(
+        &mut self,
+        handle: &mut impl FnMut(&Request) -> Reply,
+        notice: &mut impl FnMut(String),
+    ) {
+        if let Err(e) = self
+            .poll
+            .poll(&mut self.events, Some(Duration::from_millis(100)))
+        {
+            if e.kind() != std::io::ErrorKind::Interrupted {
+                std::thread::sleep(Duration::from_millis(10));
+            }
+            return;
+        }
+        let ready: Vec<Token> = self.events.iter().map(|e| e.token()).collect();
+        for token in ready {
+            if token == LISTENER {
+                self.accept(notice);
             } else {
-                Ok(())
-            };
-            match (read, parse_query(query)) {
-                (Err(e), _) => Reply::error(400, e.to_string()),
-                (_, None) => Reply::error(400, "bad query encoding"),
-                (Ok(()), Some(query)) => handle(&Request {
-                    post,
-                    path,
-                    query,
-                    body,
-                }),
+                self.progress(token, handle);
             }
         }
+        self.expire();
+        if self.noticed && self.connections.len() < self.capacity * 9 / 10 {
+            self.noticed = false;
+        }
+    }
+
+    fn tell(&mut self, notice: &mut impl FnMut(String), what: String) {
+        if !self.noticed {
+            self.noticed = true;
+            notice(what);
+        }
+    }
+
+    /// Accepts every waiting connection; when full, drops the one idle longest for it.
+    fn accept(&mut self, notice: &mut impl FnMut(String)) {
+        loop {
+            if self.connections.len() >= self.capacity {
+                self.tell(
+                    notice,
+                    format!(
+                        "{} connections held (the most allowed): dropping the idlest for each new one",
+                        self.connections.len()
+                    ),
+                );
+                self.drop_idlest();
+            }
+            match self.listener.accept() {
+                Ok((mut stream, _)) => {
+                    let token = Token(self.next);
+                    self.next = (self.next + 1) % (usize::MAX - 1);
+                    if self
+                        .poll
+                        .registry()
+                        .register(&mut stream, token, Interest::READABLE | Interest::WRITABLE)
+                        .is_err()
+                    {
+                        continue;
+                    }
+                    self.connections.insert(
+                        token,
+                        Connection {
+                            stream,
+                            input: Vec::new(),
+                            stage: Stage::Reading,
+                            deadline: Instant::now() + self.limits.head,
+                            head_done: false,
+                        },
+                    );
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => return,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                Err(e) => {
+                    // Out of descriptors or memory: make room, say so once, try later.
+                    self.tell(notice, format!("cannot accept a connection: {e}"));
+                    self.drop_idlest();
+                    return;
+                }
+            }
+        }
+    }
+
+    /// Drops the reading connection whose deadline is nearest (the one idle longest).
+    fn drop_idlest(&mut self) {
+        let idlest = self
+            .connections
+            .iter()
+            .filter(|(_, c)| !matches!(c.stage, Stage::Writing(..)))
+            .min_by_key(|(_, c)| (!matches!(c.stage, Stage::Draining), c.head_done, c.deadline))
+            .map(|(t, _)| *t);
+        if let Some(t) = idlest {
+            self.close(t);
+        }
+    }
+
+    fn close(&mut self, token: Token) {
+        if let Some(mut c) = self.connections.remove(&token) {
+            let _ = self.poll.registry().deregister(&mut c.stream);
+        }
+    }
+
+    fn expire(&mut self) {
+        let now = Instant::now();
+        let late: Vec<Token> = self
+            .connections
+            .iter()
+            .filter(|(_, c)| c.deadline <= now)
+            .map(|(t, _)| *t)
+            .collect();
+        for t in late {
+            self.close(t);
+        }
+    }
+
+    /// Reads what has arrived, answers a complete request, sends what can be sent.
+    fn progress(&mut self, token: Token, handle: &mut impl FnMut(&Request) -> Reply) {
+        let Some(c) = self.connections.get_mut(&token) else {
+            return;
+        };
+        if matches!(c.stage, Stage::Reading) {
+            let mut buf = [0u8; 8192];
+            loop {
+                match c.stream.read(&mut buf) {
+                    Ok(0) => {
+                        // The peer closed before a whole request.
+                        self.close(token);
+                        return;
+                    }
+                    Ok(n) => {
+                        c.input.extend_from_slice(&buf[..n]);
+                        if c.input.len() > MAX_HEAD + MAX_BODY {
+                            break;
+                        }
+                    }
+                    Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => break,
+                    Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                    Err(_) => {
+                        self.close(token);
+                        return;
+                    }
+                }
+            }
+            let reply = match parse(&c.input, self.port) {
+                Parsed::Incomplete { head_done } => {
+                    if head_done && !c.head_done {
+                        c.head_done = true;
+                        c.deadline = Instant::now() + self.limits.body;
+                    }
+                    None
+                }
+                Parsed::Refused(reply) => Some(reply),
+                Parsed::Request(request) => Some(handle(&request)),
+            };
+            let Some(reply) = reply else { return };
+            c.stage = Stage::Writing(response(reply), 0);
+            c.deadline = Instant::now() + self.limits.write;
+        }
+        if let Stage::Writing(bytes, sent) = &mut c.stage {
+            while *sent < bytes.len() {
+                match c.stream.write(&bytes[*sent..]) {
+                    Ok(0) => break,
+                    Ok(n) => *sent += n,
+                    Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => return,
+                    Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                    Err(_) => break,
+                }
+            }
+            let _ = c.stream.flush();
+            let _ = c.stream.shutdown(std::net::Shutdown::Write);
+            c.stage = Stage::Draining;
+            c.deadline = Instant::now() + Duration::from_secs(2);
+        }
+        if matches!(c.stage, Stage::Draining) {
+            let mut buf = [0u8; 8192];
+            loop {
+                match c.stream.read(&mut buf) {
+                    Ok(0) => break,
+                    Ok(_) => {}
+                    Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => return,
+                    Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                    Err(_) => break,
+                }
+            }
+            self.close(token);
+        }
+    }
+}
+
+/// What the bytes read so far make.
+enum Parsed {
+    /// Not yet a whole request.
+    Incomplete {
+        /// The head is complete (the body is still coming).
+        head_done: bool,
+    },
+    /// A request refused before any handler sees it.
+    Refused(Reply),
+    /// A whole request, checked.
+    Request(Request),
+}
+
+/// Whether `host` (a `Host` header) names this server without a DNS name: `localhost` or
+/// an IP literal, with this port or none.
+fn host_allowed(host: &str, port: u16) -> bool {
+    let (name, given_port) = match host.rsplit_once(':') {
+        Some((n, p)) if !n.ends_with(':') && !p.contains(']') => (n, Some(p)),
+        _ => (host, None),
     };
-    let response = tiny_http::Response::from_data(reply.body)
-        .with_status_code(reply.status)
-        .with_header(
-            tiny_http::Header::from_bytes("Content-Type", reply.mime).expect("valid header"),
-        )
-        .with_header(
-            tiny_http::Header::from_bytes("Cache-Control", "no-store").expect("valid header"),
+    if let Some(p) = given_port
+        && p.parse::<u16>() != Ok(port)
+    {
+        return false;
+    }
+    let name = name.trim_start_matches('[').trim_end_matches(']');
+    name.eq_ignore_ascii_case("localhost") || name.parse::<std::net::IpAddr>().is_ok()
+}
+
+fn parse(input: &[u8], port: u16) -> Parsed {
+    let mut headers = [httparse::EMPTY_HEADER; 64];
+    let mut head = httparse::Request::new(&mut headers);
+    let refuse = |status, why: &str| Parsed::Refused(Reply::error(status, why));
+    let head_len = match head.parse(input) {
+        Ok(httparse::Status::Complete(n)) => n,
+        Ok(httparse::Status::Partial) if input.len() > MAX_HEAD => {
+            return refuse(431, "request head too large");
+        }
+        Ok(httparse::Status::Partial) => return Parsed::Incomplete { head_done: false },
+        Err(e) => return refuse(400, &format!("malformed request: {e}")),
+    };
+    let header = |name: &str| {
+        head.headers
+            .iter()
+            .find(|h| h.name.eq_ignore_ascii_case(name))
+            .map(|h| String::from_utf8_lossy(h.value).trim().to_owned())
+    };
+    let post = match head.method {
+        Some("GET") => false,
+        Some("POST") => true,
+        _ => return refuse(405, "only GET and POST"),
+    };
+    let Some(host) = header("host") else {
+        return refuse(400, "no Host header");
+    };
+    if !host_allowed(&host, port) {
+        return refuse(
+            421,
+            &format!("Host {host:?} is not this server (localhost or an IP address only)"),
         );
-    let _ = request.respond(response);
+    }
+    let length = match header("content-length").map(|v| v.parse::<usize>()) {
+        None => 0,
+        Some(Ok(n)) if n <= MAX_BODY => n,
+        Some(Ok(_)) => return refuse(413, "request body over 1 MiB"),
+        Some(Err(_)) => return refuse(400, "bad Content-Length"),
+    };
+    if header("transfer-encoding").is_some() {
+        return refuse(411, "chunked bodies are not taken; send Content-Length");
+    }
+    if post {
+        let origin = header("origin");
+        if origin.as_deref() != Some(format!("http://{host}").as_str()) {
+            return refuse(
+                403,
+                &format!("a POST needs the page's own Origin (http://{host}), not {origin:?}"),
+            );
+        }
+        let json = header("content-type").is_some_and(|t| {
+            t.split(';')
+                .next()
+                .is_some_and(|m| m.trim().eq_ignore_ascii_case("application/json"))
+        });
+        if !json {
+            return refuse(415, "a POST body must be application/json");
+        }
+    }
+    if input.len() < head_len + length {
+        return Parsed::Incomplete { head_done: true };
+    }
+    let target = head.path.unwrap_or("/");
+    let (path, query) = target.split_once('?').unwrap_or((target, ""));
+    let Some(path) = percent_decode(path) else {
+        return refuse(400, "bad path encoding");
+    };
+    let Some(query) = parse_query(query) else {
+        return refuse(400, "bad query encoding");
+    };
+    let Ok(body) = String::from_utf8(input[head_len..head_len + length].to_vec()) else {
+        return refuse(400, "the body is not UTF-8");
+    };
+    Parsed::Request(Request {
+        post,
+        path,
+        query,
+        body,
+    })
+}
+
+/// The bytes of an HTTP/1.1 reply that closes its connection.
+fn response(reply: Reply) -> Vec<u8> {
+    let reason = match reply.status {
+        200 => "OK",
+        400 => "Bad Request",
+        403 => "Forbidden",
+        404 => "Not Found",
+        405 => "Method Not Allowed",
+        409 => "Conflict",
+        411 => "Length Required",
+        413 => "Payload Too Large",
+        415 => "Unsupported Media Type",
+        421 => "Misdirected Request",
+        431 => "Request Header Fields Too Large",
+        _ if reply.status < 400 => "OK",
+        _ if reply.status < 500 => "Refused",
+        _ => "Server Error",
+    };
+    let mut out = format!(
+        "HTTP/1.1 {} {reason}\r\nContent-Type: {}\r\nContent-Length: {}\r\nCache-Control: no-store\r\nX-Content-Type-Options: nosniff\r\nConnection: close\r\n\r\n",
+        reply.status,
+        reply.mime,
+        reply.body.len()
+    )
+    .into_bytes();
+    out.extend_from_slice(&reply.body);
+    out
 }
 
 fn parse_query(query: &str) -> Option<Vec<(String, String)>> {
@@ -214,6 +629,18 @@ pub fn mime(name: &str) -> &'static str {
         Some("mp4") => "video/mp4",
         _ => "application/octet-stream",
     }
+}
+
+/// Escapes every byte but ASCII letters, digits and `-_.~` as `%XX` (for a query value).
+pub fn percent_encode(s: &str) -> String {
+    s.bytes()
+        .map(|b| match b {
+            b'A'..=b'Z' | b'a'..=b'z' | b'0'..=b'9' | b'-' | b'_' | b'.' | b'~' => {
+                (b as char).to_string()
+            }
+            _ => format!("%{b:02X}"),
+        })
+        .collect()
 }
 
 /// Decodes `%XX` escapes (UTF-8); `None` for a malformed escape or invalid UTF-8.

@@ -156,6 +156,57 @@ pub fn open_regular(path: &Path) -> std::io::Result<std::fs::File> {
     Ok(file)
 }
 
+/// Opens `name` in `dir` for a server to hand out: a plain name (no separator, not `.` or
+/// `..`), not a symbolic link (`O_NOFOLLOW`), a regular file (never a FIFO or device, opened
+/// without blocking), and — checked on the opened file itself — really inside `dir`.
+pub fn open_inside(dir: &Path, name: &str) -> std::io::Result<std::fs::File> {
+    let refuse = |why: &str| std::io::Error::new(std::io::ErrorKind::InvalidInput, why.to_owned());
+    if name.is_empty() || name == "." || name == ".." || name.contains(['/', '\\', '\0']) {
+        return Err(refuse("not a plain file name"));
+    }
+    let mut options = std::fs::OpenOptions::new();
+    options.read(true);
+    #[cfg(unix)]
+    std::os::unix::fs::OpenOptionsExt::custom_flags(
+        &mut options,
+        libc::O_NONBLOCK | libc::O_NOFOLLOW,
+    );
+    let file = options.open(dir.join(name)).map_err(|e| {
+        if e.raw_os_error() == Some(libc::ELOOP) {
+            refuse("a symbolic link (not served)")
+        } else {
+            e
+        }
+    })?;
+    if !file.metadata()?.is_file() {
+        return Err(refuse("not a regular file (a FIFO, device or folder)"));
+    }
+    #[cfg(target_os = "linux")]
+    {
+        use std::os::fd::AsRawFd;
+        let real = std::fs::read_link(format!("/proc/self/fd/{}", file.as_raw_fd()))?;
+        if !real.starts_with(dir.canonicalize()?) {
+            return Err(refuse("outside the served folder"));
+        }
+    }
+    Ok(file)
+}
+
+/// The bytes of [`open_inside`]`(dir, name)`, refused past `max` bytes.
+pub fn read_inside(dir: &Path, name: &str, max: u64) -> std::io::Result<Vec<u8>> {
+    let file = open_inside(dir, name)?;
+    let len = file.metadata()?.len();
+    if len > max {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            format!("{len} bytes, more than the {max} served"),
+        ));
+    }
+    let mut bytes = Vec::with_capacity(len as usize);
+    std::io::Read::read_to_end(&mut std::io::Read::take(file, max + 1), &mut bytes)?;
+    Ok(bytes)
+}
+
 /// The bytes of a regular file ([`open_regular`]).
 pub fn read_regular(path: &Path) -> std::io::Result<Vec<u8>> {
     let mut bytes = Vec::new();

@@ -88,6 +88,31 @@ fn server_serves_saves_and_refuses() {
     assert!(Annotator::bind(dir.path(), demo_model(), false, "0.0.0.0:0", true).is_ok());
 }
 
+/// What the browser test does on the page, from outside it: for the first two frames, place
+/// the mean from two eye clicks where there are no points yet, drag landmark 30 by (+5, +3)
+/// image pixels with pointer events, and report each frame's point before and after.
+const DRAG_TWO_FRAMES: &str = r#"(async () => {
+  const at = (px, py) => ({clientX: canvas.getBoundingClientRect().left + px, clientY: canvas.getBoundingClientRect().top + py, bubbles: true, pointerId: 1});
+  const log = [];
+  for (let k = 0; k < Math.min(2, frames.length); k++) {
+    await load(k);
+    if (!points) {
+      for (const c of [[image.width * 0.4, image.height * 0.4], [image.width * 0.6, image.height * 0.4]]) {
+        const [x, y] = toCanvas(c);
+        canvas.dispatchEvent(new PointerEvent("pointerdown", at(x, y)));
+      }
+    }
+    const before = points[30].slice();
+    const [x, y] = toCanvas(centre(points[30]));
+    canvas.dispatchEvent(new PointerEvent("pointerdown", at(x, y)));
+    canvas.dispatchEvent(new PointerEvent("pointermove", at(x + 5 * view.s, y + 3 * view.s)));
+    canvas.dispatchEvent(new PointerEvent("pointerup", at(x + 5 * view.s, y + 3 * view.s)));
+    await saving;
+    log.push(`${frames[k]} ${before[0].toFixed(3)} ${before[1].toFixed(3)} ${points[30][0].toFixed(3)} ${points[30][1].toFixed(3)}`);
+  }
+  return log.join("\n");
+})()"#;
+
 /// The page in a real browser: for each of two frames (one with landmarks, one placed from two
 /// eye clicks on the mean shape), drag landmark 30 by (+5, +3) pixels, then check the `.pts`
 /// on disk holds the moved point.
@@ -101,31 +126,14 @@ fn headless_chromium_drags_a_point_and_it_is_saved() {
     frames(dir.path());
     let original = facespace::shape::read_pts(&dir.path().join("01000.pts")).unwrap();
     let (url, stop) = start(dir.path());
-    let profile = tempfile::tempdir().unwrap();
-    let out = std::process::Command::new(chromium)
-        .args([
-            "--headless=new",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--virtual-time-budget=20000",
-            &format!("--user-data-dir={}", profile.path().display()),
-            "--dump-dom",
-            &format!("{url}?selftest=1"),
-        ])
-        .output()
-        .unwrap();
+    let mut browser = common::cdp::Browser::launch(chromium);
+    let page = browser.open(&url);
+    browser.wait_for(&page, "frames.length > 0 && image && image.complete");
+    // Pointer events dispatched on the page's canvas, as a person's drag would make them.
+    let log = browser.eval(&page, DRAG_TWO_FRAMES);
     stop.store(true, Ordering::Relaxed);
-    let dom = String::from_utf8_lossy(&out.stdout);
-    let log = dom
-        .split("<pre id=\"selftest\">SELFTEST DONE\n")
-        .nth(1)
-        .unwrap_or_else(|| {
-            panic!(
-                "the page did not finish: {dom}\n{}",
-                String::from_utf8_lossy(&out.stderr)
-            )
-        });
-    let lines: Vec<&str> = log.split("</pre>").next().unwrap().lines().collect();
+    let log = log.as_str().unwrap().to_owned();
+    let lines: Vec<&str> = log.lines().collect();
     assert_eq!(lines.len(), 2, "{log}");
     for line in lines {
         let f: Vec<&str> = line.split_whitespace().collect();

@@ -585,8 +585,21 @@ fn the_server_serves_only_the_study_and_refuses_forged_requests() {
         (Some(0), Some(false))
     );
     let clip = next["stimuli"][0].as_str().unwrap();
+    // Stimuli go only to holders of a viewer's secret.
+    let bare = clip.split('?').next().unwrap();
+    assert_eq!(http(&url, "GET", bare, "").0, 403, "{bare}");
+    let wrong = format!("{bare}?viewer={}&token={}", v.id, "0".repeat(32));
+    assert_eq!(http(&url, "GET", &wrong, "").0, 403);
+    let good = serde_json::json!({"viewer": v.id, "token": v.token, "trial": 0, "real": true});
+    // An answer before the clip was fetched, then before it could have played, is refused.
+    let early = http(&url, "POST", "/api/answer", &good.to_string());
+    assert_eq!(early.0, 425, "{}", early.1);
+    let fetched = std::time::Instant::now();
     let (code, bytes) = http(&url, "GET", clip, "");
     assert!(code == 200 && bytes.len() > 1000);
+    let early = http(&url, "POST", "/api/answer", &good.to_string());
+    assert_eq!(early.0, 425, "{}", early.1);
+    assert!(early.1.contains("play it through"), "{}", early.1);
     for path in [
         "/stimuli/../study.json",
         "/stimuli/%2e%2e/study.json",
@@ -615,12 +628,20 @@ fn the_server_serves_only_the_study_and_refuses_forged_requests() {
     );
     assert_eq!(
         http(&url, "POST", "/api/answer", &"x".repeat(2 << 20)).0,
-        400
+        413
     );
     assert!(
         !study.join(ANSWERS).exists() || std::fs::read(study.join(ANSWERS)).unwrap().is_empty()
     );
-    let good = serde_json::json!({"viewer": v.id, "token": v.token, "trial": 0, "real": true});
+    let lasts = manifest
+        .stimulus(
+            bare.trim_start_matches("/stimuli/")
+                .trim_end_matches(".mp4"),
+        )
+        .map(|s| s.frames as f64 / manifest.fps)
+        .unwrap();
+    let wait = (lasts - facespace::study::answers::ANSWER_SLACK_SECONDS + 0.05).max(0.0);
+    std::thread::sleep(std::time::Duration::from_secs_f64(wait).saturating_sub(fetched.elapsed()));
     assert_eq!(http(&url, "POST", "/api/answer", &good.to_string()).0, 200);
     assert_eq!(
         http(&url, "POST", "/api/answer", &good.to_string()).0,
@@ -678,36 +699,53 @@ fn serve(study: &Path) -> (std::process::Child, Vec<String>) {
     (child, links)
 }
 
-/// Runs the page at `link&auto=K`; returns its report line.
+/// Opens `link` in Chromium and answers up to `auto` trials (`all`); returns the report line.
 fn browse(browser: &str, link: &str, auto: &str) -> String {
-    let profile = tempfile::tempdir().unwrap();
-    let out = std::process::Command::new(browser)
-        .args([
-            "--headless=new",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--autoplay-policy=no-user-gesture-required",
-            "--virtual-time-budget=60000",
-            &format!("--user-data-dir={}", profile.path().display()),
-            "--dump-dom",
-            &format!("{link}&auto={auto}"),
-        ])
-        .output()
-        .unwrap();
-    let dom = String::from_utf8_lossy(&out.stdout);
-    dom.split("<pre id=\"auto\">")
-        .nth(1)
-        .and_then(|s| s.split("</pre>").next())
-        .unwrap_or_else(|| {
-            panic!(
-                "the page did not finish: {dom}\n{}",
-                String::from_utf8_lossy(&out.stderr)
-            )
-        })
+    let mut chromium = common::cdp::Browser::launch(browser);
+    let page = chromium.open(link);
+    let k = if auto == "all" { "1e9" } else { auto };
+    chromium
+        .eval(&page, &format!("({ANSWER_TRIALS})({k})"))
+        .as_str()
+        .unwrap()
         .to_owned()
 }
 
-/// What the page's `?auto` mode answers at trial `i` (page.html: `auto`).
+/// What the browser test does on the study page, from outside it, as a viewer would: play
+/// every clip of the trial to its end (the page enables answering on `ended`), then move the
+/// sliders or press a button — scores and choices a fixed function of the trial index
+/// ([`auto_answer`]) — and wait for the next trial; up to `k` trials.
+const ANSWER_TRIALS: &str = r##"async (k) => {
+  const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
+  const settled = async () => { for (let w = 0; w < 400 && !current && !$("help").textContent.startsWith("Thank"); w++) await sleep(25); };
+  await settled();
+  const start = current ? current.trial : -1;
+  let answered = 0;
+  while (current && answered < k) {
+    const i = current.trial;
+    for (const v of document.querySelectorAll("#trial video")) {
+      const ended = new Promise((r) => v.addEventListener("ended", r, { once: true }));
+      v.muted = true;
+      await v.play();
+      await ended;
+    }
+    if (current.kind === "rate") {
+      current.sliders[0].value = 1 + (7 * i + 3) % 50;
+      current.sliders[1].value = 1 + (11 * i + 20) % 50;
+      current.sliders.forEach((s) => s.dispatchEvent(new Event("input")));
+      $("submit").click();
+    } else {
+      current.buttons[i % 3 === 0 ? 0 : 1].click();
+    }
+    for (let w = 0; w < 400 && current && current.trial === i; w++) await sleep(25);
+    if (current && current.trial === i) break;
+    answered += 1;
+    await settled();
+  }
+  return `AUTO DONE start=${start} answered=${answered} done=${!current}`;
+}"##;
+
+/// What [`ANSWER_TRIALS`] answers at trial `i`.
 fn auto_answer(trial: &Trial, i: usize) -> Response {
     match trial {
         Trial::Rate { .. } => Response::Scores {

@@ -15,6 +15,9 @@ use crate::model::FaceModel;
 use crate::shape::{self, Landmarks};
 use crate::video;
 
+/// Largest frame file served.
+const MAX_FRAME_BYTES: u64 = 64 << 20;
+
 /// The page (HTML, CSS and JavaScript in one file).
 const PAGE: &str = include_str!("page.html");
 
@@ -40,6 +43,7 @@ pub struct Annotator {
     server: Server,
     dir: PathBuf,
     frames: Vec<String>,
+    skipped: Vec<String>,
     model: FaceModel,
     fit: bool,
 }
@@ -51,6 +55,9 @@ pub enum Event {
     Saved(PathBuf),
     /// A request refused (path and reason).
     Refused(String, String),
+    /// The server refused or dropped connections for want of resources (said once per
+    /// episode).
+    Notice(String),
 }
 
 impl Annotator {
@@ -67,11 +74,21 @@ impl Annotator {
             path: dir.into(),
             reason,
         };
-        let frames: Vec<String> = video::image_files(dir)
-            .map_err(|e| folder(e.to_string()))?
-            .iter()
-            .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
-            .collect();
+        // Only regular files with UTF-8 names: a symbolic link (perhaps to a file outside the
+        // folder) or a FIFO is never listed, and a name the page could not send back intact
+        // is left out rather than mangled.
+        let (mut frames, mut skipped) = (Vec::new(), Vec::new());
+        for path in video::image_files(dir).map_err(|e| folder(e.to_string()))? {
+            let Some(name) = path.file_name() else {
+                continue;
+            };
+            let regular = std::fs::symlink_metadata(&path).is_ok_and(|m| m.is_file());
+            match name.to_str() {
+                Some(n) if regular => frames.push(n.to_owned()),
+                Some(n) => skipped.push(format!("{n} (not a regular file)")),
+                None => skipped.push(format!("{} (not a UTF-8 name)", name.to_string_lossy())),
+            }
+        }
         if frames.is_empty() {
             return Err(folder("no images (png, jpg) to annotate".into()));
         }
@@ -80,9 +97,15 @@ impl Annotator {
             server,
             dir: dir.into(),
             frames,
+            skipped,
             model,
             fit,
         })
+    }
+
+    /// Images of the folder left out, with why (symbolic links, FIFOs, non-UTF-8 names).
+    pub fn skipped(&self) -> &[String] {
+        &self.skipped
     }
 
     /// The page's address.
@@ -91,10 +114,12 @@ impl Annotator {
     }
 
     /// Serves requests until `stop` returns true (checked between requests and every 100 ms).
-    pub fn run(&self, mut on_event: impl FnMut(Event), stop: impl Fn() -> bool) {
+    pub fn run(&self, on_event: impl FnMut(Event), stop: impl Fn() -> bool) {
+        let on_event = std::cell::RefCell::new(on_event);
         self.server.serve(
             |request| {
-                let reply = self.answer(request, &mut on_event);
+                let mut on_event = on_event.borrow_mut();
+                let reply = self.answer(request, &mut *on_event);
                 if !reply.is_ok() {
                     let why = String::from_utf8_lossy(&reply.body).into_owned();
                     on_event(Event::Refused(request.path.clone(), why));
@@ -102,6 +127,7 @@ impl Annotator {
                 reply
             },
             stop,
+            |notice| (on_event.borrow_mut())(Event::Notice(notice)),
         )
     }
 
@@ -119,8 +145,8 @@ impl Annotator {
             }))),
             (false, p) if p.starts_with("/frames/") => {
                 self.frame(&p["/frames/".len()..]).and_then(|name| {
-                    let bytes =
-                        std::fs::read(self.dir.join(&name)).map_err(|e| (500, e.to_string()))?;
+                    let bytes = crate::manifest::read_inside(&self.dir, &name, MAX_FRAME_BYTES)
+                        .map_err(|e| (403, format!("{name}: {e}")))?;
                     Ok(Reply::ok(bytes, http::mime(&name)))
                 })
             }
@@ -153,24 +179,37 @@ impl Annotator {
     /// (the page places the mean shape from two eye clicks).
     fn points(&self, name: &str) -> Result<Value, (u16, String)> {
         let pts = self.pts_path(name);
-        if pts.is_file() {
-            let l = shape::read_pts(&pts).map_err(|e| (500, e.to_string()))?;
+        if std::fs::symlink_metadata(&pts).is_ok() {
+            // Read only as a plain file of this folder (not a link to one outside it).
+            let pts_name = pts.file_name().map(|n| n.to_string_lossy().into_owned());
+            let text =
+                crate::manifest::read_inside(&self.dir, &pts_name.unwrap_or_default(), 1 << 20)
+                    .map_err(|e| (403, format!("{}: {e}", pts.display())))?;
+            let l = shape::parse_pts(&String::from_utf8_lossy(&text), &pts)
+                .map_err(|e| (500, e.to_string()))?;
             return Ok(json!({"points": l.points, "source": "pts"}));
         }
         if self.fit {
-            let fitted = video::read_frame(&self.dir.join(name))
-                .map_err(|e| e.to_string())
-                .and_then(|image| {
-                    let fitter = Fitter::new(&self.model, FitOptions::default(), 2)
-                        .map_err(|e| e.to_string())?;
-                    let start = fitter.search_start(&image).map_err(|e| e.to_string())?;
-                    fitter.fit(&image, &start).map_err(|e| e.to_string())
-                });
+            let fitted = self.image(name).and_then(|image| {
+                let fitter = Fitter::new(&self.model, FitOptions::default(), 2)
+                    .map_err(|e| e.to_string())?;
+                let start = fitter.search_start(&image).map_err(|e| e.to_string())?;
+                fitter.fit(&image, &start).map_err(|e| e.to_string())
+            });
             if let Ok(fit) = fitted {
                 return Ok(json!({"points": fit.landmarks.points, "source": "fit"}));
             }
         }
         Ok(json!({"points": null, "source": "none"}))
+    }
+
+    /// A listed frame, read as a plain file of the folder.
+    fn image(&self, name: &str) -> Result<image::RgbImage, String> {
+        let bytes = crate::manifest::read_inside(&self.dir, name, MAX_FRAME_BYTES)
+            .map_err(|e| e.to_string())?;
+        image::load_from_memory(&bytes)
+            .map(|i| i.to_rgb8())
+            .map_err(|e| format!("{name}: {e}"))
     }
 
     fn pts_path(&self, name: &str) -> PathBuf {
@@ -186,6 +225,33 @@ impl Annotator {
         landmarks
             .validate(Some(self.model.shape.n_landmarks()), name)
             .map_err(|e| (400, e.to_string()))?;
+        // Inside the image, and spread out: a shape collapsed onto a point is no marking.
+        let image = self.image(name).map_err(|e| (500, e))?;
+        let (w, h) = (f64::from(image.width()), f64::from(image.height()));
+        if let Some((k, p)) = landmarks
+            .points
+            .iter()
+            .enumerate()
+            .find(|(_, p)| !(0.0..=w).contains(&p[0]) || !(0.0..=h).contains(&p[1]))
+        {
+            return Err((
+                400,
+                format!(
+                    "point {k} at ({}, {}) is outside the {w}×{h} image",
+                    p[0], p[1]
+                ),
+            ));
+        }
+        let extent = |i: usize| {
+            let v = landmarks.points.iter().map(|p| p[i]);
+            v.clone().fold(f64::MIN, f64::max) - v.fold(f64::MAX, f64::min)
+        };
+        if extent(0) < 2.0 || extent(1) < 2.0 {
+            return Err((
+                400,
+                "the points are all in one place (under 2 px apart)".into(),
+            ));
+        }
         let path = self.pts_path(name);
         shape::write_pts(&path, &landmarks).map_err(|e| (500, e.to_string()))?;
         Ok(path)

@@ -35,10 +35,15 @@ pub fn run(a: AnnotateArgs) -> Result<()> {
         a.dir.display(),
         annotator.url()
     );
+    for why in annotator.skipped() {
+        eprintln!("left out {why}");
+    }
+    let mut refusals = super::Refusals::default();
     annotator.run(
         |event| match event {
             Event::Saved(path) => println!("saved {}", path.display()),
-            Event::Refused(path, why) => eprintln!("refused {path}: {why}"),
+            Event::Refused(path, why) => refusals.log(&path, &why),
+            Event::Notice(what) => eprintln!("note: {what}"),
         },
         || false,
     );

@@ -238,3 +238,37 @@ fn shown(path: &std::path::Path) -> String {
     here.and_then(|h| path.strip_prefix(h).ok().map(|p| p.display().to_string()))
         .unwrap_or_else(|| path.display().to_string())
 }
+
+/// A server's refusals on standard error, at most ten a second: a flood of bad requests
+/// cannot grow the log without bound (the number left out is said with the next line).
+#[derive(Default)]
+struct Refusals {
+    second: Option<std::time::Instant>,
+    shown: u32,
+    left_out: u64,
+}
+
+impl Refusals {
+    fn log(&mut self, path: &str, why: &str) {
+        let now = std::time::Instant::now();
+        if self
+            .second
+            .is_none_or(|s| now.duration_since(s).as_secs() >= 1)
+        {
+            self.second = Some(now);
+            self.shown = 0;
+        }
+        if self.shown >= 10 {
+            self.left_out += 1;
+            return;
+        }
+        self.shown += 1;
+        let path: String = path.chars().take(200).collect();
+        let why: String = why.chars().take(300).collect();
+        if self.left_out > 0 {
+            eprintln!("({} more refusals not shown)", self.left_out);
+            self.left_out = 0;
+        }
+        eprintln!("refused {path:?}: {why}");
+    }
+}

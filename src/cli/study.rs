@@ -176,10 +176,12 @@ fn serve(a: ServeArgs) -> Result<()> {
         println!("  {viewer}: {link}");
     }
     println!("(Ctrl+C to stop; every answer is on disk before the page moves on)");
+    let mut refusals = super::Refusals::default();
     server.run(
         |event| match event {
             Event::Stored(viewer, trial) => println!("stored {viewer} trial {trial}"),
-            Event::Refused(path, why) => eprintln!("refused {path}: {why}"),
+            Event::Refused(path, why) => refusals.log(&path, &why),
+            Event::Notice(what) => eprintln!("note: {what}"),
         },
         || false,
     );

@@ -104,8 +104,54 @@ pub struct Report {
     pub kruskal: Option<KruskalWallis>,
     /// The Turing test, when the study ran one.
     pub turing: Option<Turing>,
+    /// Answers that came implausibly fast: sooner than the trial's clip lasts after it was
+    /// fetched, or after the viewer's previous answer (kept in the tables; listed here).
+    pub fast_answers: Vec<FastAnswer>,
     /// What the numbers do not show, and anything left out.
     pub notes: Vec<String>,
+}
+
+/// An answer given sooner than its clip could be watched.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FastAnswer {
+    /// The viewer.
+    pub viewer: String,
+    /// Their trial.
+    pub trial: usize,
+    /// The longest of the trial's clips, in seconds.
+    pub clip_seconds: f64,
+    /// Seconds from the clip's fetch to the answer, when the log has it.
+    pub after_fetch: Option<f64>,
+    /// Seconds since the viewer's previous answer (none for their first).
+    pub after_previous: Option<f64>,
+}
+
+/// The answers of `answers` sooner than their clips last (less the server's slack) after
+/// the fetch or after the viewer's previous answer.
+pub fn fast_answers(manifest: &Manifest, answers: &[Answer]) -> Vec<FastAnswer> {
+    let slack = answers::ANSWER_SLACK_SECONDS;
+    let mut previous: std::collections::HashMap<&str, f64> = Default::default();
+    let mut fast = Vec::new();
+    for a in answers {
+        let clip_seconds = a
+            .stimuli
+            .iter()
+            .filter_map(|id| manifest.stimulus(id))
+            .map(|s| s.frames as f64 / manifest.fps)
+            .fold(0.0, f64::max);
+        let after_previous = previous.insert(&a.viewer, a.at).map(|p| a.at - p);
+        let too_soon = |t: Option<f64>| t.is_some_and(|t| t + slack < clip_seconds);
+        if too_soon(a.after_fetch) || too_soon(after_previous) {
+            fast.push(FastAnswer {
+                viewer: a.viewer.clone(),
+                trial: a.trial,
+                clip_seconds,
+                after_fetch: a.after_fetch,
+                after_previous,
+            });
+        }
+    }
+    fast
 }
 
 fn mean(v: &[f64]) -> f64 {
@@ -270,6 +316,14 @@ pub fn report(manifest: &Manifest, answers: &[Answer]) -> Report {
             manifest.viewers.len()
         ));
     }
+    let fast = fast_answers(manifest, answers);
+    if !fast.is_empty() {
+        notes.push(format!(
+            "{} of {} answers came sooner than their clip lasts (after its fetch or the viewer's previous answer): not watched through; listed in fast_answers",
+            fast.len(),
+            answers.len()
+        ));
+    }
     notes.push(
         "p-values are not corrected for the number of pairs tested; the Kruskal–Wallis test pools every viewer's scores as independent, which repeated viewers are not".into(),
     );
@@ -282,6 +336,7 @@ pub fn report(manifest: &Manifest, answers: &[Answer]) -> Report {
         conditions,
         kruskal,
         turing,
+        fast_answers: fast,
         notes,
     }
 }

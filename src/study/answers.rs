@@ -42,7 +42,15 @@ pub struct Answer {
     pub response: Response,
     /// Seconds since the Unix epoch when it was stored.
     pub at: f64,
+    /// Seconds from this viewer's first fetch of the trial's last-fetched clip to the
+    /// answer (absent in logs from before it was kept).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub after_fetch: Option<f64>,
 }
+
+/// Slack allowed on "answered after playing through": an answer may come this many seconds
+/// before the clip's duration has passed since it was fetched (start-up and clock grain).
+pub const ANSWER_SLACK_SECONDS: f64 = 0.5;
 
 /// A submission as the page posts it.
 #[derive(Deserialize)]
@@ -147,6 +155,8 @@ pub struct AnswerLog {
     file: File,
     manifest: Manifest,
     next: Vec<usize>,
+    /// When each (viewer, stimulus) was first fetched in this server's life.
+    fetched: std::collections::HashMap<(usize, String), std::time::Instant>,
 }
 
 impl AnswerLog {
@@ -160,13 +170,21 @@ impl AnswerLog {
             source,
         };
         let existed = path.exists();
-        let mut file = OpenOptions::new()
-            .read(true)
-            .write(true)
-            .create(true)
-            .truncate(false)
-            .open(&path)
-            .map_err(io)?;
+        // Never through a symbolic link planted in the folder, never a FIFO or device.
+        let mut options = OpenOptions::new();
+        options.read(true).write(true).create(true).truncate(false);
+        #[cfg(unix)]
+        std::os::unix::fs::OpenOptionsExt::custom_flags(
+            &mut options,
+            libc::O_NOFOLLOW | libc::O_NONBLOCK,
+        );
+        let mut file = options.open(&path).map_err(io)?;
+        if !file.metadata().map_err(io)?.is_file() {
+            return Err(io(std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                "not a regular file",
+            )));
+        }
         if note.is_some() {
             let text = std::fs::read_to_string(&path).map_err(io)?;
             let keep = text.rfind('\n').map_or(0, |i| i + 1);
@@ -189,6 +207,7 @@ impl AnswerLog {
                 file,
                 manifest,
                 next,
+                fetched: Default::default(),
             },
             note,
         ))
@@ -221,6 +240,55 @@ impl AnswerLog {
         Ok(v)
     }
 
+    /// Notes that `viewer` (with their secret) fetched stimulus `id`, one of their trials'
+    /// clips; the first fetch is what an answer's timing is measured from.
+    pub fn fetch(&mut self, viewer: &str, token: &str, id: &str) -> Result<(), Refusal> {
+        let v = self.viewer_index(viewer, token)?;
+        let theirs = self.manifest.viewers[v]
+            .trials
+            .iter()
+            .any(|t| t.stimuli().contains(&id));
+        if !theirs {
+            return Err(refuse(
+                404,
+                format!("{id} is not a clip of viewer {viewer}"),
+            ));
+        }
+        self.fetched
+            .entry((v, id.to_owned()))
+            .or_insert_with(std::time::Instant::now);
+        Ok(())
+    }
+
+    /// Seconds since `viewer` fetched the last of `trial`'s clips, after checking each has
+    /// had its whole duration (less [`ANSWER_SLACK_SECONDS`]) since its fetch.
+    fn played_through(&self, v: usize, trial: &Trial) -> Result<f64, Refusal> {
+        let mut after = f64::INFINITY;
+        for id in trial.stimuli() {
+            let Some(at) = self.fetched.get(&(v, id.to_owned())) else {
+                return Err(refuse(
+                    425,
+                    format!("clip {id} was never fetched: answer after playing it"),
+                ));
+            };
+            let seconds = at.elapsed().as_secs_f64();
+            let duration = self
+                .manifest
+                .stimulus(id)
+                .map_or(0.0, |s| s.frames as f64 / self.manifest.fps);
+            if seconds + ANSWER_SLACK_SECONDS < duration {
+                return Err(refuse(
+                    425,
+                    format!(
+                        "answered {seconds:.2} s after fetching clip {id}, which lasts {duration:.2} s: play it through first"
+                    ),
+                ));
+            }
+            after = after.min(seconds);
+        }
+        Ok(after)
+    }
+
     /// Checks and stores a submission (`{"viewer", "token", "trial", "scores": [a, b]}` or
     /// `{…, "real": bool}`); returns the stored answer once it is on disk.
     pub fn submit(&mut self, body: &str) -> Result<Answer, Refusal> {
@@ -251,6 +319,7 @@ impl AnswerLog {
         }
         let trial = &viewer.trials[next];
         check_response(trial, &s.response).map_err(|m| refuse(422, m))?;
+        let after_fetch = self.played_through(v, trial)?;
         let answer = Answer {
             viewer: s.viewer,
             trial: s.trial,
@@ -259,6 +328,7 @@ impl AnswerLog {
             at: std::time::SystemTime::now()
                 .duration_since(std::time::UNIX_EPOCH)
                 .map_or(0.0, |d| d.as_secs_f64()),
+            after_fetch: Some(after_fetch),
         };
         let mut line = serde_json::to_string(&answer).expect("an answer serialises");
         line.push('\n');

@@ -13,6 +13,9 @@ use crate::http::{self, Reply, Request, Server};
 /// The page (HTML, CSS and JavaScript in one file).
 const PAGE: &str = include_str!("page.html");
 
+/// Largest stimulus file served (a clip of a few seconds is a few MB).
+const MAX_STIMULUS: u64 = 256 << 20;
+
 /// What a request did, for the caller's log.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Event {
@@ -20,6 +23,9 @@ pub enum Event {
     Stored(String, usize),
     /// A request refused (path and reason).
     Refused(String, String),
+    /// The server refused or dropped connections for want of resources (said once per
+    /// episode).
+    Notice(String),
 }
 
 /// A running study server.
@@ -66,11 +72,13 @@ impl StudyServer {
     }
 
     /// Serves until `stop` returns true (checked between requests and every 100 ms).
-    pub fn run(&mut self, mut on_event: impl FnMut(Event), stop: impl Fn() -> bool) {
+    pub fn run(&mut self, on_event: impl FnMut(Event), stop: impl Fn() -> bool) {
         let StudyServer { server, dir, log } = self;
+        let on_event = std::cell::RefCell::new(on_event);
         server.serve(
             |request| {
-                let reply = answer(dir, log, request, &mut on_event)
+                let mut on_event = on_event.borrow_mut();
+                let reply = answer(dir, log, request, &mut *on_event)
                     .unwrap_or_else(|r| Reply::error(r.status, r.message));
                 if !reply.is_ok() {
                     let why = String::from_utf8_lossy(&reply.body).into_owned();
@@ -79,6 +87,7 @@ impl StudyServer {
                 reply
             },
             stop,
+            |notice| (on_event.borrow_mut())(Event::Notice(notice)),
         )
     }
 }
@@ -118,7 +127,8 @@ fn answer(
                 "total": trials.len(),
                 "done": trial.is_none(),
                 "kind": trial.map(|t| match t { Trial::Rate { .. } => "rate", Trial::Judge { .. } => "judge" }),
-                "stimuli": trial.map(|t| t.stimuli().iter().map(|id| format!("/{STIMULI}/{id}.mp4")).collect::<Vec<_>>()),
+                // Each clip's address carries the viewer's secret: stimuli go to viewers only.
+                "stimuli": trial.map(|t| t.stimuli().iter().map(|id| format!("/{STIMULI}/{id}.mp4?viewer={}&token={}", http::percent_encode(viewer), http::percent_encode(token))).collect::<Vec<_>>()),
                 "scale": SCALE,
             })))
         }
@@ -132,12 +142,28 @@ fn answer(
                 .strip_prefix(&format!("/{STIMULI}/"))
                 .ok_or_else(not_found)?;
             let id = file.strip_suffix(".mp4").ok_or_else(not_found)?;
-            let stimulus = log.manifest().stimulus(id).ok_or_else(not_found)?;
-            let path = dir.join(STIMULI).join(stimulus.file_name());
-            let bytes = std::fs::read(&path).map_err(|e| Refusal {
-                status: 500,
-                message: format!("{}: {e}", path.display()),
-            })?;
+            let name = log
+                .manifest()
+                .stimulus(id)
+                .ok_or_else(not_found)?
+                .file_name();
+            let viewer = request.param("viewer").unwrap_or("");
+            let token = request.param("token").unwrap_or("");
+            if viewer.is_empty() || token.is_empty() {
+                return Err(Refusal {
+                    status: 403,
+                    message: "stimuli are served with a viewer's link only".into(),
+                });
+            }
+            log.fetch(viewer, token, id)?;
+            let folder = dir.join(STIMULI);
+            let bytes =
+                crate::manifest::read_inside(&folder, &name, MAX_STIMULUS).map_err(|e| {
+                    Refusal {
+                        status: 500,
+                        message: format!("{}: {e}", folder.join(&name).display()),
+                    }
+                })?;
             Ok(Reply::ok(bytes, http::mime(file)))
         }
         _ => Err(not_found()),

@@ -1,6 +1,8 @@
 //! Helpers shared by the integration tests.
 #![allow(dead_code)]
 
+pub mod cdp;
+
 use std::path::{Path, PathBuf};
 
 use facespace::model::{BuildOptions, FaceModel, TrainingExample, load_training_set};
@@ -97,19 +99,31 @@ pub fn render(model: &FaceModel, params: &Params, canvas: &mut image::RgbImage) 
         .unwrap();
 }
 
-/// One HTTP/1.0 request to a server at `url`; returns (status, body).
+/// One HTTP/1.0 request to a server at `url` as its own page makes it (same-origin
+/// `Origin`, a JSON body); returns (status, body).
 pub fn http(url: &str, method: &str, path: &str, body: &str) -> (u16, String) {
+    let host = url.trim_start_matches("http://").trim_end_matches('/');
+    let headers =
+        format!("Host: {host}\r\nOrigin: http://{host}\r\nContent-Type: application/json\r\n");
+    http_raw(url, method, path, &headers, body)
+}
+
+/// One HTTP/1.0 request with exactly these header lines (each ending in CRLF) and a
+/// `Content-Length`; returns (status, body).
+pub fn http_raw(url: &str, method: &str, path: &str, headers: &str, body: &str) -> (u16, String) {
     use std::io::{Read, Write};
     let host = url.trim_start_matches("http://").trim_end_matches('/');
     let mut s = std::net::TcpStream::connect(host).unwrap();
-    write!(
+    s.set_read_timeout(Some(std::time::Duration::from_secs(30)))
+        .unwrap();
+    // A server may answer (and stop reading) before a long body is all sent.
+    let _ = write!(
         s,
-        "{method} {path} HTTP/1.0\r\nHost: {host}\r\nContent-Length: {}\r\n\r\n{body}",
+        "{method} {path} HTTP/1.0\r\n{headers}Content-Length: {}\r\n\r\n{body}",
         body.len()
-    )
-    .unwrap();
+    );
     let mut bytes = Vec::new();
-    s.read_to_end(&mut bytes).unwrap();
+    let _ = s.read_to_end(&mut bytes);
     let reply = String::from_utf8_lossy(&bytes).into_owned();
     let status = reply[9..12].parse().unwrap();
     let body = reply.split("\r\n\r\n").nth(1).unwrap_or("").to_owned();
