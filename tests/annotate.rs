@@ -156,3 +156,318 @@ fn headless_chromium_drags_a_point_and_it_is_saved() {
         }
     }
 }
+
+/// Issue 27, F1: a foreign `Host` (DNS rebinding) is refused on every path; a cross-site
+/// form (`text/plain`, foreign or no `Origin`) cannot overwrite landmarks.
+#[test]
+fn foreign_hosts_and_cross_site_posts_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    frames(dir.path());
+    let before = std::fs::read(dir.path().join("01000.pts")).unwrap();
+    let (url, stop) = start(dir.path());
+    let host = url.trim_start_matches("http://").trim_end_matches('/');
+    let port = host.rsplit(':').next().unwrap();
+    for foreign in [
+        "evil.example".to_owned(),
+        format!("evil.example:{port}"),
+        format!("localhost.evil.example:{port}"),
+        format!("127.0.0.1:{}", port.parse::<u16>().unwrap() + 1),
+    ] {
+        for path in [
+            "/",
+            "/api/frames",
+            "/frames/01000.jpg",
+            "/api/points/01000.jpg",
+        ] {
+            let (code, body) =
+                common::http_raw(&url, "GET", path, &format!("Host: {foreign}\r\n"), "");
+            assert_eq!(code, 421, "Host {foreign} {path}: {body}");
+        }
+    }
+    // The page's own names for the server are served.
+    for own in [host.to_owned(), format!("localhost:{port}")] {
+        let (code, _) =
+            common::http_raw(&url, "GET", "/api/frames", &format!("Host: {own}\r\n"), "");
+        assert_eq!(code, 200, "Host {own}");
+    }
+    let points: Vec<[f64; 2]> = (0..68)
+        .map(|k| [100.0 + k as f64, 120.0 + 0.5 * k as f64])
+        .collect();
+    let body = serde_json::json!({ "points": points }).to_string();
+    for (headers, want) in [
+        // A cross-site form: text/plain from another origin.
+        (
+            format!("Host: {host}\r\nOrigin: http://evil.example\r\nContent-Type: text/plain\r\n"),
+            403,
+        ),
+        // The right type from another origin.
+        (
+            format!(
+                "Host: {host}\r\nOrigin: http://evil.example\r\nContent-Type: application/json\r\n"
+            ),
+            403,
+        ),
+        // No Origin at all.
+        (
+            format!("Host: {host}\r\nContent-Type: application/json\r\n"),
+            403,
+        ),
+        // Same origin, but not JSON (a simple request no preflight guards).
+        (
+            format!("Host: {host}\r\nOrigin: http://{host}\r\nContent-Type: text/plain\r\n"),
+            415,
+        ),
+    ] {
+        let (code, reply) =
+            common::http_raw(&url, "POST", "/api/points/01000.jpg", &headers, &body);
+        assert_eq!(code, want, "{headers:?}: {reply}");
+    }
+    assert_eq!(std::fs::read(dir.path().join("01000.pts")).unwrap(), before);
+    stop.store(true, Ordering::Relaxed);
+}
+
+/// Issue 27, F8: points outside the image or all in one place are refused, nothing written.
+#[test]
+fn points_outside_the_image_or_collapsed_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    frames(dir.path());
+    let (url, stop) = start(dir.path());
+    for (points, why) in [
+        (vec![[1e308, 1e308]; 68], "outside"),
+        (vec![[-1.0, 10.0]; 68], "outside"),
+        (vec![[50.0, 60.0]; 68], "one place"),
+    ] {
+        let body = serde_json::json!({ "points": points }).to_string();
+        let (code, reply) = common::http(&url, "POST", "/api/points/01001.jpg", &body);
+        assert!(code == 400 && reply.contains(why), "{code} {reply}");
+    }
+    assert!(!dir.path().join("01001.pts").exists());
+    stop.store(true, Ordering::Relaxed);
+}
+
+/// Issue 27, F7 and F12: links (to files outside or inside), FIFOs and non-UTF-8 names are
+/// neither listed nor served; a `.pts` that is a link outside is not read; nothing blocks.
+#[test]
+fn planted_links_fifos_and_odd_names_are_not_served() {
+    use std::os::unix::ffi::OsStrExt;
+    let dir = tempfile::tempdir().unwrap();
+    frames(dir.path());
+    let outside = tempfile::tempdir().unwrap();
+    std::fs::copy(
+        dir.path().join("01000.jpg"),
+        outside.path().join("secret.jpg"),
+    )
+    .unwrap();
+    std::fs::write(outside.path().join("secret.pts"), "not yours").unwrap();
+    let d = dir.path();
+    std::os::unix::fs::symlink("/etc/passwd", d.join("evil.png")).unwrap();
+    std::os::unix::fs::symlink(outside.path().join("secret.jpg"), d.join("outside.jpg")).unwrap();
+    std::os::unix::fs::symlink(outside.path().join("secret.pts"), d.join("01001.pts")).unwrap();
+    let fifo = std::ffi::CString::new(d.join("fifo.jpg").as_os_str().as_bytes()).unwrap();
+    // SAFETY: mkfifo reads the NUL-terminated path it is given.
+    assert_eq!(unsafe { libc::mkfifo(fifo.as_ptr(), 0o600) }, 0);
+    let odd = std::ffi::OsStr::from_bytes(b"caf\xe9.jpg");
+    std::fs::copy(d.join("01000.jpg"), d.join(odd)).unwrap();
+    let annotator = Annotator::bind(d, demo_model(), false, "127.0.0.1:0", false).unwrap();
+    let skipped = annotator.skipped().join("; ");
+    // (A FIFO is no image file at all: never listed, see below.)
+    for name in ["evil.png", "outside.jpg", "UTF-8"] {
+        assert!(skipped.contains(name), "{name} not reported: {skipped}");
+    }
+    let url = annotator.url();
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    std::thread::spawn(move || annotator.run(|_| {}, move || flag.load(Ordering::Relaxed)));
+    let clock = std::time::Instant::now();
+    let (_, listed) = common::http(&url, "GET", "/api/frames", "");
+    let listed: serde_json::Value = serde_json::from_str(&listed).unwrap();
+    assert_eq!(
+        listed["frames"],
+        serde_json::json!(["01000.jpg", "01001.jpg"])
+    );
+    for path in [
+        "/frames/evil.png",
+        "/frames/outside.jpg",
+        "/frames/fifo.jpg",
+    ] {
+        assert_eq!(common::http(&url, "GET", path, "").0, 404, "{path}");
+    }
+    // The non-UTF-8 name cannot even be asked for (its escape is not UTF-8).
+    assert_eq!(common::http(&url, "GET", "/frames/caf%E9.jpg", "").0, 400);
+    // The .pts planted as a link outside the folder is not read.
+    let (code, reply) = common::http(&url, "GET", "/api/points/01001.jpg", "");
+    assert!(
+        code == 403 && reply.contains("symbolic link"),
+        "{code} {reply}"
+    );
+    // A frame swapped for a FIFO after listing is refused at once, not waited on.
+    std::fs::remove_file(d.join("01000.jpg")).unwrap();
+    let fifo = std::ffi::CString::new(d.join("01000.jpg").as_os_str().as_bytes()).unwrap();
+    // SAFETY: as above.
+    assert_eq!(unsafe { libc::mkfifo(fifo.as_ptr(), 0o600) }, 0);
+    let (code, reply) = common::http(&url, "GET", "/frames/01000.jpg", "");
+    assert!(
+        code == 403 && reply.contains("not a regular file"),
+        "{code} {reply}"
+    );
+    assert!(clock.elapsed().as_secs() < 10);
+    assert_eq!(
+        std::fs::read_to_string(outside.path().join("secret.pts")).unwrap(),
+        "not yours"
+    );
+    stop.store(true, Ordering::Relaxed);
+}
+
+/// How long a normal request takes while the server is under `load`.
+fn answer_time(url: &str) -> std::time::Duration {
+    let clock = std::time::Instant::now();
+    let (code, _) = common::http(url, "GET", "/api/frames", "");
+    assert_eq!(code, 200);
+    clock.elapsed()
+}
+
+/// Opens `n` connections that never send a byte, and one POST that declares 5 000 bytes of
+/// body and sends none.
+fn flood(url: &str, n: usize) -> Vec<std::net::TcpStream> {
+    use std::io::Write;
+    let host = url.trim_start_matches("http://").trim_end_matches('/');
+    let mut held: Vec<_> = (0..n)
+        .filter_map(|_| std::net::TcpStream::connect(host).ok())
+        .collect();
+    let mut stalled = std::net::TcpStream::connect(host).unwrap();
+    write!(
+        stalled,
+        "POST /api/points/01000.jpg HTTP/1.1\r\nHost: {host}\r\nOrigin: http://{host}\r\nContent-Type: application/json\r\nContent-Length: 5000\r\n\r\n"
+    )
+    .unwrap();
+    held.push(stalled);
+    held
+}
+
+/// Issue 27, F2 and F3: a stalled body and thousands of idle connections (more than the
+/// server holds) never keep a normal client waiting, and the server neither panics nor dies.
+#[test]
+fn stalled_bodies_and_connection_floods_do_not_stall_anyone() {
+    let dir = tempfile::tempdir().unwrap();
+    frames(dir.path());
+    let annotator = Annotator::bind(dir.path(), demo_model(), false, "127.0.0.1:0", false)
+        .unwrap()
+        .with_limits(facespace::http::Limits {
+            connections: 500,
+            ..Default::default()
+        });
+    let url = annotator.url();
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    let notices = Arc::new(std::sync::Mutex::new(Vec::new()));
+    let heard = notices.clone();
+    let server = std::thread::spawn(move || {
+        annotator.run(
+            move |e| {
+                if let facespace::annotate::Event::Notice(n) = e {
+                    heard.lock().unwrap().push(n);
+                }
+            },
+            move || flag.load(Ordering::Relaxed),
+        )
+    });
+    let held = flood(&url, 3000);
+    let mut worst = std::time::Duration::ZERO;
+    for _ in 0..50 {
+        worst = worst.max(answer_time(&url));
+    }
+    eprintln!(
+        "{} connections held open; slowest of 50 answers {worst:?}",
+        held.len()
+    );
+    assert!(worst < std::time::Duration::from_secs(1), "{worst:?}");
+    let notices = notices.lock().unwrap().clone();
+    assert!(!notices.is_empty() && notices.len() < 10, "{notices:?}");
+    drop(held);
+    stop.store(true, Ordering::Relaxed);
+    server.join().expect("the server did not panic");
+}
+
+/// The 10-minute soak of issue 27 (`cargo test --release --test annotate soak -- --ignored`;
+/// `FACESPACE_SOAK_SECONDS` shortens it): 3 000 idle connections, re-opened as the server
+/// drops them, and a stalled body, while a client asks every 100 ms; every answer under 1 s,
+/// the server's memory under 500 MB, no panic. Figures: RELIABILITY.md.
+#[test]
+#[ignore]
+fn soak() {
+    let seconds: u64 = std::env::var("FACESPACE_SOAK_SECONDS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(600);
+    let dir = tempfile::tempdir().unwrap();
+    frames(dir.path());
+    let mut server = std::process::Command::new(env!("CARGO_BIN_EXE_facespace"))
+        .args([
+            "annotate",
+            dir.path().to_str().unwrap(),
+            "--listen",
+            "127.0.0.1:0",
+        ])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut out = server.stdout.take().unwrap();
+    let mut text = String::new();
+    let mut byte = [0u8; 1];
+    while !text.contains("(Ctrl+C") {
+        assert_eq!(
+            std::io::Read::read(&mut out, &mut byte).unwrap(),
+            1,
+            "{text}"
+        );
+        text.push(byte[0] as char);
+    }
+    let url = text
+        .split_whitespace()
+        .find(|w| w.starts_with("http://"))
+        .unwrap()
+        .to_owned();
+    let pid = server.id();
+    let rss_mb = || {
+        std::fs::read_to_string(format!("/proc/{pid}/status"))
+            .ok()
+            .and_then(|s| {
+                s.lines().find(|l| l.starts_with("VmRSS")).and_then(|l| {
+                    l.split_whitespace()
+                        .nth(1)
+                        .and_then(|k| k.parse::<f64>().ok())
+                })
+            })
+            .map_or(0.0, |kb| kb / 1024.0)
+    };
+    let start = std::time::Instant::now();
+    let (mut worst, mut answers, mut peak) = (std::time::Duration::ZERO, 0u64, 0f64);
+    let mut held = flood(&url, 3000);
+    let mut top_up = std::time::Instant::now();
+    while start.elapsed().as_secs() < seconds {
+        worst = worst.max(answer_time(&url));
+        answers += 1;
+        peak = peak.max(rss_mb());
+        if top_up.elapsed().as_secs() >= 4 {
+            // The server drops idle connections after 5 s: keep 3 000 open.
+            held = flood(&url, 3000);
+            top_up = std::time::Instant::now();
+        }
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    drop(held);
+    let alive = server.try_wait().unwrap().is_none();
+    let _ = server.kill();
+    let _ = server.wait();
+    let mut log = String::new();
+    let _ = std::io::Read::read_to_string(server.stderr.as_mut().unwrap(), &mut log);
+    eprintln!(
+        "soak {seconds} s: {answers} answers, slowest {worst:?}, peak RSS {peak:.0} MB, server log {} bytes",
+        log.len()
+    );
+    assert!(alive, "the server died: {log}");
+    assert!(!log.contains("panicked"), "{log}");
+    assert!(worst < std::time::Duration::from_secs(1), "{worst:?}");
+    assert!(peak < 500.0, "{peak} MB");
+}

@@ -884,3 +884,198 @@ fn headless_chromium_answers_a_study_across_a_server_crash() {
     assert!(close(turing["low"].as_f64().unwrap(), expected.low, 1e-12));
     assert!(report["kruskal"]["h"].as_f64().unwrap() >= 0.0);
 }
+
+/// Issue 27, F1 and F6: the study server refuses foreign `Host`s; planted stimuli (a link to
+/// `/etc/passwd`, to `/dev/zero`, a FIFO) are refused at once, never served or waited on; an
+/// answer log planted as a link is refused before anything is appended through it.
+#[test]
+fn planted_stimuli_and_logs_are_refused_and_foreign_hosts_too() {
+    use std::os::unix::ffi::OsStrExt;
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let dir = tempfile::tempdir().unwrap();
+    let study = dir.path().join("study");
+    let manifest = make_study(&study, "original,smoothed,unsmoothed", 1, Task::Both);
+    let v = &manifest.viewers[0];
+    let ids: Vec<String> = v
+        .trials
+        .iter()
+        .flat_map(|t| t.stimuli())
+        .map(str::to_owned)
+        .collect();
+    let stimulus = |id: &str| {
+        study
+            .join(facespace::study::STIMULI)
+            .join(format!("{id}.mp4"))
+    };
+    // Three different stimuli replaced by what an attacker could plant.
+    let mut planted = Vec::new();
+    for id in &ids {
+        if planted.contains(id) {
+            continue;
+        }
+        planted.push(id.clone());
+        if planted.len() == 3 {
+            break;
+        }
+    }
+    assert_eq!(planted.len(), 3, "{ids:?}");
+    for (id, what) in planted.iter().zip(["/etc/passwd", "/dev/zero", "fifo"]) {
+        let path = stimulus(id);
+        std::fs::remove_file(&path).unwrap();
+        if what == "fifo" {
+            let c = std::ffi::CString::new(path.as_os_str().as_bytes()).unwrap();
+            // SAFETY: mkfifo reads the NUL-terminated path it is given.
+            assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+        } else {
+            std::os::unix::fs::symlink(what, &path).unwrap();
+        }
+    }
+    let (server, _) = facespace::study::StudyServer::bind(&study, "127.0.0.1:0", false).unwrap();
+    let url = server.url();
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    let mut server = server;
+    let handle =
+        std::thread::spawn(move || server.run(|_| {}, move || flag.load(Ordering::Relaxed)));
+    let clock = std::time::Instant::now();
+    for id in &planted {
+        let path = format!("/stimuli/{id}.mp4?viewer={}&token={}", v.id, v.token);
+        let (code, body) = http(&url, "GET", &path, "");
+        assert!(
+            code == 500 && (body.contains("symbolic link") || body.contains("not a regular")),
+            "{id}: {code} {body}"
+        );
+        assert!(!body.contains("root:"), "{body}");
+    }
+    assert!(
+        clock.elapsed().as_secs() < 10,
+        "a planted file stalled the server"
+    );
+    let host = url.trim_start_matches("http://").trim_end_matches('/');
+    let next = format!("/api/next?viewer={}&token={}", v.id, v.token);
+    let (code, _) = common::http_raw(&url, "GET", &next, "Host: evil.example\r\n", "");
+    assert_eq!(code, 421);
+    let (code, _) = common::http_raw(&url, "GET", &next, &format!("Host: {host}\r\n"), "");
+    assert_eq!(code, 200);
+    stop.store(true, Ordering::Relaxed);
+    handle.join().unwrap();
+
+    // The answer log as a link to a file outside: refused, the file untouched.
+    let outside = dir.path().join("outside.txt");
+    std::fs::write(&outside, "keep\n").unwrap();
+    let _ = std::fs::remove_file(study.join(ANSWERS));
+    std::os::unix::fs::symlink(&outside, study.join(ANSWERS)).unwrap();
+    assert!(facespace::study::StudyServer::bind(&study, "127.0.0.1:0", false).is_err());
+    assert_eq!(std::fs::read_to_string(&outside).unwrap(), "keep\n");
+}
+
+/// Issue 27, study validity: `study analyse` lists answers that came sooner than their clip
+/// lasts, by the server's fetch timing or by the gap to the viewer's previous answer (the
+/// three answers 10 ms apart a script could store before the server checked).
+#[test]
+fn analyse_flags_answers_faster_than_their_clips() {
+    let dir = tempfile::tempdir().unwrap();
+    let study = dir.path().join("study");
+    let manifest = make_study(&study, "original,smoothed,unsmoothed", 1, Task::Turing);
+    let v = &manifest.viewers[0];
+    let lasts = |t: &Trial| {
+        t.stimuli()
+            .iter()
+            .map(|id| manifest.stimulus(id).unwrap().frames as f64 / manifest.fps)
+            .fold(0.0, f64::max)
+    };
+    let answer = |i: usize, at: f64, after_fetch: Option<f64>| facespace::study::Answer {
+        viewer: v.id.clone(),
+        trial: i,
+        stimuli: v.trials[i]
+            .stimuli()
+            .iter()
+            .map(|s| s.to_string())
+            .collect(),
+        response: Response::Judgement { real: true },
+        at,
+        after_fetch,
+    };
+    let d = lasts(&v.trials[0]);
+    // Watched: each a clip's length apart, fetched that long before.
+    let slow: Vec<_> = (0..3)
+        .map(|i| answer(i, 1000.0 + 2.0 * d * i as f64, Some(d + 0.1)))
+        .collect();
+    assert!(facespace::study::analyse::fast_answers(&manifest, &slow).is_empty());
+    // Scripted: 10 ms apart (an old log without fetch times), then one with its fetch time.
+    let scripted: Vec<_> = (0..3)
+        .map(|i| answer(i, 1000.0 + 0.01 * i as f64, None))
+        .collect();
+    let fast = facespace::study::analyse::fast_answers(&manifest, &scripted);
+    assert_eq!(fast.iter().map(|f| f.trial).collect::<Vec<_>>(), vec![1, 2]);
+    let early = vec![answer(0, 1000.0, Some(0.05))];
+    assert_eq!(
+        facespace::study::analyse::fast_answers(&manifest, &early).len(),
+        1
+    );
+    let report = facespace::study::analyse::report(&manifest, &scripted);
+    assert!(
+        report
+            .notes
+            .iter()
+            .any(|n| n.contains("sooner than their clip")),
+        "{:?}",
+        report.notes
+    );
+}
+
+/// Issue 27: the shipped pages carry no test hook (`?auto`, `?selftest`): the browser tests
+/// act on them from outside (tests/common/cdp.rs).
+#[test]
+fn the_shipped_pages_have_no_test_hooks() {
+    for page in ["src/study/page.html", "src/annotate/page.html"] {
+        let text = std::fs::read_to_string(common::root().join(page)).unwrap();
+        for hook in ["selftest", "has(\"auto\")", "auto("] {
+            assert!(!text.contains(hook), "{page} has {hook}");
+        }
+    }
+}
+
+/// Issue 27, study validity: three answers in a row within milliseconds are refused — the
+/// server has not handed out the clips, or not long enough ago.
+#[test]
+fn answers_faster_than_the_clips_are_refused() {
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let dir = tempfile::tempdir().unwrap();
+    let study = dir.path().join("study");
+    let manifest = make_study(&study, "original,unsmoothed", 1, Task::Turing);
+    let (mut server, _) =
+        facespace::study::StudyServer::bind(&study, "127.0.0.1:0", false).unwrap();
+    let url = server.url();
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    let handle =
+        std::thread::spawn(move || server.run(|_| {}, move || flag.load(Ordering::Relaxed)));
+    let v = &manifest.viewers[0];
+    for i in 0..3 {
+        // Fetch the clip as the page would, then answer at once.
+        let (_, next) = http(
+            &url,
+            "GET",
+            &format!("/api/next?viewer={}&token={}", v.id, v.token),
+            "",
+        );
+        let next: serde_json::Value = serde_json::from_str(&next).unwrap();
+        assert_eq!(next["trial"], 0, "nothing was stored");
+        assert_eq!(
+            http(&url, "GET", next["stimuli"][0].as_str().unwrap(), "").0,
+            200
+        );
+        let a =
+            serde_json::json!({"viewer": v.id, "token": v.token, "trial": 0, "real": i % 2 == 0});
+        let (code, why) = http(&url, "POST", "/api/answer", &a.to_string());
+        assert_eq!(code, 425, "{why}");
+    }
+    stop.store(true, Ordering::Relaxed);
+    handle.join().unwrap();
+    assert!(
+        !study.join(ANSWERS).exists() || std::fs::read(study.join(ANSWERS)).unwrap().is_empty()
+    );
+}

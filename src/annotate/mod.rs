@@ -103,6 +103,12 @@ impl Annotator {
         })
     }
 
+    /// The same server holding to other connection limits.
+    pub fn with_limits(mut self, limits: http::Limits) -> Self {
+        self.server = self.server.with_limits(limits);
+        self
+    }
+
     /// Images of the folder left out, with why (symbolic links, FIFOs, non-UTF-8 names).
     pub fn skipped(&self) -> &[String] {
         &self.skipped

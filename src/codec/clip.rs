@@ -27,6 +27,8 @@ const TRACKING: &str = "tracking.npy";
 const AUDIO: &str = "audio.m4a";
 /// Frames a clip may declare (a cap for damaged manifests: ten hours at 100 fps).
 const MAX_FRAMES: usize = 3_600_000;
+/// Most pixels a clip's canvas may have (4096 × 4096): decoding holds a few frames of it.
+pub const MAX_CANVAS_PIXELS: u64 = 1 << 24;
 
 /// `meta.json`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -234,6 +236,15 @@ impl Clip {
             crate::options::count_in(name, side as usize, 1, video::y4m::MAX_SIDE)
                 .map_err(|e| invalid(e.to_string()))?;
         }
+        let pixels = u64::from(meta.width) * u64::from(meta.height);
+        if pixels > MAX_CANVAS_PIXELS {
+            return Err(invalid(format!(
+                "a {}×{} canvas is {pixels} pixels (at most {MAX_CANVAS_PIXELS}: one RGB frame stays under {} MB)",
+                meta.width,
+                meta.height,
+                MAX_CANVAS_PIXELS * 3 >> 20
+            )));
+        }
         let dims = meta.layout.dims();
         if meta.frames > MAX_FRAMES {
             return Err(invalid(format!(
@@ -302,7 +313,13 @@ impl Clip {
                 message: e.to_string(),
             })?;
         if let Some(audio) = &meta.audio {
-            manifest::member(dir, audio)?;
+            // A plain name of the folder, and a regular file: a FIFO there would block the
+            // decoder (or ffmpeg) forever.
+            let path = manifest::member(dir, audio)?;
+            manifest::open_regular(&path).map_err(|e| CodecError::Invalid {
+                path: path.clone(),
+                message: format!("the clip's audio: {e}"),
+            })?;
         }
         if let Some(record) = tracking_flags {
             meta.tracking = record

@@ -57,6 +57,14 @@ impl StudyServer {
         ))
     }
 
+    /// The same server holding to other connection limits.
+    pub fn with_limits(self, limits: http::Limits) -> Self {
+        StudyServer {
+            server: self.server.with_limits(limits),
+            ..self
+        }
+    }
+
     /// The server's address.
     pub fn url(&self) -> String {
         self.server.url()

@@ -82,6 +82,10 @@ impl Sink {
             }
             _ => {
                 let ffmpeg = system_ffmpeg().ok_or_else(|| VideoError::NeedsFfmpeg(path.into()))?;
+                if let Some(a) = audio {
+                    // Never hand ffmpeg a FIFO or device: it would block or never end.
+                    crate::manifest::open_regular(a).map_err(io_error(a))?;
+                }
                 // Staged and locked like every other output: a killed run's file is ours
                 // to clean, and it is renamed into place only once ffmpeg succeeds.
                 let tmp = crate::atomic::staging_file(path).map_err(io_error(parent))?;
