@@ -4,7 +4,11 @@
 //!
 //! Staging files and folders are named `.facespace-tmp-*` and hold an advisory lock
 //! (`flock`) while their writer lives; the next write into the same folder removes any whose
-//! lock is free, i.e. whose writer was killed. A folder is swapped in by one
+//! lock is free, i.e. whose writer was killed. They are created as `.facespace-new-*`, locked,
+//! then renamed, so a concurrent writer's clean-up never takes a live one for dead. The
+//! destination's folder is resolved once, at the start: a parent symlink swapped mid-run
+//! neither strands the staging nor sends the result elsewhere. Readers of replaced folders
+//! retry when the folder was swapped under them ([`read_consistent`]). A folder is swapped in by one
 //! `renameat2(RENAME_EXCHANGE)` on Linux, so the destination exists at every instant; where
 //! the exchange is unsupported (another OS, a file system without it) two renames are used and
 //! a crash between them leaves the previous folder as `.facespace-old-*` beside it.
@@ -15,6 +19,12 @@ use std::path::{Path, PathBuf};
 
 /// Prefix of every staging file and folder (cleaned when unlocked).
 const STAGING: &str = ".facespace-tmp-";
+/// Prefix of a staging entry being created: renamed to [`STAGING`] once it is locked, so no
+/// cleaner (in this process or another) ever sees an unlocked live staging entry.
+const NEW: &str = ".facespace-new-";
+/// A [`NEW`] entry older than this whose lock is free was left by a writer killed while
+/// creating it.
+const NEW_GRACE: std::time::Duration = std::time::Duration::from_secs(600);
 /// Prefix of a previous folder kept by the two-rename fallback (never cleaned automatically).
 const OLD: &str = ".facespace-old-";
 /// Written into every folder [`replace_dir`] builds: its kind and the names it holds.
@@ -38,7 +48,8 @@ pub fn write_file(path: &Path, bytes: &[u8]) -> io::Result<()> {
 pub fn staging_file(path: &Path) -> io::Result<tempfile::NamedTempFile> {
     let dir = parent_of(path);
     std::fs::create_dir_all(dir)?;
-    clean_stale(dir);
+    let dir = dir.canonicalize()?;
+    clean_stale(&dir);
     let _creating = CREATING.lock().unwrap_or_else(|e| e.into_inner());
     // The destination's extension kept: a tool writing it (ffmpeg) picks its format by it.
     let suffix = path
@@ -46,11 +57,27 @@ pub fn staging_file(path: &Path) -> io::Result<tempfile::NamedTempFile> {
         .map(|e| format!(".{}", e.to_string_lossy()))
         .unwrap_or_default();
     let tmp = tempfile::Builder::new()
-        .prefix(STAGING)
+        .prefix(NEW)
         .suffix(&suffix)
-        .tempfile_in(dir)?;
+        .tempfile_in(&dir)?;
     lock(tmp.as_file());
-    Ok(tmp)
+    let (file, created) = tmp.into_parts();
+    let staged = staging_name(&created);
+    std::fs::rename(&created, &staged)?;
+    created.keep().map_err(|e| e.error)?;
+    Ok(tempfile::NamedTempFile::from_parts(
+        file,
+        tempfile::TempPath::try_from_path(staged)?,
+    ))
+}
+
+/// The [`STAGING`] name of a [`NEW`] entry (the same random tail).
+fn staging_name(created: &Path) -> PathBuf {
+    let name = created
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    created.with_file_name(format!("{STAGING}{}", name.trim_start_matches(NEW)))
 }
 
 /// Flushes a [`staging_file`] to disk and renames it to `path`.
@@ -60,35 +87,76 @@ pub fn persist(tmp: tempfile::NamedTempFile, path: &Path) -> io::Result<()> {
     tmp.as_file()
         .set_permissions(std::os::unix::fs::PermissionsExt::from_mode(0o644))?;
     tmp.as_file().sync_all()?;
-    tmp.persist(path).map_err(|e| e.error)?;
+    // Into the folder the staging was made in (resolved when it was made).
+    let destination = match (tmp.path().parent(), path.file_name()) {
+        (Some(dir), Some(name)) => dir.join(name),
+        _ => path.to_path_buf(),
+    };
+    tmp.persist(destination).map_err(|e| e.error)?;
     Ok(())
 }
 
 /// A locked temporary folder in `parent`, removed when dropped.
 pub struct StagingDir {
-    dir: tempfile::TempDir,
+    path: PathBuf,
     _lock: Option<File>,
 }
 
 impl StagingDir {
-    /// Creates one (and first removes the staging that killed writers left in `parent`).
+    /// Creates one in the folder `parent` resolves to now (and first removes the staging
+    /// that killed writers left there).
     pub fn new(parent: &Path) -> io::Result<Self> {
         std::fs::create_dir_all(parent)?;
-        clean_stale(parent);
+        let parent = parent.canonicalize()?;
+        clean_stale(&parent);
         let _creating = CREATING.lock().unwrap_or_else(|e| e.into_inner());
-        let dir = tempfile::Builder::new()
-            .prefix(STAGING)
-            .tempdir_in(parent)?;
-        let lock = File::open(dir.path()).ok();
+        let created = tempfile::Builder::new()
+            .prefix(NEW)
+            .tempdir_in(&parent)?
+            .keep();
+        let lock = File::open(&created).ok();
         if let Some(f) = &lock {
             self::lock(f);
         }
-        Ok(Self { dir, _lock: lock })
+        let path = staging_name(&created);
+        if let Err(e) = std::fs::rename(&created, &path) {
+            let _ = std::fs::remove_dir_all(&created);
+            return Err(e);
+        }
+        Ok(Self { path, _lock: lock })
     }
 
     /// Its path.
     pub fn path(&self) -> &Path {
-        self.dir.path()
+        &self.path
+    }
+}
+
+impl Drop for StagingDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.path);
+    }
+}
+
+/// Runs `read` on the folder `dir` until the folder was not replaced while it ran (its inode
+/// the same before and after; at most 5 tries): a reader of a folder swapped in whole by
+/// [`replace_dir`] gets one version or tries again, never a mix.
+pub fn read_consistent<T, E>(dir: &Path, mut read: impl FnMut() -> Result<T, E>) -> Result<T, E> {
+    #[cfg(unix)]
+    let identity = || {
+        use std::os::unix::fs::MetadataExt;
+        std::fs::metadata(dir).ok().map(|m| (m.dev(), m.ino()))
+    };
+    #[cfg(not(unix))]
+    let identity = || None::<()>;
+    let mut tries = 0;
+    loop {
+        let before = identity();
+        let result = read();
+        tries += 1;
+        if identity() == before || tries == 5 {
+            return result;
+        }
     }
 }
 
@@ -105,6 +173,12 @@ pub fn replace_dir<E>(
 ) -> Result<(), E> {
     check_replaceable(target, kind).map_err(&io)?;
     let staging = StagingDir::new(parent_of(target)).map_err(&io)?;
+    // The target in the folder the staging was made in (its parent resolved once).
+    let resolved = match (staging.path().parent(), target.file_name()) {
+        (Some(dir), Some(name)) => dir.join(name),
+        _ => target.to_path_buf(),
+    };
+    let target = resolved.as_path();
     let staged = staging.path();
     fill(staged)?;
     let mut files: Vec<String> = std::fs::read_dir(staged)
@@ -257,7 +331,15 @@ fn clean_stale(dir: &Path) {
         return;
     };
     for e in entries.flatten() {
-        if !e.file_name().to_string_lossy().starts_with(STAGING) {
+        let name = e.file_name().to_string_lossy().into_owned();
+        let young = || {
+            e.metadata()
+                .and_then(|m| m.modified())
+                .ok()
+                .and_then(|t| t.elapsed().ok())
+                .is_none_or(|age| age < NEW_GRACE)
+        };
+        if !(name.starts_with(STAGING) || name.starts_with(NEW) && !young()) {
             continue;
         }
         let path: PathBuf = e.path();
@@ -391,5 +473,105 @@ mod tests {
         exchange(&a, &b).unwrap();
         assert_eq!(std::fs::read_to_string(a.join("x")).unwrap(), "b");
         assert_eq!(std::fs::read_to_string(b.join("x")).unwrap(), "a");
+    }
+
+    /// Issue 27, F9: an entry being created (`.facespace-new-*`, not yet locked) is never
+    /// taken for a dead writer's by another writer's clean-up; one left by a writer killed
+    /// while creating it goes once it is old. Live staging is always locked.
+    #[test]
+    fn entries_being_created_are_never_cleaned() {
+        use std::os::unix::ffi::OsStrExt;
+        let root = tempfile::tempdir().unwrap();
+        let young = root.path().join(format!("{NEW}young"));
+        let old = root.path().join(format!("{NEW}old"));
+        std::fs::create_dir(&young).unwrap();
+        std::fs::create_dir(&old).unwrap();
+        let c = std::ffi::CString::new(old.as_os_str().as_bytes()).unwrap();
+        // SAFETY: utimes reads the path and (NULL) times it is given; NULL is "now", so give
+        // an hour ago explicitly.
+        let hour_ago = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .unwrap()
+            .as_secs() as i64
+            - 3600;
+        let times = [libc::timeval {
+            tv_sec: hour_ago,
+            tv_usec: 0,
+        }; 2];
+        assert_eq!(unsafe { libc::utimes(c.as_ptr(), times.as_ptr()) }, 0);
+        let live = StagingDir::new(root.path()).unwrap();
+        assert!(young.is_dir(), "a writer's entry in creation was removed");
+        assert!(!old.exists(), "a killed creator's entry stayed");
+        let name = live
+            .path()
+            .file_name()
+            .unwrap()
+            .to_string_lossy()
+            .into_owned();
+        assert!(name.starts_with(STAGING), "{name}");
+        assert!(
+            File::open(live.path()).unwrap().try_lock().is_err(),
+            "live staging is unlocked"
+        );
+        let file = staging_file(&root.path().join("x.json")).unwrap();
+        assert!(
+            file.path()
+                .file_name()
+                .unwrap()
+                .to_string_lossy()
+                .starts_with(STAGING)
+        );
+        assert!(File::open(file.path()).unwrap().try_lock().is_err());
+    }
+
+    /// Issue 27, F11: the parent folder's symbolic link swapped while a folder is staged: the
+    /// result lands where the run began, and no staging is left on either side.
+    #[test]
+    fn a_parent_link_swapped_mid_run_strands_nothing() {
+        let root = tempfile::tempdir().unwrap();
+        let (a, b) = (root.path().join("a"), root.path().join("b"));
+        std::fs::create_dir(&a).unwrap();
+        std::fs::create_dir(&b).unwrap();
+        let link = root.path().join("link");
+        std::os::unix::fs::symlink(&a, &link).unwrap();
+        replace_dir(
+            &link.join("out"),
+            "t",
+            |d| {
+                std::fs::write(d.join("f"), "1")?;
+                std::fs::remove_file(&link)?;
+                std::os::unix::fs::symlink(&b, &link)
+            },
+            |e| e,
+        )
+        .unwrap();
+        assert_eq!(std::fs::read_to_string(a.join("out/f")).unwrap(), "1");
+        assert_eq!(names(&a), ["out"]);
+        assert!(names(&b).is_empty(), "{:?}", names(&b));
+        let file = staging_file(&link.join("g.json")).unwrap();
+        std::fs::remove_file(&link).unwrap();
+        std::os::unix::fs::symlink(&a, &link).unwrap();
+        persist(file, &link.join("g.json")).unwrap();
+        assert_eq!(names(&b), ["g.json"], "the file went where its staging was");
+    }
+
+    /// Issue 27, F10: a reader whose folder is swapped while it reads tries again and returns
+    /// what one version gives.
+    #[test]
+    fn a_reader_retries_when_its_folder_is_swapped() {
+        let root = tempfile::tempdir().unwrap();
+        let dir = root.path().join("cb");
+        replace_dir(&dir, "t", |d| std::fs::write(d.join("v"), "1"), |e| e).unwrap();
+        let mut calls = 0;
+        let got = read_consistent(&dir, || {
+            calls += 1;
+            let v = std::fs::read_to_string(dir.join("v"));
+            if calls == 1 {
+                replace_dir(&dir, "t", |d| std::fs::write(d.join("v"), "2"), |e| e).unwrap();
+            }
+            v
+        })
+        .unwrap();
+        assert_eq!((calls, got.as_str()), (2, "2"));
     }
 }

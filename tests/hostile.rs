@@ -150,6 +150,35 @@ fn clip_folders_and_decoding() {
         );
         assert!(!out.exists());
     }
+    // Issue 27, F4: an audio name that is a FIFO inside the folder is refused at once (ffmpeg
+    // or our decoder would block on it forever).
+    {
+        use std::os::unix::ffi::OsStrExt;
+        let c = d.join("fifo.fsp");
+        edited(&f.clip, &c, "meta.json", |m| m["audio"] = "fifo.m4a".into());
+        let fifo = std::ffi::CString::new(c.join("fifo.m4a").as_os_str().as_bytes()).unwrap();
+        // SAFETY: mkfifo reads the NUL-terminated path it is given.
+        assert_eq!(unsafe { libc::mkfifo(fifo.as_ptr(), 0o600) }, 0);
+        let clock = std::time::Instant::now();
+        refused(
+            &["decode", s(&c), "-o", s(&out)],
+            &["fifo.m4a", "not a regular file"],
+        );
+        assert!(clock.elapsed().as_secs() < 30);
+        assert!(!out.exists());
+    }
+    // Issue 27, F5: a canvas whose sides pass but whose area would need gigabytes.
+    {
+        let c = d.join("huge.fsp");
+        edited(&f.clip, &c, "meta.json", |m| {
+            m["width"] = 16384.into();
+            m["height"] = 16384.into();
+        });
+        refused(
+            &["decode", s(&c), "-o", s(&out)],
+            &["268435456 pixels", "meta.json"],
+        );
+    }
     // 6, 7, 9: absurd sizes and rates are blamed on meta.json, before any allocation.
     let cases: Vec<(&str, serde_json::Value, &str)> = vec![
         ("fps", 1e-300.into(), "frame rate"),

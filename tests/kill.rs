@@ -11,7 +11,11 @@ fn staging(dir: &Path) -> Vec<String> {
     std::fs::read_dir(dir)
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .filter(|n| n.starts_with(".facespace-tmp-") || n.starts_with(".tmp-"))
+        .filter(|n| {
+            n.starts_with(".facespace-tmp-")
+                || n.starts_with(".facespace-new-")
+                || n.starts_with(".tmp-")
+        })
         .collect()
 }
 

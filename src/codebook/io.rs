@@ -102,7 +102,12 @@ impl Codebook {
     /// Loads and validates a codebook folder: the manifest's version and phone list, every
     /// sentence array (a plain file of the folder, of the layout's width, finite), and S and
     /// M against what the sentences give.
+    /// (The folder is read whole from one version: retried if it was swapped meanwhile.)
     pub fn load(dir: &Path) -> Result<Self, CodebookError> {
+        crate::atomic::read_consistent(dir, || Self::load_once(dir))
+    }
+
+    fn load_once(dir: &Path) -> Result<Self, CodebookError> {
         let path = dir.join(MANIFEST);
         let m: Manifest = manifest::read(&path, FORMAT, CODEBOOK_VERSION)?;
         let invalid = |reason: String| ManifestError::Invalid {

@@ -214,6 +214,10 @@ impl Clip {
     /// [`Clip::load`] against a model known by its hash (`None`: not checked, only the
     /// layout) and layout — for readers that hold a codebook rather than the model.
     pub fn load_for(dir: &Path, hash: Option<&str>, layout: Layout) -> Result<Clip, CodecError> {
+        crate::atomic::read_consistent(dir, || Self::load_for_once(dir, hash, layout))
+    }
+
+    fn load_for_once(dir: &Path, hash: Option<&str>, layout: Layout) -> Result<Clip, CodecError> {
         let meta_path = dir.join(META);
         let (mut meta, version): (ClipMeta, u32) =
             manifest::read_versions(&meta_path, FORMAT, 1..=VERSION)?;

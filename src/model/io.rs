@@ -145,7 +145,12 @@ impl FaceModel {
     /// Loads and validates a model folder: format and version, every array's shape against
     /// the manifest, finite values and non-negative variances, and that the stored mask
     /// matches the reference frame rebuilt from the placement.
+    /// (The folder is read whole from one version: retried if it was swapped meanwhile.)
     pub fn load(dir: &Path) -> Result<Self, ModelError> {
+        crate::atomic::read_consistent(dir, || Self::load_once(dir))
+    }
+
+    fn load_once(dir: &Path) -> Result<Self, ModelError> {
         let path = dir.join(MANIFEST);
         let m: Manifest = manifest::read(&path, FORMAT, MODEL_VERSION)?;
         let inconsistent = |reason: String| ModelError::Inconsistent {
