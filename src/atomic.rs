@@ -22,9 +22,9 @@ const STAGING: &str = ".facespace-tmp-";
 /// Prefix of a staging entry being created: renamed to [`STAGING`] once it is locked, so no
 /// cleaner (in this process or another) ever sees an unlocked live staging entry.
 const NEW: &str = ".facespace-new-";
-/// A [`NEW`] entry older than this whose lock is free was left by a writer killed while
-/// creating it.
-const NEW_GRACE: std::time::Duration = std::time::Duration::from_secs(600);
+/// A [`NEW`] entry still unlocked this long after it was first seen unlocked was left by a
+/// writer killed while creating it (a live one locks it within microseconds).
+const NEW_GRACE: std::time::Duration = std::time::Duration::from_millis(50);
 /// Prefix of a previous folder kept by the two-rename fallback (never cleaned automatically).
 const OLD: &str = ".facespace-old-";
 /// Written into every folder [`replace_dir`] builds: its kind and the names it holds.
@@ -330,27 +330,34 @@ fn clean_stale(dir: &Path) {
     let Ok(entries) = std::fs::read_dir(dir) else {
         return;
     };
+    let unlocked = |path: &Path| File::open(path).is_ok_and(|f| f.try_lock().is_ok());
+    let remove = |path: &Path| {
+        let _ = if path.is_dir() {
+            std::fs::remove_dir_all(path)
+        } else {
+            std::fs::remove_file(path)
+        };
+    };
+    let mut in_creation = Vec::new();
     for e in entries.flatten() {
         let name = e.file_name().to_string_lossy().into_owned();
-        let young = || {
-            e.metadata()
-                .and_then(|m| m.modified())
-                .ok()
-                .and_then(|t| t.elapsed().ok())
-                .is_none_or(|age| age < NEW_GRACE)
-        };
-        if !(name.starts_with(STAGING) || name.starts_with(NEW) && !young()) {
-            continue;
+        let path = e.path();
+        if name.starts_with(STAGING) && unlocked(&path) {
+            // Renamed to this only once locked: unlocked now means its writer is gone.
+            remove(&path);
+        } else if name.starts_with(NEW) && unlocked(&path) {
+            in_creation.push(path);
         }
-        let path: PathBuf = e.path();
-        let Ok(f) = File::open(&path) else { continue };
-        if f.try_lock().is_err() {
-            continue;
+    }
+    if !in_creation.is_empty() {
+        // Perhaps being created this instant by another process: dead only if still
+        // unlocked a moment later.
+        std::thread::sleep(NEW_GRACE);
+        for path in in_creation {
+            if unlocked(&path) {
+                remove(&path);
+            }
         }
-        let _ = match e.file_type() {
-            Ok(t) if t.is_dir() => std::fs::remove_dir_all(&path),
-            _ => std::fs::remove_file(&path),
-        };
     }
 }
 
@@ -480,28 +487,27 @@ mod tests {
     /// while creating it goes once it is old. Live staging is always locked.
     #[test]
     fn entries_being_created_are_never_cleaned() {
-        use std::os::unix::ffi::OsStrExt;
         let root = tempfile::tempdir().unwrap();
+        // One being created by a live writer, which locks it 5 ms after the cleaner first
+        // looks; one whose creator was killed before locking it.
         let young = root.path().join(format!("{NEW}young"));
         let old = root.path().join(format!("{NEW}old"));
         std::fs::create_dir(&young).unwrap();
         std::fs::create_dir(&old).unwrap();
-        let c = std::ffi::CString::new(old.as_os_str().as_bytes()).unwrap();
-        // SAFETY: utimes reads the path and (NULL) times it is given; NULL is "now", so give
-        // an hour ago explicitly.
-        let hour_ago = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .unwrap()
-            .as_secs() as i64
-            - 3600;
-        let times = [libc::timeval {
-            tv_sec: hour_ago,
-            tv_usec: 0,
-        }; 2];
-        assert_eq!(unsafe { libc::utimes(c.as_ptr(), times.as_ptr()) }, 0);
+        let creator = {
+            let young = young.clone();
+            std::thread::spawn(move || {
+                std::thread::sleep(std::time::Duration::from_millis(5));
+                let f = File::open(&young).unwrap();
+                f.try_lock().unwrap();
+                std::thread::sleep(std::time::Duration::from_millis(500));
+                drop(f);
+            })
+        };
         let live = StagingDir::new(root.path()).unwrap();
         assert!(young.is_dir(), "a writer's entry in creation was removed");
         assert!(!old.exists(), "a killed creator's entry stayed");
+        creator.join().unwrap();
         let name = live
             .path()
             .file_name()

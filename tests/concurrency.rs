@@ -39,7 +39,11 @@ fn readers_never_see_a_torn_codebook() {
     let clock = std::time::Instant::now();
     while clock.elapsed().as_secs() < 8 || loads < 20 {
         let got = Codebook::load(&path).unwrap_or_else(|e| panic!("load {loads}: {e}"));
-        assert!(sizes.contains(&got.sentences.len()), "{}", got.sentences.len());
+        assert!(
+            sizes.contains(&got.sentences.len()),
+            "{}",
+            got.sentences.len()
+        );
         loads += 1;
     }
     stop.store(true, std::sync::atomic::Ordering::Relaxed);

@@ -444,14 +444,22 @@ fn killed_exports_reports_and_the_demo_leave_whole_outputs() {
     ]);
     let manifest = facespace::study::Manifest::load(&dir.path().join("study")).unwrap();
     let v = &manifest.viewers[0];
-    let (mut log, _) =
-        facespace::study::AnswerLog::open(&dir.path().join("study"), manifest.clone()).unwrap();
-    log.submit(
-        &serde_json::json!({"viewer": v.id, "token": v.token, "trial": 0, "real": true})
-            .to_string(),
-    )
-    .unwrap();
-    drop(log);
+    // One stored answer, as the server writes it (the server itself would make us wait
+    // the clip's length first).
+    let answer = facespace::study::Answer {
+        viewer: v.id.clone(),
+        trial: 0,
+        stimuli: v.trials[0]
+            .stimuli()
+            .iter()
+            .map(|s| s.to_string())
+            .collect(),
+        response: facespace::study::Response::Judgement { real: true },
+        at: 1.0e9,
+        after_fetch: Some(10.0),
+    };
+    let line = serde_json::to_string(&answer).unwrap() + "\n";
+    std::fs::write(dir.path().join("study/answers.jsonl"), line).unwrap();
     killed_runs(
         &["study", "analyse", &p("study"), "-o", &p("analysis")],
         &dir.path().join("analysis"),

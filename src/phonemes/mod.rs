@@ -41,6 +41,46 @@ const VISEMES: [u8; 40] = [
 /// Number of viseme classes.
 pub const N_VISEMES: usize = 22;
 
+/// Mouth shape per viseme class: (lip-opening, mouth-width) as quantiles over a talker's
+/// frames, 0 = least, 1 = most — the generated corpus's targets, and the distance by which a
+/// phone whose whole class is missing from a codebook borrows the nearest class present.
+pub const VISEME_MOUTHS: [(f64, f64); N_VISEMES] = [
+    (0.05, 0.45), // 0 silence: closed, relaxed
+    (0.80, 0.60), // 1 ae ah
+    (1.00, 0.50), // 2 aa
+    (0.80, 0.20), // 3 ao
+    (0.60, 0.60), // 4 ey eh uh
+    (0.35, 0.25), // 5 er
+    (0.35, 0.95), // 6 iy y ih
+    (0.25, 0.00), // 7 w uw
+    (0.60, 0.10), // 8 ow
+    (0.90, 0.30), // 9 aw
+    (0.60, 0.15), // 10 oy
+    (0.90, 0.60), // 11 ay
+    (0.50, 0.50), // 12 hh
+    (0.35, 0.15), // 13 r
+    (0.50, 0.55), // 14 l
+    (0.25, 0.85), // 15 s z
+    (0.35, 0.10), // 16 sh ch jh zh
+    (0.30, 0.60), // 17 th dh
+    (0.15, 0.55), // 18 f v
+    (0.35, 0.70), // 19 d t n
+    (0.45, 0.55), // 20 k g ng
+    (0.00, 0.40), // 21 p b m
+];
+
+/// The viseme classes by mouth-shape distance from `class` (itself first; ties by index).
+pub fn nearest_visemes(class: u8) -> Vec<u8> {
+    let (o, w) = VISEME_MOUTHS[class as usize];
+    let d = |c: u8| {
+        let (p, q) = VISEME_MOUTHS[c as usize];
+        (p - o).powi(2) + (q - w).powi(2)
+    };
+    let mut order: Vec<u8> = (0..N_VISEMES as u8).collect();
+    order.sort_by(|&a, &b| d(a).total_cmp(&d(b)).then(a.cmp(&b)));
+    order
+}
+
 const SILENCE: [&str; 5] = ["sil", "sp", "pau", "spn", ""];
 const ALIASES: [(&str, &str); 10] = [
     ("ax", "ah"),

@@ -117,9 +117,14 @@ impl Synthesiser for Blend {
             let used =
                 stand_in(codebook, seg.phone).ok_or(SynthError::NoFallback { phone: seg.phone })?;
             if used != seg.phone {
+                let how = if used.viseme() == seg.phone.viseme() {
+                    "its viseme class"
+                } else {
+                    "the nearest viseme class present, by mouth shape"
+                };
                 warnings.push(format!(
-                    "phone {i} /{}/ is absent from the codebook: used /{used}/ (same viseme class)",
-                    seg.phone
+                    "phone {i} /{}/ at {:.2} s is absent from the codebook: used /{used}/ ({how})",
+                    seg.phone, seg.start
                 ));
             }
             if seg.duration() <= 0.0 {

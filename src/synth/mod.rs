@@ -49,7 +49,7 @@ pub enum SynthError {
     Unsorted(usize),
     /// A phone neither the codebook nor its viseme class has.
     #[error(
-        "phone {phone} is absent from the codebook and no phone of its viseme class is present"
+        "phone {phone} is absent from the codebook and nothing can stand in for it (the codebook has no phone of any viseme class but silence)"
     )]
     NoFallback {
         /// The phone.
@@ -174,16 +174,30 @@ pub fn frame_times(target: &[Segment], fps: f64) -> Vec<f64> {
 }
 
 /// The phone whose examples stand in for `p`: itself if present, else the most frequent
-/// present phone of its viseme class (S has no row for a phone the corpus never shows).
+/// present phone of its viseme class, else of the nearest class present by mouth shape (S
+/// has no row for a phone the corpus never shows, so the data cannot say which is nearest).
 pub fn stand_in(codebook: &Codebook, p: Phone) -> Option<Phone> {
     if !codebook.occurrences[p.index()].is_empty() {
         return Some(p);
     }
-    codebook
-        .present()
+    // The class's most frequent phone; else the nearest class by mouth shape
+    // (`phonemes::VISEME_MOUTHS`), silence only ever standing in for silence.
+    let present = codebook.present();
+    crate::phonemes::nearest_visemes(p.viseme())
         .into_iter()
-        .filter(|q| q.viseme() == p.viseme())
-        .max_by_key(|q| (codebook.occurrences[q.index()].len(), std::cmp::Reverse(*q)))
+        .filter(|&c| (c == 0) == (p.viseme() == 0))
+        .find_map(|class| {
+            present
+                .iter()
+                .filter(|q| q.viseme() == class)
+                .max_by_key(|q| {
+                    (
+                        codebook.occurrences[q.index()].len(),
+                        std::cmp::Reverse(**q),
+                    )
+                })
+                .copied()
+        })
 }
 
 /// Smooths the shape and appearance columns of `frames` with the cubic smoothing spline of

@@ -368,7 +368,14 @@ impl UnitSelection {
             .enumerate()
             .map(|(i, p)| {
                 let pool = &by_viseme[p.viseme() as usize];
-                let pool = if pool.is_empty() { &all } else { pool };
+                // A class with no frame borrows the nearest class present (as blend does).
+                let pool = match super::stand_in(codebook, *p) {
+                    _ if !pool.is_empty() => pool,
+                    Some(q) if !by_viseme[q.viseme() as usize].is_empty() => {
+                        &by_viseme[q.viseme() as usize]
+                    }
+                    _ => &all,
+                };
                 let mut scored: Vec<(CodebookFrame, f64)> =
                     pool.iter().map(|&u| (u, target_cost(i, u))).collect();
                 let beam = self.constants.beam;
@@ -386,8 +393,13 @@ impl UnitSelection {
             if by_viseme[p.viseme() as usize].is_empty()
                 && (i == 0 || targets[i - 1].viseme() != p.viseme())
             {
+                let used = super::stand_in(codebook, *p)
+                    .filter(|q| !by_viseme[q.viseme() as usize].is_empty())
+                    .map_or("every frame".to_owned(), |q| {
+                        format!("frames of /{q}/'s class")
+                    });
                 warnings.push(format!(
-                    "frame {i}: no codebook frame of /{p}/'s viseme class; every frame was a candidate"
+                    "frame {i}: no codebook frame of /{p}/'s viseme class; {used} were the candidates"
                 ));
             }
         }

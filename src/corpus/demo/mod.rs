@@ -144,31 +144,11 @@ pub fn split_of(index: usize) -> Split {
     }
 }
 
-/// Target mouth shape per viseme class: (lip-opening quantile, mouth-width quantile) over the
-/// training frames, 0 = least, 1 = most; and the dominance strength α.
-const VISEME_TARGETS: [(f64, f64, f64); N_VISEMES] = [
-    (0.05, 0.45, 1.5), // 0 silence: closed, relaxed
-    (0.80, 0.60, 1.0), // 1 ae ah
-    (1.00, 0.50, 1.0), // 2 aa
-    (0.80, 0.20, 1.0), // 3 ao
-    (0.60, 0.60, 1.0), // 4 ey eh uh
-    (0.35, 0.25, 1.0), // 5 er
-    (0.35, 0.95, 1.0), // 6 iy y ih
-    (0.25, 0.00, 1.2), // 7 w uw
-    (0.60, 0.10, 1.0), // 8 ow
-    (0.90, 0.30, 1.0), // 9 aw
-    (0.60, 0.15, 1.0), // 10 oy
-    (0.90, 0.60, 1.0), // 11 ay
-    (0.50, 0.50, 0.3), // 12 hh
-    (0.35, 0.15, 0.8), // 13 r
-    (0.50, 0.55, 0.8), // 14 l
-    (0.25, 0.85, 1.0), // 15 s z
-    (0.35, 0.10, 1.0), // 16 sh ch jh zh
-    (0.30, 0.60, 0.9), // 17 th dh
-    (0.15, 0.55, 1.6), // 18 f v
-    (0.35, 0.70, 0.8), // 19 d t n
-    (0.45, 0.55, 0.5), // 20 k g ng
-    (0.00, 0.40, 2.0), // 21 p b m
+/// Dominance strength α per viseme class (the mouth shapes are
+/// [`phonemes::VISEME_MOUTHS`]).
+const DOMINANCE: [f64; N_VISEMES] = [
+    1.5, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.2, 1.0, 1.0, 1.0, 1.0, 0.3, 0.8, 0.8, 1.0, 1.0, 0.9, 1.6,
+    0.8, 0.5, 2.0,
 ];
 
 /// Time constant of the dominance functions.
@@ -330,7 +310,7 @@ pub fn generate(
     // of them.
     let candidates: Vec<Vec<usize>> = Phone::all()
         .map(|p| {
-            let (o, w, _) = VISEME_TARGETS[p.viseme() as usize];
+            let (o, w) = phonemes::VISEME_MOUTHS[p.viseme() as usize];
             let (o, w) = (o + rng.range(-0.1, 0.1), w + rng.range(-0.1, 0.1));
             let mut order: Vec<usize> = (0..frames.len()).collect();
             let dist = |i: usize| (open[i] - o).powi(2) + (wide[i] - w).powi(2);
@@ -389,7 +369,7 @@ pub fn generate(
             let mut acc = vec![0.0; dims];
             let mut wsum = 0.0;
             for (s, target) in segments.iter().zip(&targets) {
-                let alpha = VISEME_TARGETS[s.phone.viseme() as usize].2;
+                let alpha = DOMINANCE[s.phone.viseme() as usize];
                 let centre = 0.5 * (s.start + s.end);
                 let gap = ((time - centre).abs() - s.duration() / 4.0).max(0.0);
                 let w = alpha * (-gap / TAU).exp();
