@@ -568,3 +568,49 @@ fn track_and_synth_never_overwrite_user_files() {
     assert!(synth(&out).status.success());
     assert!(out.join("video.mp4").is_file() && out.join("report.json").is_file());
 }
+
+/// Issue 26, item 8: every subcommand's `--help` ends with an example of itself, and no
+/// default is shown as an absolute build-tree path where the help was rewritten.
+#[test]
+fn every_subcommand_has_an_example() {
+    for c in [
+        "model build",
+        "model info",
+        "model reconstruct",
+        "model suggest",
+        "codebook build",
+        "codebook info",
+        "codebook similarity",
+        "corpus demo",
+        "corpus from-videos",
+        "frames",
+        "align",
+        "annotate",
+        "track",
+        "encode",
+        "decode",
+        "codec-report",
+        "synth",
+        "train-weights",
+        "eval",
+        "study create",
+        "study serve",
+        "study analyse",
+        "demo",
+    ] {
+        let mut args: Vec<&str> = c.split(' ').collect();
+        args.push("--help");
+        let o = facespace(&args);
+        let t = text(&o);
+        assert!(o.status.success(), "{c}: {t}");
+        assert!(
+            t.contains(&format!("Example: facespace {c}")),
+            "{c} has no example:\n{t}"
+        );
+    }
+    let t = text(&facespace(&["synth", "--help"]));
+    assert!(
+        !t.contains(env!("CARGO_MANIFEST_DIR")),
+        "synth --help shows a build path:\n{t}"
+    );
+}

@@ -13,13 +13,20 @@ use super::{load_model, progress_bar};
 #[derive(Subcommand)]
 pub enum CodebookCommand {
     /// Build a codebook from face-space trajectories (.npy) with phone labels of the same name.
+    #[command(
+        after_help = "Example: facespace codebook build --model models/demo/model --corpus out/corpus/train -o out/codebook"
+    )]
     Build(BuildArgs),
     /// Sentences, frames, phone counts and the three most similar phones of each.
+    #[command(after_help = "Example: facespace codebook info models/grid/codebook")]
     Info {
         /// Codebook folder.
         codebook: PathBuf,
     },
     /// Write the phoneme similarity matrix S as a heat map.
+    #[command(
+        after_help = "Example: facespace codebook similarity models/grid/codebook --png out/similarity.png"
+    )]
     Similarity {
         /// Codebook folder.
         codebook: PathBuf,
@@ -106,7 +113,13 @@ fn build(a: BuildArgs) -> Result<()> {
         },
         &mut progress,
     )
-    .with_context(|| format!("building a codebook from {}", a.corpus.display()))?;
+    .with_context(|| {
+        format!(
+            "building a codebook from {} with model {} (the corpus must have been tracked with that model)",
+            a.corpus.display(),
+            a.model.display()
+        )
+    })?;
     bar.finish_and_clear();
     cb.save(&a.output)
         .with_context(|| format!("saving codebook {}", a.output.display()))?;

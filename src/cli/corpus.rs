@@ -14,10 +14,14 @@ use super::{DEMO_MODEL, RendererArg, load_model, progress_bar};
 pub enum CorpusCommand {
     /// Generate the phoneme-labelled demo corpus (generated trajectories over real face-space
     /// points; see the README).
+    #[command(after_help = "Example: facespace corpus demo -o out/corpus")]
     Demo(DemoArgs),
     /// A corpus from recordings: every NAME.mp4 (or NAME.y4m, frame folder NAME/, any video
     /// ffmpeg reads) with NAME.lab / NAME.TextGrid / NAME.tsv in DIR is tracked and projected
     /// with the model → NAME.npy + labels (+ NAME.m4a) for `codebook build`.
+    #[command(
+        after_help = "Example: facespace corpus from-videos --model models/grid/model clips/ -o out/grid/train"
+    )]
     FromVideos(FromVideosArgs),
 }
 

@@ -51,32 +51,54 @@ enum Command {
     #[command(subcommand)]
     Corpus(corpus::CorpusCommand),
     /// Export frames spread over a video (PNG), to mark landmarks on for a model of your own.
+    #[command(after_help = "Example: facespace frames talker.mp4 --count 40 -o out/frames")]
     Frames(frames::FramesArgs),
     /// Forced alignment: a recording and its words → word and phone timings (.TextGrid, .lab).
+    #[command(
+        after_help = "Example: facespace align tests/data/grid/bbbf9a.wav --text \"bin blue by f nine again\" -o out/bbbf9a.TextGrid"
+    )]
     Align(align::AlignArgs),
     /// Mark or correct the 68 landmarks of a folder of frames in a local web page.
+    #[command(
+        after_help = "Example: facespace annotate out/frames --fit   (then open the printed address)"
+    )]
     Annotate(annotate::AnnotateArgs),
     /// Track faces through a video or frame folder by AAM search.
+    #[command(after_help = "Example: facespace track models/demo/background.mp4 -o out/tracked")]
     Track(track::TrackArgs),
     /// Encode a video through face-space: track + project every frame → a clip folder.
+    #[command(after_help = "Example: facespace encode models/demo/background.mp4 -o out/clip.fsp")]
     Encode(codec::EncodeArgs),
     /// Decode a clip folder: reconstruct and render every frame → a video.
+    #[command(after_help = "Example: facespace decode out/clip.fsp -o out/decoded.mp4")]
     Decode(codec::DecodeArgs),
     /// PSNR / SSIM inside the face mask and bytes per frame of a clip against its input.
+    #[command(
+        after_help = "Example: facespace codec-report models/demo/background.mp4 out/clip.fsp -o out/report.json"
+    )]
     CodecReport(codec::ReportArgs),
     /// Synthesise a face-space trajectory and video from phonemes or text (top-N blending, unit selection or the phoneme graph).
+    #[command(
+        after_help = "Example: facespace synth --model models/grid/model --codebook models/grid/codebook --audio tests/data/grid/bbbs7a.mp4 --transcript tests/data/grid/bbbs7a.txt --background tests/data/grid/bbbs7a.mp4 --top-n 5 -o out/bbbs7a"
+    )]
     Synth(synth::SynthArgs),
     /// Train the unit-selection weights on validation sentences (Pareto front of lip sync,
     /// segment length and smoothness) → a weights file for `synth --weights`.
+    #[command(
+        after_help = "Example: facespace train-weights --codebook out/codebook --validation out/corpus/validation -o out/weights.json"
+    )]
     TrainWeights(weights::TrainWeightsArgs),
     /// Score synthesis against held-out sentences (r_pca, r_h, RMSE, DTW) with baselines.
+    #[command(
+        after_help = "Example: facespace eval --codebook out/codebook --heldout out/corpus/heldout --validation out/corpus/validation"
+    )]
     Eval(eval::EvalArgs),
     /// Subjective evaluation: A/B rating and Turing tests in the browser, with their statistics.
     #[command(subcommand)]
     Study(study::StudyCommand),
-    /// The whole pipeline on the demo model: a lower-face region model, the generated corpus,
-    /// a codebook, and an unseen sentence by blending and by unit selection, smoothed and
-    /// unsmoothed, over a real stretch of the talker's video.
+    /// The whole pipeline on committed data: GRID talker s1 (default) — a held-out recording
+    /// aligned from its sound and synthesised from his codebook, with that sound, beside the
+    /// real recording — or the FGNet talker over a generated corpus (--talker fgnet).
     Demo(demo::DemoArgs),
 }
 

@@ -15,17 +15,27 @@ use super::{load_model, progress_bar};
 #[derive(Subcommand)]
 pub enum ModelCommand {
     /// Build a model from images with iBUG .pts landmarks of the same file stem.
+    #[command(
+        after_help = "Example: facespace model build --images models/demo/training --pixels 20000 -o out/model"
+    )]
     Build(BuildArgs),
     /// Print a model's counts, variance explained and sizes.
+    #[command(after_help = "Example: facespace model info models/grid/model")]
     Info {
         /// Model folder.
         model: PathBuf,
     },
     /// Project an image to face-space, reconstruct it, and write original | reconstruction.
+    #[command(
+        after_help = "Example: facespace model reconstruct out/model --image tests/data/demo-heldout/f00804.jpg -o out/f00804.png"
+    )]
     Reconstruct(ReconstructArgs),
     /// The frames of a video the model explains worst (fit residual, appearance outside the
     /// training span), spread over time, with the fitted landmarks as starting .pts: mark
     /// them, add them to the training set, rebuild.
+    #[command(
+        after_help = "Example: facespace model suggest --model out/model talker.mp4 -n 10 -o out/suggested"
+    )]
     Suggest(SuggestArgs),
 }
 

@@ -18,10 +18,15 @@ use super::{DEMO_MODEL, RendererArg, load_model, progress_bar};
 pub enum StudyCommand {
     /// Render the stimuli of held-out sentences under each condition, with each viewer's
     /// randomised, counter-balanced order → a study folder.
+    #[command(
+        after_help = "Example: facespace study create --model models/demo/model --codebook out/codebook --heldout out/corpus/heldout -o out/study"
+    )]
     Create(CreateArgs),
     /// Serve the study to viewers on a local page; answers are stored as they are given.
+    #[command(after_help = "Example: facespace study serve out/study")]
     Serve(ServeArgs),
     /// Wilcoxon, Kruskal–Wallis and Turing-test tables and a box plot from the answers.
+    #[command(after_help = "Example: facespace study analyse out/study -o out/study-report")]
     Analyse(AnalyseArgs),
 }
 

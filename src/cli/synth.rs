@@ -54,8 +54,10 @@ pub enum PoseArg {
 
 #[derive(Args)]
 pub struct SynthArgs {
-    #[arg(long, default_value = DEMO_MODEL)]
-    model: PathBuf,
+    /// The face model the codebook was built with (default: the demo model,
+    /// models/demo/model).
+    #[arg(long)]
+    model: Option<PathBuf>,
     #[arg(long)]
     codebook: PathBuf,
     /// Phone timings (.lab, .TextGrid, .tsv).
@@ -100,8 +102,9 @@ pub struct SynthArgs {
     /// Smoothing weight λ of the cubic smoothing spline.
     #[arg(long, default_value_t = DEFAULT_SMOOTHING)]
     smoothing: f64,
-    #[arg(long, default_value_t = 25.0)]
-    fps: f64,
+    /// Output frame rate (default: the background video's, else the codebook's).
+    #[arg(long)]
+    fps: Option<f64>,
     /// Background to draw the face on: an image, or a video (any format `track` reads) whose
     /// frames play under the face (default: plain grey at the codebook's median pose).
     #[arg(long)]
@@ -121,6 +124,11 @@ pub struct SynthArgs {
     /// Seed of the blind A/B order.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Refuse a phone the codebook lacks instead of borrowing the nearest one present (its
+    /// viseme class, else the nearest class by mouth shape), which is otherwise done with a
+    /// warning naming both.
+    #[arg(long)]
+    strict: bool,
     /// Also write beside_background.mp4: the background as it is (over a sentence's own
     /// video, the real recording) beside the synthesis drawn on it.
     #[arg(long, requires = "background")]
@@ -135,15 +143,17 @@ pub struct SynthArgs {
 }
 
 pub fn run(a: SynthArgs) -> Result<()> {
-    let model = load_model(&a.model)?;
+    let model_path = a.model.clone().unwrap_or_else(|| PathBuf::from(DEMO_MODEL));
+    let model = load_model(&model_path)?;
     let cb = Codebook::load(&a.codebook)
         .with_context(|| format!("loading codebook {}", a.codebook.display()))?;
-    cb.check_model(&model).with_context(|| {
-        format!(
-            "codebook {} and model {}",
+    cb.check_model(&model).with_context(|| match &a.model {
+        Some(m) => format!("codebook {} and model {}", a.codebook.display(), m.display()),
+        None => format!(
+            "codebook {}: you gave no --model, and the default is the demo model ({}); give the model the codebook was built with",
             a.codebook.display(),
-            a.model.display()
-        )
+            super::shown(&model_path)
+        ),
     })?;
     // Speech from text: the engine's WAV lives in this folder until the MP4s have it.
     let spoken = tempfile::tempdir().context("a temporary folder for the speech")?;
@@ -193,10 +203,20 @@ pub fn run(a: SynthArgs) -> Result<()> {
         (None, None, Some(s)) if words.is_some() => format!("the alignment of {}", s.display()),
         _ => "--text".to_owned(),
     };
-    synth::validate_request(&target, a.fps)
-        .with_context(|| format!("the phones of {source} at {} fps", a.fps))?;
+    let fps = match (a.fps, &a.background) {
+        (Some(f), _) => f,
+        (None, Some(p)) if !is_image(p) => {
+            video::Source::open(p)
+                .with_context(|| format!("background {}", p.display()))?
+                .info()
+                .fps
+        }
+        _ => cb.fps,
+    };
+    synth::validate_request(&target, fps)
+        .with_context(|| format!("the phones of {source} at {fps} fps"))?;
     let real = match &a.real {
-        Some(p) => Some(corpus::read_frames(p, model.layout(), a.fps)?),
+        Some(p) => Some(corpus::read_frames(p, model.layout(), fps)?),
         None => None,
     };
     let smoothing = match a.smooth {
@@ -215,7 +235,7 @@ pub fn run(a: SynthArgs) -> Result<()> {
         }),
         Mode::Graph => Box::new(Graph::default()),
     };
-    let frames = synth::frame_count(&target, a.fps);
+    let frames = synth::frame_count(&target, fps);
     let tracker = match &a.track_model {
         Some(p) => Some(load_model(p)?),
         None => None,
@@ -245,10 +265,29 @@ pub fn run(a: SynthArgs) -> Result<()> {
     };
     let request = Request {
         pose: backdrop.as_ref().map_or(Pose::Codebook, |b| b.pose.clone()),
-        ..Request::new(target, a.fps, smoothing)
+        ..Request::new(target, fps, smoothing)
     };
     let clock = std::time::Instant::now();
     let mut utterance = synthesise(synthesiser.as_ref(), &cb, request)?;
+    let borrowed: Vec<String> = utterance
+        .synthesis
+        .phones
+        .iter()
+        .filter(|p| p.used != p.phone)
+        .map(|p| {
+            format!(
+                "/{}/ at {:.2} s (nearest present: /{}/)",
+                p.phone, p.start, p.used
+            )
+        })
+        .collect();
+    if a.strict && !borrowed.is_empty() {
+        anyhow::bail!(
+            "--strict: the codebook {} has no example of {}; build it from sentences that have them, or drop --strict to borrow the nearest phones",
+            a.codebook.display(),
+            borrowed.join(", ")
+        );
+    }
     if let Some(b) = &backdrop {
         b.anchor_region(&model, &mut utterance)?;
         b.match_lighting(&model, &cb, &mut utterance);
@@ -256,7 +295,17 @@ pub fn run(a: SynthArgs) -> Result<()> {
     let synth_ms = clock.elapsed().as_secs_f64() * 1e3;
     let background = match backdrop {
         Some(b) => b.background()?,
-        None => Background::plain_for(&model, &utterance.synthesis.frames),
+        None => {
+            let region = if model.region.is_some() {
+                "; this is a region model, so only its region is drawn, floating on grey"
+            } else {
+                ""
+            };
+            eprintln!(
+                "warning: no --background: the face is drawn on plain grey at the codebook's median pose{region}; give --background VIDEO (or an image) of the talker for a real frame"
+            );
+            Background::plain_for(&model, &utterance.synthesis.frames)
+        }
     };
     let renderer = a.renderer.make(&model, Some(DEFAULT_FEATHER))?;
     let (bar, progress) = progress_bar();
@@ -281,7 +330,7 @@ pub fn run(a: SynthArgs) -> Result<()> {
         "synthesised {} phones, {} frames at {} fps in {synth_ms:.1} ms ({}; pose {}) → {}",
         utterance.target.len(),
         report.frames,
-        a.fps,
+        fps,
         report.method,
         report.pose,
         a.output.display()

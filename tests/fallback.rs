@@ -1,0 +1,89 @@
+//! Issue 26, item 2: a phone whose whole viseme class is missing from the codebook is
+//! borrowed from the nearest class present (by mouth shape), with a warning naming both —
+//! by blend (the default) as by unit selection; `--strict` refuses instead.
+mod common;
+
+use facespace::codebook::Codebook;
+use facespace::corpus::demo::Split;
+use facespace::phonemes::Phone;
+
+#[test]
+fn missing_viseme_classes_are_borrowed_and_named() {
+    let (_, generated, cb) = common::demo_corpus_codebook();
+    let v = Phone::parse("v").unwrap().viseme();
+    let ow = Phone::parse("ow").unwrap().viseme();
+    let kept: Vec<_> = generated
+        .part(Split::Train)
+        .into_iter()
+        .filter(|s| {
+            s.segments
+                .iter()
+                .all(|g| g.phone.viseme() != v && g.phone.viseme() != ow)
+        })
+        .collect();
+    assert!(
+        kept.len() >= 5,
+        "{} sentences without /v/ or /ow/ classes",
+        kept.len()
+    );
+    let without = Codebook::build(
+        kept,
+        cb.fps,
+        cb.layout,
+        cb.model_hash.clone(),
+        cb.options.clone(),
+        &mut facespace::no_progress,
+    )
+    .unwrap();
+    for p in ["v", "f", "ow"] {
+        assert!(
+            !without.present().contains(&Phone::parse(p).unwrap()),
+            "{p} present"
+        );
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let cb_dir = dir.path().join("cb");
+    without.save(&cb_dir).unwrap();
+    for mode in ["blend", "unit"] {
+        let out = dir.path().join(mode);
+        let o = common::facespace(&[
+            "synth",
+            "--codebook",
+            cb_dir.to_str().unwrap(),
+            "--text",
+            "Move the big boat.",
+            "--mode",
+            mode,
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        let t = common::text(&o);
+        assert!(o.status.success(), "{mode}: {t}");
+        assert!(out.join("video.mp4").is_file(), "{mode}: no video");
+        assert!(
+            t.contains("/v/") && t.contains("/ow/"),
+            "{mode}: substitutes not named: {t}"
+        );
+        assert!(
+            t.contains("no --background"),
+            "{mode}: no warning about the plain background: {t}"
+        );
+    }
+    let o = common::facespace(&[
+        "synth",
+        "--codebook",
+        cb_dir.to_str().unwrap(),
+        "--text",
+        "Move the big boat.",
+        "--strict",
+        "-o",
+        dir.path().join("strict").to_str().unwrap(),
+    ]);
+    let t = common::text(&o);
+    assert_eq!(o.status.code(), Some(1), "{t}");
+    assert!(
+        t.contains("--strict") && t.contains("/v/") && t.contains("/ow/"),
+        "{t}"
+    );
+    assert!(!dir.path().join("strict").exists());
+}
