@@ -246,18 +246,7 @@ fn grid_into(
         .and_then(|a| a.align_file(&clip, &words))
         .map_err(align_error)?;
     let target = alignment.segments();
-    let fps = crate::video::Source::open(&clip)
-        .map_err(BackdropError::from)?
-        .info()
-        .fps;
-    let backdrop = Backdrop::video(
-        &model,
-        &clip,
-        PoseMode::Replay,
-        crate::synth::frame_count(&target, fps),
-        &EncodeOptions::default(),
-        crate::no_progress,
-    )?;
+    let (backdrop, fps) = replayed_backdrop(&model, &clip, &target)?;
     let request = Request {
         pose: backdrop.pose.clone(),
         ..Request::new(target, fps, Smoothing::Ab(GRID_SMOOTHING))
@@ -276,23 +265,14 @@ fn grid_into(
         top_n: GRID_TOP_N,
         ..Blend::default()
     };
-    let mut utterance = synthesise(&blend, &cb, request.clone())?;
-    backdrop.match_lighting(&model, &cb, &mut utterance);
-    let report = output::write(
+    let (utterance, report, unit_report) = both_modes(
         w,
+        &blend,
+        &cb,
+        &model,
+        &backdrop,
+        request,
         renderer,
-        &utterance,
-        backdrop.background()?,
-        &output_options,
-        &mut progress,
-    )?;
-    let mut unit = synthesise(&UnitSelection::default(), &cb, request)?;
-    backdrop.match_lighting(&model, &cb, &mut unit);
-    let unit_report = output::write(
-        &w.join("unit"),
-        renderer,
-        &unit,
-        backdrop.background()?,
         &output_options,
         &mut progress,
     )?;
@@ -386,19 +366,7 @@ fn fgnet_into(
     )?;
     cb.save(&w.join("codebook"))?;
     let target = phonemes::text_to_segments(&text, &cb.mean_durations())?;
-    // Frames at the background's own rate, so its motion plays at the recorded speed.
-    let fps = crate::video::Source::open(&background)
-        .map_err(BackdropError::from)?
-        .info()
-        .fps;
-    let backdrop = Backdrop::video(
-        &model,
-        &background,
-        PoseMode::Replay,
-        crate::synth::frame_count(&target, fps),
-        &EncodeOptions::default(),
-        crate::no_progress,
-    )?;
+    let (backdrop, fps) = replayed_backdrop(&model, &background, &target)?;
     let request = Request {
         pose: backdrop.pose.clone(),
         ..Request::new(target, fps, Smoothing::Ab(DEFAULT_SMOOTHING))
@@ -410,24 +378,14 @@ fn fgnet_into(
         text: Some(&text),
         ..OutputOptions::default()
     };
-    // The same sentence by both modes: top-N blending in `o`, unit selection in `o/unit`.
-    let mut utterance = synthesise(&Blend::default(), &cb, request.clone())?;
-    backdrop.anchor_region(&region, &mut utterance)?;
-    let report = output::write(
+    let (utterance, report, unit_report) = both_modes(
         w,
+        &Blend::default(),
+        &cb,
+        &region,
+        &backdrop,
+        request,
         renderer,
-        &utterance,
-        backdrop.background()?,
-        &output_options,
-        &mut progress,
-    )?;
-    let mut unit = synthesise(&UnitSelection::default(), &cb, request)?;
-    backdrop.anchor_region(&region, &mut unit)?;
-    let unit_report = output::write(
-        &w.join("unit"),
-        renderer,
-        &unit,
-        backdrop.background()?,
         &output_options,
         &mut progress,
     )?;
@@ -464,4 +422,65 @@ fn fgnet_into(
             ("codebook", o.join("codebook")),
         ],
     })
+}
+
+/// `video` tracked with `tracker`, its poses replayed under an utterance of `target`'s
+/// length, and its frame rate (frames at the video's own rate, so its motion plays at the
+/// recorded speed).
+fn replayed_backdrop(
+    tracker: &FaceModel,
+    video: &Path,
+    target: &[crate::phonemes::Segment],
+) -> Result<(Backdrop, f64), DemoError> {
+    let fps = crate::video::Source::open(video)
+        .map_err(BackdropError::from)?
+        .info()
+        .fps;
+    let backdrop = Backdrop::video(
+        tracker,
+        video,
+        PoseMode::Replay,
+        crate::synth::frame_count(target, fps),
+        &EncodeOptions::default(),
+        crate::no_progress,
+    )?;
+    Ok((backdrop, fps))
+}
+
+/// The same request by both modes over one backdrop — `blend` into `w`, unit selection into
+/// `w/unit` — each fitted to the backdrop (a region model anchored to its face, a re-centred
+/// codebook re-lit to its take) and written; returns the blended utterance and both reports.
+#[allow(clippy::too_many_arguments)]
+fn both_modes(
+    w: &Path,
+    blend: &Blend,
+    cb: &Codebook,
+    model: &FaceModel,
+    backdrop: &Backdrop,
+    request: Request,
+    renderer: &dyn crate::render::Renderer,
+    output_options: &OutputOptions<'_>,
+    mut progress: impl FnMut(Progress),
+) -> Result<(crate::synth::Utterance, Report, Report), DemoError> {
+    let unit = UnitSelection::default();
+    let modes: [(&dyn crate::synth::Synthesiser, PathBuf); 2] =
+        [(blend, w.to_path_buf()), (&unit, w.join("unit"))];
+    let mut done = Vec::with_capacity(2);
+    for (synthesiser, dir) in modes {
+        let mut utterance = synthesise(synthesiser, cb, request.clone())?;
+        backdrop.anchor_region(model, &mut utterance)?;
+        backdrop.match_lighting(model, cb, &mut utterance);
+        let report = output::write(
+            &dir,
+            renderer,
+            &utterance,
+            backdrop.background()?,
+            output_options,
+            &mut progress,
+        )?;
+        done.push((utterance, report));
+    }
+    let (_, unit_report) = done.pop().expect("two modes");
+    let (utterance, report) = done.pop().expect("two modes");
+    Ok((utterance, report, unit_report))
 }

@@ -83,6 +83,19 @@ fn codebook() -> Codebook {
     .unwrap()
 }
 
+/// A codebook holding nothing but silence.
+fn common_silence(like: &Codebook) -> Codebook {
+    Codebook::build(
+        vec![sentence("S", &["sil", "sil"], 0.0)],
+        FPS,
+        LAYOUT,
+        None,
+        like.options.clone(),
+        &mut facespace::no_progress,
+    )
+    .unwrap()
+}
+
 fn target(phones: &[&str], dur: f64) -> Vec<Segment> {
     phones
         .iter()
@@ -237,11 +250,30 @@ fn fallbacks_and_bad_input() {
     let t = target(&["sil", "aa", "b", "iy", "sil"], 0.2);
     let s = blend(&cb, &t, Blend::default()).unwrap();
     assert_eq!(s.phones[2].used, ph("m"));
-    assert!(s.warnings[0].contains("/b/ is absent"), "{:?}", s.warnings);
-    // /k/: no phone of its class in the codebook.
+    assert!(
+        s.warnings[0].contains("/b/ at 0.40 s is absent")
+            && s.warnings[0].contains("its viseme class"),
+        "{:?}",
+        s.warnings
+    );
+    // /k/: no phone of its class in the codebook: the nearest class present by mouth shape
+    // (phonemes::nearest_visemes) lends its most frequent phone.
     let t = target(&["sil", "k", "sil"], 0.2);
+    let s = blend(&cb, &t, Blend::default()).unwrap();
+    let lender = facespace::phonemes::nearest_visemes(ph("k").viseme())
+        .into_iter()
+        .find(|&c| c != 0 && cb.present().iter().any(|p| p.viseme() == c))
+        .unwrap();
+    assert_eq!(s.phones[1].used.viseme(), lender);
+    assert!(
+        s.warnings[0].contains("nearest viseme class"),
+        "{:?}",
+        s.warnings
+    );
+    // A codebook of silence alone can lend nothing.
+    let silent = common_silence(&cb);
     assert_eq!(
-        blend(&cb, &t, Blend::default()).unwrap_err(),
+        blend(&silent, &t, Blend::default()).unwrap_err(),
         SynthError::NoFallback { phone: ph("k") }
     );
     assert_eq!(

@@ -10,15 +10,7 @@ fn readers_never_see_a_torn_codebook() {
     let (_, generated, cb) = common::demo_corpus_codebook();
     let train = generated.part(facespace::corpus::demo::Split::Train);
     // A second, different version: half the sentences.
-    let half = Codebook::build(
-        train[..train.len() / 2].to_vec(),
-        cb.fps,
-        cb.layout,
-        cb.model_hash.clone(),
-        cb.options.clone(),
-        &mut facespace::no_progress,
-    )
-    .unwrap();
+    let half = common::codebook_like(&cb, train[..train.len() / 2].to_vec());
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("cb");
     cb.save(&path).unwrap();

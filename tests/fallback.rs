@@ -3,7 +3,6 @@
 //! by blend (the default) as by unit selection; `--strict` refuses instead.
 mod common;
 
-use facespace::codebook::Codebook;
 use facespace::corpus::demo::Split;
 use facespace::phonemes::Phone;
 
@@ -26,15 +25,7 @@ fn missing_viseme_classes_are_borrowed_and_named() {
         "{} sentences without /v/ or /ow/ classes",
         kept.len()
     );
-    let without = Codebook::build(
-        kept,
-        cb.fps,
-        cb.layout,
-        cb.model_hash.clone(),
-        cb.options.clone(),
-        &mut facespace::no_progress,
-    )
-    .unwrap();
+    let without = common::codebook_like(&cb, kept);
     for p in ["v", "f", "ow"] {
         assert!(
             !without.present().contains(&Phone::parse(p).unwrap()),

@@ -246,7 +246,7 @@ impl Clip {
                 "a {}×{} canvas is {pixels} pixels (at most {MAX_CANVAS_PIXELS}: one RGB frame stays under {} MB)",
                 meta.width,
                 meta.height,
-                MAX_CANVAS_PIXELS * 3 >> 20
+                (MAX_CANVAS_PIXELS * 3) >> 20
             )));
         }
         let dims = meta.layout.dims();

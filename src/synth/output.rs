@@ -204,32 +204,22 @@ pub fn write(
             seed: options.seed,
         }
     });
-    let mut side_by_side = match key {
-        Some(_) => {
-            let wide = (2 * size.0, size.1);
-            Some(Sink::create(
-                &video_path(dir, "side_by_side", wide),
-                wide.0,
-                wide.1,
-                fps,
-                options.audio,
-            )?)
-        }
-        None => None,
+    // Two frames side by side, with the sound.
+    let wide_sink = |stem: &str| {
+        let wide = (2 * size.0, size.1);
+        Sink::create(
+            &video_path(dir, stem, wide),
+            wide.0,
+            wide.1,
+            fps,
+            options.audio,
+        )
     };
-    let mut beside = match options.beside_background {
-        true => {
-            let wide = (2 * size.0, size.1);
-            Some(Sink::create(
-                &video_path(dir, "beside_background", wide),
-                wide.0,
-                wide.1,
-                fps,
-                options.audio,
-            )?)
-        }
-        false => None,
-    };
+    let mut side_by_side = key.map(|_| wide_sink("side_by_side")).transpose()?;
+    let mut beside = options
+        .beside_background
+        .then(|| wide_sink("beside_background"))
+        .transpose()?;
     let total = variants[0].1.len();
     pipeline(
         total,

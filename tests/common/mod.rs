@@ -164,3 +164,19 @@ pub fn demo_corpus_codebook() -> (
     .unwrap();
     (model, generated, cb)
 }
+
+/// A codebook of `sentences` with `like`'s rate, layout, model and constants.
+pub fn codebook_like(
+    like: &facespace::codebook::Codebook,
+    sentences: Vec<facespace::corpus::Sentence>,
+) -> facespace::codebook::Codebook {
+    facespace::codebook::Codebook::build(
+        sentences,
+        like.fps,
+        like.layout,
+        like.model_hash.clone(),
+        like.options.clone(),
+        &mut facespace::no_progress,
+    )
+    .unwrap()
+}
