@@ -253,6 +253,21 @@ fn each_viewer_gets_a_counterbalanced_order_of_their_own() {
     }
 }
 
+/// Every clip of every viewer as fetched a minute ago: answers then meet the server's
+/// played-through rule (tested on its own in `answers_faster_than_the_clips_are_refused`).
+fn watched(log: &mut AnswerLog, manifest: &Manifest) {
+    let then = std::time::Instant::now()
+        .checked_sub(std::time::Duration::from_secs(60))
+        .unwrap();
+    for v in &manifest.viewers {
+        for t in &v.trials {
+            for id in t.stimuli() {
+                log.fetched_at(&v.id, &v.token, id, then).unwrap();
+            }
+        }
+    }
+}
+
 fn submit(log: &mut AnswerLog, body: serde_json::Value) -> Result<usize, (u16, String)> {
     log.submit(&body.to_string())
         .map(|a| a.trial)
@@ -268,6 +283,7 @@ fn the_answer_log_refuses_bad_submissions_and_stores_nothing_for_them() {
     let manifest = make_study(&study, "original,smoothed,unsmoothed", 2, Task::Both);
     let (v1, v2) = (&manifest.viewers[0], &manifest.viewers[1]);
     let (mut log, note) = AnswerLog::open(&study, manifest.clone()).unwrap();
+    watched(&mut log, &manifest);
     assert!(note.is_none());
     let first_rate = v1
         .trials
@@ -398,6 +414,7 @@ fn a_torn_last_line_is_dropped_and_a_damaged_log_is_refused() {
     let manifest = make_study(&study, "original,unsmoothed", 1, Task::Turing);
     let v = &manifest.viewers[0];
     let (mut log, _) = AnswerLog::open(&study, manifest.clone()).unwrap();
+    watched(&mut log, &manifest);
     for t in 0..2 {
         let b = serde_json::json!({"viewer": v.id, "token": v.token, "trial": t, "real": true});
         log.submit(&b.to_string()).unwrap();
@@ -414,6 +431,7 @@ fn a_torn_last_line_is_dropped_and_a_damaged_log_is_refused() {
         report.notes
     );
     let (mut log, note) = AnswerLog::open(&study, manifest.clone()).unwrap();
+    watched(&mut log, &manifest);
     assert!(note.is_some());
     assert_eq!(
         std::fs::read_to_string(&path).unwrap(),
@@ -511,6 +529,7 @@ fn bad_designs_are_refused_and_answers_are_never_overwritten() {
     let manifest = make_study(&study, "original,smoothed", 1, Task::Turing);
     let v = &manifest.viewers[0];
     let (mut log, _) = AnswerLog::open(&study, manifest.clone()).unwrap();
+    watched(&mut log, &manifest);
     let b = serde_json::json!({"viewer": v.id, "token": v.token, "trial": 0, "real": true});
     log.submit(&b.to_string()).unwrap();
     drop(log);

@@ -243,6 +243,18 @@ impl AnswerLog {
     /// Notes that `viewer` (with their secret) fetched stimulus `id`, one of their trials'
     /// clips; the first fetch is what an answer's timing is measured from.
     pub fn fetch(&mut self, viewer: &str, token: &str, id: &str) -> Result<(), Refusal> {
+        self.fetched_at(viewer, token, id, std::time::Instant::now())
+    }
+
+    /// [`fetch`](Self::fetch) for a fetch known to have happened at `at` (one replayed from
+    /// elsewhere); the earliest fetch counts.
+    pub fn fetched_at(
+        &mut self,
+        viewer: &str,
+        token: &str,
+        id: &str,
+        at: std::time::Instant,
+    ) -> Result<(), Refusal> {
         let v = self.viewer_index(viewer, token)?;
         let theirs = self.manifest.viewers[v]
             .trials
@@ -254,9 +266,8 @@ impl AnswerLog {
                 format!("{id} is not a clip of viewer {viewer}"),
             ));
         }
-        self.fetched
-            .entry((v, id.to_owned()))
-            .or_insert_with(std::time::Instant::now);
+        let first = self.fetched.entry((v, id.to_owned())).or_insert(at);
+        *first = (*first).min(at);
         Ok(())
     }
 
