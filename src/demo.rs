@@ -276,9 +276,7 @@ fn grid_into(
         &output_options,
         &mut progress,
     )?;
-    alignment
-        .write(&w.join("utterance.TextGrid"))
-        .and_then(|()| phonemes::write_labels(&w.join("utterance.lab"), &utterance.target))?;
+    alignment.write(&w.join("utterance.TextGrid"))?;
     let o = &options.output;
     Ok(DemoReport {
         talker: Talker::Grid,
@@ -389,7 +387,6 @@ fn fgnet_into(
         &output_options,
         &mut progress,
     )?;
-    phonemes::write_labels(&w.join("utterance.lab"), &utterance.target)?;
     Ok(DemoReport {
         talker: Talker::Fgnet,
         model: model_path,

@@ -78,3 +78,41 @@ fn missing_viseme_classes_are_borrowed_and_named() {
     );
     assert!(!dir.path().join("strict").exists());
 }
+
+/// Issue 26, item 8: `synth` lists the files it wrote, `utterance.lab` (the target's phone
+/// timings) among them.
+#[test]
+fn synth_lists_its_files_and_writes_the_phone_timings() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("o");
+    let o = common::facespace(&[
+        "synth",
+        "--model",
+        common::root().join("models/grid/model").to_str().unwrap(),
+        "--codebook",
+        common::root()
+            .join("models/grid/codebook")
+            .to_str()
+            .unwrap(),
+        "--text",
+        "bin blue at f two now",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let t = common::text(&o);
+    assert!(o.status.success(), "{t}");
+    assert!(
+        t.contains("wrote to") && t.contains("utterance.lab") && t.contains("video.mp4"),
+        "{t}"
+    );
+    let labels = facespace::phonemes::read_labels(
+        &out.join("utterance.lab"),
+        None,
+        &facespace::phonemes::PhoneMap::default(),
+    )
+    .unwrap();
+    assert!(
+        labels.iter().any(|s| s.phone == Phone::parse("b").unwrap()),
+        "{labels:?}"
+    );
+}

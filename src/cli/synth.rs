@@ -338,5 +338,15 @@ pub fn run(a: SynthArgs) -> Result<()> {
     for w in &report.warnings {
         println!("  warning: {w}");
     }
+    let mut written: Vec<String> = std::fs::read_dir(&a.output)
+        .map(|d| {
+            d.flatten()
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .filter(|n| !n.starts_with('.'))
+                .collect()
+        })
+        .unwrap_or_default();
+    written.sort();
+    println!("wrote to {}: {}", a.output.display(), written.join(", "));
     Ok(())
 }

@@ -3,7 +3,8 @@
 //! side is odd); for an A/B comparison both variants in `smoothed/` and `unsmoothed/`, a blind
 //! `side_by_side.mp4` whose order a seeded coin decides, and its `key.json`; on request
 //! `beside_background.mp4`, the background as recorded (left) beside the synthesis drawn on
-//! it (right, the smoothed variant when there is one); then `plot.png` and `report.json`. Frames are rendered and written batch by batch (memory does not grow
+//! it (right, the smoothed variant when there is one); then `plot.png`, `report.json` and
+//! `utterance.lab` (the target phone timings, HTK). Frames are rendered and written batch by batch (memory does not grow
 //! with the utterance).
 
 use std::path::{Path, PathBuf};
@@ -38,6 +39,9 @@ pub enum OutputError {
     /// Frames that do not fit the renderer's model.
     #[error(transparent)]
     Model(#[from] ModelError),
+    /// The phone timings could not be written.
+    #[error(transparent)]
+    Labels(#[from] crate::phonemes::PhonemeError),
     /// A file could not be written.
     #[error("{path}: {source}")]
     Io {
@@ -300,5 +304,6 @@ pub fn write(
     let path = dir.join("report.json");
     let json = serde_json::to_vec_pretty(&report).expect("report serialises");
     atomic::write_file(&path, &json).map_err(io(path.clone()))?;
+    crate::phonemes::write_labels(&dir.join("utterance.lab"), &utterance.target)?;
     Ok(report)
 }
