@@ -32,7 +32,7 @@ pub struct FromVideosArgs {
     model: PathBuf,
     /// Folder of recordings and their label files.
     dir: PathBuf,
-    /// TextGrid tier to read (default: the first interval tier).
+    /// TextGrid tier to read (default: the tier named "phones" or "phonemes").
     #[arg(long)]
     tier: Option<String>,
     /// Phone-label map (as `codebook build --phone-map`).

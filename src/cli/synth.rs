@@ -58,6 +58,7 @@ pub struct SynthArgs {
     /// models/demo/model).
     #[arg(long)]
     model: Option<PathBuf>,
+    /// The codebook to synthesise from (`codebook build`).
     #[arg(long)]
     codebook: PathBuf,
     /// Phone timings (.lab, .TextGrid, .tsv).
@@ -77,8 +78,10 @@ pub struct SynthArgs {
     /// Extra pronunciations for the aligner (`WORD  P H O N E S` lines); may repeat.
     #[arg(long = "dict")]
     dicts: Vec<PathBuf>,
+    /// TextGrid tier of --labels to read (default: the tier named "phones" or "phonemes").
     #[arg(long)]
     tier: Option<String>,
+    /// Two-column file mapping another phone set's labels (of --labels) to ARPAbet.
     #[arg(long)]
     phone_map: Option<PathBuf>,
     /// How to synthesise.
@@ -97,6 +100,7 @@ pub struct SynthArgs {
     /// Examples blended per phone, N.
     #[arg(long, default_value_t = 3)]
     top_n: usize,
+    /// Smoothing spline on, off, or both for a blind A/B side-by-side.
     #[arg(long, value_enum, default_value_t = Smooth::On)]
     smooth: Smooth,
     /// Smoothing weight λ of the cubic smoothing spline.
@@ -138,6 +142,7 @@ pub struct SynthArgs {
     /// with --labels the labels time the face.
     #[arg(long)]
     audio: Option<PathBuf>,
+    /// Output folder (written whole, never over a folder facespace did not write).
     #[arg(short, long)]
     output: PathBuf,
 }
