@@ -295,23 +295,15 @@ fn grid_into(
         renderer_note: chosen.note.clone(),
         report,
         unit_report,
-        files: vec![
-            (
+        files: [
+            vec![(
                 "real recording | synthesis, with sound",
                 o.join("beside_background.mp4"),
-            ),
-            ("smoothed video", o.join("smoothed/video.mp4")),
-            ("smoothed frames", o.join("smoothed/frames")),
-            ("unsmoothed video", o.join("unsmoothed/video.mp4")),
-            (
-                "blind side by side (order in key.json)",
-                o.join("side_by_side.mp4"),
-            ),
-            ("trajectory plot (with the real one)", o.join("plot.png")),
-            ("unit selection (same files)", o.join("unit")),
-            ("words and phones aligned", o.join("utterance.TextGrid")),
-            ("phone timings", o.join("utterance.lab")),
-        ],
+            )],
+            synthesis_files(o, "trajectory plot (with the real one)"),
+            vec![("words and phones aligned", o.join("utterance.TextGrid"))],
+        ]
+        .concat(),
     })
 }
 
@@ -404,21 +396,32 @@ fn fgnet_into(
         renderer_note: chosen.note.clone(),
         report,
         unit_report,
-        files: vec![
-            ("smoothed video", o.join("smoothed/video.mp4")),
-            ("smoothed frames", o.join("smoothed/frames")),
-            ("unsmoothed video", o.join("unsmoothed/video.mp4")),
-            (
-                "blind side by side (order in key.json)",
-                o.join("side_by_side.mp4"),
-            ),
-            ("trajectory plot", o.join("plot.png")),
-            ("unit selection (same files)", o.join("unit")),
-            ("phone timings", o.join("utterance.lab")),
-            ("lower-face model", o.join("model")),
-            ("codebook", o.join("codebook")),
-        ],
+        files: [
+            synthesis_files(o, "trajectory plot"),
+            vec![
+                ("lower-face model", o.join("model")),
+                ("codebook", o.join("codebook")),
+            ],
+        ]
+        .concat(),
     })
+}
+
+/// What [`both_modes`] writes under `o`, named for the report (`plot`: how the plot is
+/// described).
+fn synthesis_files(o: &Path, plot: &'static str) -> Vec<(&'static str, PathBuf)> {
+    vec![
+        ("smoothed video", o.join("smoothed/video.mp4")),
+        ("smoothed frames", o.join("smoothed/frames")),
+        ("unsmoothed video", o.join("unsmoothed/video.mp4")),
+        (
+            "blind side by side (order in key.json)",
+            o.join("side_by_side.mp4"),
+        ),
+        (plot, o.join("plot.png")),
+        ("unit selection (same files)", o.join("unit")),
+        ("phone timings", o.join("utterance.lab")),
+    ]
 }
 
 /// `video` tracked with `tracker`, its poses replayed under an utterance of `target`'s

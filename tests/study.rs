@@ -577,19 +577,12 @@ fn bad_designs_are_refused_and_answers_are_never_overwritten() {
 /// refuses over HTTP what the log refuses; nothing refused reaches the disk.
 #[test]
 fn the_server_serves_only_the_study_and_refuses_forged_requests() {
-    use std::sync::Arc;
-    use std::sync::atomic::{AtomicBool, Ordering};
     let dir = tempfile::tempdir().unwrap();
     let study = dir.path().join("study");
     let manifest = make_study(&study, "original,unsmoothed", 1, Task::Both);
-    let (mut server, _) =
-        facespace::study::StudyServer::bind(&study, "127.0.0.1:0", false).unwrap();
+    let served = serve_in_thread(&study);
     assert!(facespace::study::StudyServer::bind(&study, "0.0.0.0:0", false).is_err());
-    let url = server.url();
-    let stop = Arc::new(AtomicBool::new(false));
-    let flag = stop.clone();
-    let handle =
-        std::thread::spawn(move || server.run(|_| {}, move || flag.load(Ordering::Relaxed)));
+    let url = served.url.clone();
     let v = &manifest.viewers[0];
     let (code, body) = http(
         &url,
@@ -667,8 +660,7 @@ fn the_server_serves_only_the_study_and_refuses_forged_requests() {
         409,
         "a replay"
     );
-    stop.store(true, Ordering::Relaxed);
-    handle.join().unwrap();
+    served.stop();
     assert_eq!(
         std::fs::read_to_string(study.join(ANSWERS))
             .unwrap()
@@ -681,6 +673,35 @@ fn the_server_serves_only_the_study_and_refuses_forged_requests() {
 // --- The whole study through the real binary and a headless Chromium. -------------------
 
 /// `facespace study serve DIR` on a free port; returns the child and each viewer's link.
+/// A study server on a free loopback port, in a thread of this test.
+struct Served {
+    url: String,
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    handle: std::thread::JoinHandle<()>,
+}
+
+impl Served {
+    /// Stops the server and waits for it (a panic in it fails the test).
+    fn stop(self) {
+        self.stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        self.handle.join().unwrap();
+    }
+}
+
+fn serve_in_thread(study: &Path) -> Served {
+    let (mut server, _) = facespace::study::StudyServer::bind(study, "127.0.0.1:0", false).unwrap();
+    let url = server.url();
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let flag = stop.clone();
+    let handle = std::thread::spawn(move || {
+        server.run(
+            |_| {},
+            move || flag.load(std::sync::atomic::Ordering::Relaxed),
+        )
+    });
+    Served { url, stop, handle }
+}
+
 fn serve(study: &Path) -> (std::process::Child, Vec<String>) {
     let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_facespace"))
         .args([
@@ -910,8 +931,6 @@ fn headless_chromium_answers_a_study_across_a_server_crash() {
 #[test]
 fn planted_stimuli_and_logs_are_refused_and_foreign_hosts_too() {
     use std::os::unix::ffi::OsStrExt;
-    use std::sync::Arc;
-    use std::sync::atomic::{AtomicBool, Ordering};
     let dir = tempfile::tempdir().unwrap();
     let study = dir.path().join("study");
     let manifest = make_study(&study, "original,smoothed,unsmoothed", 1, Task::Both);
@@ -950,13 +969,8 @@ fn planted_stimuli_and_logs_are_refused_and_foreign_hosts_too() {
             std::os::unix::fs::symlink(what, &path).unwrap();
         }
     }
-    let (server, _) = facespace::study::StudyServer::bind(&study, "127.0.0.1:0", false).unwrap();
-    let url = server.url();
-    let stop = Arc::new(AtomicBool::new(false));
-    let flag = stop.clone();
-    let mut server = server;
-    let handle =
-        std::thread::spawn(move || server.run(|_| {}, move || flag.load(Ordering::Relaxed)));
+    let served = serve_in_thread(&study);
+    let url = served.url.clone();
     let clock = std::time::Instant::now();
     for id in &planted {
         let path = format!("/stimuli/{id}.mp4?viewer={}&token={}", v.id, v.token);
@@ -977,8 +991,7 @@ fn planted_stimuli_and_logs_are_refused_and_foreign_hosts_too() {
     assert_eq!(code, 421);
     let (code, _) = common::http_raw(&url, "GET", &next, &format!("Host: {host}\r\n"), "");
     assert_eq!(code, 200);
-    stop.store(true, Ordering::Relaxed);
-    handle.join().unwrap();
+    served.stop();
 
     // The answer log as a link to a file outside: refused, the file untouched.
     let outside = dir.path().join("outside.txt");
@@ -1060,18 +1073,11 @@ fn the_shipped_pages_have_no_test_hooks() {
 /// server has not handed out the clips, or not long enough ago.
 #[test]
 fn answers_faster_than_the_clips_are_refused() {
-    use std::sync::Arc;
-    use std::sync::atomic::{AtomicBool, Ordering};
     let dir = tempfile::tempdir().unwrap();
     let study = dir.path().join("study");
     let manifest = make_study(&study, "original,unsmoothed", 1, Task::Turing);
-    let (mut server, _) =
-        facespace::study::StudyServer::bind(&study, "127.0.0.1:0", false).unwrap();
-    let url = server.url();
-    let stop = Arc::new(AtomicBool::new(false));
-    let flag = stop.clone();
-    let handle =
-        std::thread::spawn(move || server.run(|_| {}, move || flag.load(Ordering::Relaxed)));
+    let served = serve_in_thread(&study);
+    let url = served.url.clone();
     let v = &manifest.viewers[0];
     for i in 0..3 {
         // Fetch the clip as the page would, then answer at once.
@@ -1092,8 +1098,7 @@ fn answers_faster_than_the_clips_are_refused() {
         let (code, why) = http(&url, "POST", "/api/answer", &a.to_string());
         assert_eq!(code, 425, "{why}");
     }
-    stop.store(true, Ordering::Relaxed);
-    handle.join().unwrap();
+    served.stop();
     assert!(
         !study.join(ANSWERS).exists() || std::fs::read(study.join(ANSWERS)).unwrap().is_empty()
     );
