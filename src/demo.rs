@@ -338,6 +338,7 @@ fn fgnet_into(
         &BuildOptions {
             pixels: model.frame.n_pixels(),
             region: Some(Region::LowerFace),
+            margin: model.placement.margin,
             ..BuildOptions::default()
         },
         &mut crate::no_progress,

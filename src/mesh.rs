@@ -374,6 +374,34 @@ impl ReferenceFrame {
             .collect()
     }
 
+    /// Each mask pixel's distance (pixels) to the part of the mesh made of the triangles whose
+    /// every corner is in `vertices`: 0 inside it, +∞ everywhere when no triangle is.
+    pub fn part_distances(&self, vertices: &[u32]) -> Vec<f64> {
+        let part: Vec<bool> = self
+            .triangles
+            .iter()
+            .map(|t| t.iter().all(|v| vertices.contains(v)))
+            .collect();
+        let inner: Vec<Triangle> = self
+            .triangles
+            .iter()
+            .zip(&part)
+            .filter(|(_, in_part)| **in_part)
+            .map(|(t, _)| *t)
+            .collect();
+        let outline = rim_segments(&self.landmarks, &inner, &hull_edges(&inner));
+        self.pixels
+            .iter()
+            .map(|p| {
+                if part[p.triangle as usize] {
+                    0.0
+                } else {
+                    rim_distance(&outline, [p.x as f64, p.y as f64])
+                }
+            })
+            .collect()
+    }
+
     /// Number of mask pixels.
     pub fn n_pixels(&self) -> usize {
         self.pixels.len()

@@ -322,20 +322,27 @@ fn centred_block(samples: &[&[f32]], mean: &[f32], c0: usize, c1: usize) -> Arra
 }
 
 /// The Gram matrix `G = X Xᵀ` of the centred samples (n × n), accumulated over column blocks
-/// by matrix products (in parallel), without ever holding the centred data whole.
+/// by matrix products (in parallel), without ever holding the centred data whole. The blocks
+/// are summed in a fixed number of contiguous groups and the groups in order, so the sum — and
+/// the model built from it — is the same bit for bit on any number of threads.
 fn gram(samples: &[&[f32]], mean: &[f32]) -> DMatrix<f64> {
+    const PARTS: usize = 16;
     let (n, d) = (samples.len(), mean.len());
-    let g = (0..d.div_ceil(BLOCK))
+    let blocks = d.div_ceil(BLOCK);
+    let group = blocks.div_ceil(PARTS).max(1);
+    let groups: Vec<Array2<f64>> = (0..blocks.div_ceil(group))
         .into_par_iter()
-        .fold(
-            || Array2::<f64>::zeros((n, n)),
-            |mut g, b| {
+        .map(|part| {
+            let mut g = Array2::<f64>::zeros((n, n));
+            for b in part * group..((part + 1) * group).min(blocks) {
                 let x = centred_block(samples, mean, b * BLOCK, ((b + 1) * BLOCK).min(d));
                 general_mat_mul(1.0, &x, &x.t(), 1.0, &mut g);
-                g
-            },
-        )
-        .reduce(|| Array2::<f64>::zeros((n, n)), |a, b| a + b);
+            }
+            g
+        })
+        .collect();
+    let mut g = Array2::<f64>::zeros((n, n));
+    groups.iter().for_each(|part| g += part);
     // Exactly symmetric, as the eigensolver assumes.
     DMatrix::from_fn(n, n, |i, j| 0.5 * (g[(i, j)] + g[(j, i)]))
 }

@@ -29,6 +29,12 @@ fn value(p: Phone) -> f64 {
 /// A sentence of 0.2 s phones whose frames hold each phone's value (plus `bump` in the
 /// appearance dimension, to tell sentences apart).
 fn sentence(name: &str, phones: &[&str], bump: f32) -> Sentence {
+    wiggly(name, phones, bump, 0.0)
+}
+
+/// [`sentence`] whose shape value also swings by `wiggle` · sin(2π · time into the phone /
+/// 0.2 s) in every phone: motion that differs between sentences.
+fn wiggly(name: &str, phones: &[&str], bump: f32, wiggle: f64) -> Sentence {
     let segments: Vec<Segment> = phones
         .iter()
         .enumerate()
@@ -46,8 +52,9 @@ fn sentence(name: &str, phones: &[&str], bump: f32) -> Sentence {
                 .iter()
                 .find(|s| t >= s.start && t < s.end)
                 .unwrap_or(segments.last().unwrap());
+            let swing = wiggle * (std::f64::consts::TAU * (t - s.start) / 0.2).sin();
             let v = value(s.phone) as f32;
-            [1.0, 0.0, 0.0, 0.0, v, v + bump]
+            [1.0, 0.0, 0.0, 0.0, v + swing as f32, v + bump]
         })
         .collect();
     Sentence {
@@ -115,6 +122,7 @@ fn selection_follows_the_context_score() {
     let opts = Blend {
         context: 1,
         top_n: 4,
+        ..Blend::default()
     };
     let chosen = blend::select(&cb, &t, 2, ph("m"), &opts);
     // Independent evaluation of s_j = S(l, l_j)/2 + S(r, r_j)/2 for the four occurrences.
@@ -145,6 +153,7 @@ fn selection_follows_the_context_score() {
     let c2 = Blend {
         context: 2,
         top_n: 1,
+        ..Blend::default()
     };
     assert_eq!(
         cb.sentences[blend::select(&cb, &t2, 2, ph("m"), &c2)[0].0.sentence].name,
@@ -153,6 +162,7 @@ fn selection_follows_the_context_score() {
     let c1 = Blend {
         context: 1,
         top_n: 1,
+        ..Blend::default()
     };
     assert_eq!(
         cb.sentences[blend::select(&cb, &t2, 2, ph("m"), &c1)[0].0.sentence].name,
@@ -172,6 +182,7 @@ fn top_n_and_weights() {
             Blend {
                 context: 1,
                 top_n: n,
+                ..Blend::default()
             },
         )
         .unwrap();
@@ -197,6 +208,7 @@ fn single_example_is_copied_and_time_warped() {
         Blend {
             context: 1,
             top_n: 1,
+            ..Blend::default()
         },
     )
     .unwrap();
@@ -226,6 +238,7 @@ fn single_example_is_copied_and_time_warped() {
         Blend {
             context: 1,
             top_n: 1,
+            ..Blend::default()
         },
     )
     .unwrap();
@@ -306,4 +319,63 @@ fn fallbacks_and_bad_input() {
         ),
         Err(SynthError::Option(_))
     ));
+}
+
+/// Variance-preserving blending scales each group's deviations from the utterance mean by one
+/// gain, between 1 and √N, keeps the mean, and leaves a single example (N = 1) as it is.
+#[test]
+fn variance_preservation_scales_the_motion_by_one_gain() {
+    // Three takes of /m/ between /aa/ and /iy/ whose motion disagrees.
+    let sentences = vec![
+        wiggly("A", &["sil", "aa", "m", "iy", "sil"], 0.0, 1.0),
+        wiggly("B", &["sil", "aa", "m", "iy", "sil"], 0.1, -0.6),
+        wiggly("C", &["sil", "aa", "m", "iy", "sil"], 0.2, 0.3),
+    ];
+    let cb = Codebook::build(
+        sentences,
+        FPS,
+        LAYOUT,
+        None,
+        codebook().options.clone(),
+        &mut facespace::no_progress,
+    )
+    .unwrap();
+    let t = target(&["sil", "aa", "m", "iy", "sil"], 0.2);
+    for n in [1, 3] {
+        let run = |preserve_variance| {
+            blend(
+                &cb,
+                &t,
+                Blend {
+                    context: 1,
+                    top_n: n,
+                    preserve_variance,
+                },
+            )
+            .unwrap()
+            .frames
+        };
+        let (plain, kept) = (run(false), run(true));
+        // The shape column moves and the examples disagree: its gain is above 1 for N = 3. The
+        // appearance column only differs between sentences by a constant: nothing to restore.
+        for column in [4, 5] {
+            let (p, k) = (plain.column(column).to_vec(), kept.column(column).to_vec());
+            let mean = |v: &[f32]| v.iter().map(|&x| f64::from(x)).sum::<f64>() / v.len() as f64;
+            let (mp, mk) = (mean(&p), mean(&k));
+            assert!((mp - mk).abs() < 1e-5, "the mean moved: {mp} → {mk}");
+            let spread = |v: &[f32], m: f64| {
+                v.iter().map(|&x| (f64::from(x) - m).powi(2)).sum::<f64>().sqrt()
+            };
+            let gain = spread(&k, mk) / spread(&p, mp);
+            if n == 1 || column == 5 {
+                assert!((gain - 1.0).abs() < 1e-5, "N = {n}, column {column}: gain {gain}");
+            } else {
+                assert!(gain > 1.0 + 1e-3 && gain <= 3f64.sqrt() + 1e-9, "gain {gain}");
+            }
+            for (a, b) in p.iter().zip(&k) {
+                let want = mp + gain * (f64::from(*a) - mp);
+                assert!((want - f64::from(*b)).abs() < 1e-4, "{b} is not {want}");
+            }
+        }
+    }
 }

@@ -100,6 +100,10 @@ pub struct SynthArgs {
     /// Examples blended per phone, N.
     #[arg(long, default_value_t = 3)]
     top_n: usize,
+    /// Blend by the plain weighted average, without restoring the examples' spread (the
+    /// motion then shrinks with N).
+    #[arg(long)]
+    plain_average: bool,
     /// Smoothing spline on, off, or both for a blind A/B side-by-side.
     #[arg(long, value_enum, default_value_t = Smooth::On)]
     smooth: Smooth,
@@ -233,6 +237,7 @@ pub fn run(a: SynthArgs) -> Result<()> {
         Mode::Blend => Box::new(Blend {
             context: a.context,
             top_n: a.top_n,
+            preserve_variance: !a.plain_average,
         }),
         Mode::Unit => Box::new(match &a.weights {
             Some(p) => WeightsFile::read(p)?.unit_selection(),

@@ -270,22 +270,42 @@ impl Codebook {
         Ok(cb)
     }
 
-    /// The mean appearance over every frame of every sentence (with
-    /// [`crate::corpus::Photometric::Sentence`], the mean each sentence was re-centred on).
-    pub fn appearance_mean(&self) -> Vec<f64> {
-        let range = self.layout.appearance_range();
-        let mut sum = vec![0f64; range.len()];
+    /// The mean of every value over every frame of every sentence: the talker's average face
+    /// in face space, what blending's deviations are measured from.
+    pub fn mean(&self) -> Vec<f64> {
+        let mut sum = vec![0f64; self.dims()];
         let mut frames = 0usize;
         for s in &self.sentences {
             for row in s.frames.values().rows() {
                 sum.iter_mut()
-                    .zip(row.iter().skip(range.start))
+                    .zip(row)
                     .for_each(|(a, &x)| *a += f64::from(x));
                 frames += 1;
             }
         }
         sum.iter_mut().for_each(|a| *a /= frames.max(1) as f64);
         sum
+    }
+
+    /// Each sentence's mean of every value over its frames, in sentence order.
+    pub fn sentence_means(&self) -> Vec<Vec<f64>> {
+        self.sentences
+            .iter()
+            .map(|s| {
+                let v = s.frames.values();
+                let n = v.nrows().max(1) as f64;
+                v.columns()
+                    .into_iter()
+                    .map(|c| c.iter().map(|&x| f64::from(x)).sum::<f64>() / n)
+                    .collect()
+            })
+            .collect()
+    }
+
+    /// The mean appearance over every frame of every sentence (with
+    /// [`crate::corpus::Photometric::Sentence`], the mean each sentence was re-centred on).
+    pub fn appearance_mean(&self) -> Vec<f64> {
+        self.mean()[self.layout.appearance_range()].to_vec()
     }
 
     /// Checks that the codebook's frames are `model`'s: the recorded model hash (when there

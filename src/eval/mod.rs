@@ -6,6 +6,7 @@
 
 pub mod mouth;
 pub mod quality;
+pub mod seams;
 pub mod systems;
 
 use serde::Serialize;

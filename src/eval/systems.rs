@@ -44,7 +44,8 @@ impl System {
 
     /// The comparison of \[blend\] §6 with fair baselines: blend C = 1 with N = 1, 3, 5, the
     /// per-phoneme mean, random lips, unit selection (`unit`) and the dynamic-phoneme graph,
-    /// each smoothed at `lambda` and unsmoothed.
+    /// each smoothed at `lambda` and unsmoothed; and blend N = 5 by the plain average, to show
+    /// what variance preservation changes.
     pub fn comparison(lambda: f64, unit: UnitSelection) -> Vec<System> {
         let mut rows = Vec::new();
         for smoothing in [Some(lambda), None] {
@@ -59,6 +60,14 @@ impl System {
                     smoothing,
                 ));
             }
+            rows.push(System::new(
+                Blend {
+                    top_n: 5,
+                    preserve_variance: false,
+                    ..Blend::default()
+                },
+                smoothing,
+            ));
             rows.push(System::new(Blend::PHONE_MEAN, smoothing));
             rows.push(System::new(RandomLips { seed: 7 }, smoothing));
         }

@@ -1,0 +1,200 @@
+//! The synthesised face at full size, over real video (issue 25): the gradient step across the
+//! region's border and the shimmer on the cheeks beside the nose (lips left out), each beside
+//! the real video's value on the same pixels ([`facespace::eval::seams`]).
+//!
+//! - `cargo run --release --example full_size -- grid CORPUS [N]`: **recorded**, GRID s1. The
+//!   first N (default all) sentences of a `corpus from-videos` corpus of his test split, each
+//!   synthesised as the demo does (blend N = 5, λ = 3e-5, the committed codebook) from its own
+//!   phone labels, drawn over its own video (pose replayed, appearance re-lit to the take).
+//! - `cargo run --release --example full_size -- demo DIR BACKGROUND`: a `demo --talker
+//!   fgnet` output folder (its `model` and `smoothed/trajectory.npy`) drawn again over its
+//!   background video (**generated** corpus, real background).
+
+use std::path::{Path, PathBuf};
+
+use facespace::codebook::Codebook;
+use facespace::codec::EncodeOptions;
+use facespace::corpus;
+use facespace::eval::seams::{Defects, measure};
+use facespace::facespace::Frames;
+use facespace::model::FaceModel;
+use facespace::phonemes::PhoneMap;
+use facespace::render::{CpuRenderer, DEFAULT_FEATHER, Renderer, feather_alpha, stream};
+use facespace::synth::backdrop::{Backdrop, PoseMode};
+use facespace::synth::{self, Request, Smoothing, blend::Blend};
+use facespace::video::Source;
+use image::RgbImage;
+
+fn frames_of(path: &Path, n: usize) -> Vec<RgbImage> {
+    let mut source = Source::open(path).unwrap();
+    let mut out = Vec::new();
+    while out.len() < n {
+        match source.next_frame().unwrap() {
+            Some(f) => out.push(f),
+            None => break,
+        }
+    }
+    out
+}
+
+fn render(model: &FaceModel, frames: &Frames, backdrop: &Backdrop) -> Vec<RgbImage> {
+    let renderer = CpuRenderer::feathered(model, DEFAULT_FEATHER);
+    let mut out = Vec::new();
+    stream::<facespace::render::RenderError>(
+        &renderer as &dyn Renderer,
+        frames,
+        backdrop.background().unwrap(),
+        |f| {
+            out.push(f);
+            Ok(())
+        },
+        facespace::no_progress,
+    )
+    .unwrap();
+    out
+}
+
+fn report(what: &str, d: &Defects) {
+    println!(
+        "{what}: border |∇| {:.2} vs real {:.2} ({:.2}×); cheek shimmer {:.3} vs real {:.3} grey/frame ({:.2}×, Δ {:+.3})",
+        d.border,
+        d.border_real,
+        d.border / d.border_real,
+        d.shimmer,
+        d.shimmer_real,
+        d.shimmer / d.shimmer_real,
+        d.shimmer - d.shimmer_real
+    );
+}
+
+fn mean(all: &[Defects]) -> Defects {
+    let n = all.len().max(1) as f64;
+    let sum = |f: fn(&Defects) -> f64| all.iter().map(f).sum::<f64>() / n;
+    Defects {
+        border: sum(|d| d.border),
+        border_real: sum(|d| d.border_real),
+        shimmer: sum(|d| d.shimmer),
+        shimmer_real: sum(|d| d.shimmer_real),
+    }
+}
+
+fn main() {
+    let a: Vec<String> = std::env::args().skip(1).collect();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    match a.first().map(String::as_str) {
+        Some("grid") => {
+            let model = FaceModel::load(&root.join("models/grid/model")).unwrap();
+            let cb = Codebook::load(&root.join("models/grid/codebook")).unwrap();
+            let test = corpus::load(
+                Path::new(&a[1]),
+                25.0,
+                model.layout(),
+                None,
+                &PhoneMap::default(),
+            )
+            .unwrap();
+            let n = a.get(2).map_or(test.len(), |s| s.parse().unwrap());
+            let clips = root.join("../shared/data/grid-s1/clips");
+            let blend = Blend {
+                top_n: facespace::demo::GRID_TOP_N,
+                ..Blend::default()
+            };
+            let alpha = feather_alpha(&model, DEFAULT_FEATHER);
+            let mut all = Vec::new();
+            for s in test.iter().take(n) {
+                let clip: PathBuf = clips.join(format!("{}.mp4", s.name));
+                let frames = synth::frame_count(&s.segments, 25.0);
+                let backdrop = Backdrop::video(
+                    &model,
+                    &clip,
+                    PoseMode::Replay,
+                    frames,
+                    &EncodeOptions::default(),
+                    facespace::no_progress,
+                )
+                .unwrap();
+                let request = Request {
+                    pose: backdrop.pose.clone(),
+                    ..Request::new(
+                        s.segments.clone(),
+                        25.0,
+                        Smoothing::On(facespace::demo::GRID_SMOOTHING),
+                    )
+                };
+                let mut u = synth::synthesise(&blend, &cb, request).unwrap();
+                backdrop.match_lighting(&model, &cb, &mut u);
+                let drawn = u.smoothed.as_ref().unwrap_or(&u.synthesis.frames);
+                let rendered = render(&model, drawn, &backdrop);
+                let real = frames_of(&clip, rendered.len());
+                let d = measure(&model, &alpha, drawn, &rendered, &real).unwrap();
+                report(&s.name, &d);
+                all.push(d);
+            }
+            report(
+                &format!("GRID s1 (recorded), mean of {}", all.len()),
+                &mean(&all),
+            );
+        }
+        Some("demo") => {
+            let dir = Path::new(&a[1]);
+            let model = FaceModel::load(&dir.join("model")).unwrap();
+            let tracker = FaceModel::load(&facespace::demo::default_model()).unwrap();
+            let values: ndarray::ArrayD<f32> =
+                facespace::npy::read(&dir.join("smoothed/trajectory.npy")).unwrap();
+            let frames =
+                Frames::from_rows(model.layout(), 24.0, values.iter().copied().collect()).unwrap();
+            let background = Path::new(&a[2]);
+            let backdrop = Backdrop::video(
+                &tracker,
+                background,
+                PoseMode::Replay,
+                frames.len(),
+                &EncodeOptions::default(),
+                facespace::no_progress,
+            )
+            .unwrap();
+            let rendered = render(&model, &frames, &backdrop);
+            let real = frames_of(background, rendered.len());
+            if std::env::var_os("PARTS").is_some() {
+                // Where the shimmer comes from: appearance held at its mean, or cut to its
+                // first k components.
+                let range = model.layout().appearance_range();
+                for keep in [0usize, 1, 3, 10, range.len()] {
+                    let mut f = frames.clone();
+                    let n = f.len() as f32;
+                    let means: Vec<f32> = range
+                        .clone()
+                        .map(|k| f.column(k).iter().sum::<f32>() / n)
+                        .collect();
+                    let mut v = f.values_mut();
+                    for mut row in v.rows_mut() {
+                        for (j, k) in range.clone().enumerate() {
+                            if j >= keep {
+                                row[k] = means[j];
+                            }
+                        }
+                    }
+                    drop(v);
+                    let r = render(&model, &f, &backdrop);
+                    let alpha = feather_alpha(&model, DEFAULT_FEATHER);
+                    report(
+                        &format!("appearance: first {keep} varying, rest at mean"),
+                        &measure(&model, &alpha, &f, &r, &real).unwrap(),
+                    );
+                }
+            }
+            report(
+                "FGNet demo (generated corpus, real background)",
+                &measure(
+                    &model,
+                    &feather_alpha(&model, DEFAULT_FEATHER),
+                    &frames,
+                    &rendered,
+                    &real,
+                )
+                .unwrap(),
+            );
+        }
+        _ => eprintln!("usage: full_size grid CORPUS [N] | demo DIR BACKGROUND"),
+    }
+}
