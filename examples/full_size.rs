@@ -9,6 +9,9 @@
 //! - `cargo run --release --example full_size -- demo DIR BACKGROUND`: a `demo --talker
 //!   fgnet` output folder (its `model` and `smoothed/trajectory.npy`) drawn again over its
 //!   background video (**generated** corpus, real background).
+//! - `... -- picture CORPUS SENTENCE FRAME FGNET_DIR OUT.png`: the README's full-size picture —
+//!   one GRID test sentence's frame, real beside synthesised, with 3× crops of the nose and of
+//!   the border at the jaw; and the FGNet demo's nose and cheeks at 3×, real beside synthesised.
 
 use std::path::{Path, PathBuf};
 
@@ -54,6 +57,40 @@ fn render(model: &FaceModel, frames: &Frames, backdrop: &Backdrop) -> Vec<RgbIma
     out
 }
 
+/// The window of `image` of side `side` centred at `c`, scaled `k`× (nearest neighbour).
+fn crop(image: &RgbImage, c: [f64; 2], side: u32, k: u32) -> RgbImage {
+    let x = (c[0] - f64::from(side) / 2.0).clamp(0.0, f64::from(image.width() - side)) as u32;
+    let y = (c[1] - f64::from(side) / 2.0).clamp(0.0, f64::from(image.height() - side)) as u32;
+    let window = image::imageops::crop_imm(image, x, y, side, side).to_image();
+    image::imageops::resize(
+        &window,
+        side * k,
+        side * k,
+        image::imageops::FilterType::Nearest,
+    )
+}
+
+/// Images side by side (`across`) or stacked, with a 4-pixel white gap.
+fn join(images: &[RgbImage], across: bool) -> RgbImage {
+    let along = |i: &RgbImage| if across { i.width() } else { i.height() };
+    let beside = |i: &RgbImage| if across { i.height() } else { i.width() };
+    let length = images.iter().map(|i| along(i) + 4).sum::<u32>() - 4;
+    let breadth = images.iter().map(beside).max().unwrap();
+    let (w, h) = if across {
+        (length, breadth)
+    } else {
+        (breadth, length)
+    };
+    let mut out = RgbImage::from_pixel(w, h, image::Rgb([255, 255, 255]));
+    let mut at = 0;
+    for i in images {
+        let (x, y) = if across { (at, 0) } else { (0, at) };
+        image::imageops::overlay(&mut out, i, i64::from(x), i64::from(y));
+        at += along(i) + 4;
+    }
+    out
+}
+
 fn report(what: &str, d: &Defects) {
     println!(
         "{what}: border |∇| {:.2} vs real {:.2} ({:.2}×); cheek shimmer {:.3} vs real {:.3} grey/frame ({:.2}×, Δ {:+.3})",
@@ -65,6 +102,46 @@ fn report(what: &str, d: &Defects) {
         d.shimmer / d.shimmer_real,
         d.shimmer - d.shimmer_real
     );
+}
+
+/// One GRID sentence synthesised as the demo does over its own video: the frames drawn, the
+/// rendered images and the real ones.
+fn grid_sentence(
+    model: &FaceModel,
+    cb: &Codebook,
+    s: &facespace::corpus::Sentence,
+) -> (Frames, Vec<RgbImage>, Vec<RgbImage>) {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let clip: PathBuf = root.join(format!("../shared/data/grid-s1/clips/{}.mp4", s.name));
+    let blend = Blend {
+        top_n: facespace::demo::GRID_TOP_N,
+        ..Blend::default()
+    };
+    let frames = synth::frame_count(&s.segments, 25.0);
+    let backdrop = Backdrop::video(
+        model,
+        &clip,
+        PoseMode::Replay,
+        frames,
+        &EncodeOptions::default(),
+        facespace::no_progress,
+    )
+    .unwrap();
+    let request = Request {
+        pose: backdrop.pose.clone(),
+        ..Request::new(
+            s.segments.clone(),
+            25.0,
+            Smoothing::On(facespace::demo::GRID_SMOOTHING),
+        )
+    };
+    let mut u = synth::synthesise(&blend, cb, request).unwrap();
+    backdrop.match_lighting(model, cb, &mut u);
+    backdrop.anchor_region(model, &mut u).unwrap();
+    let drawn = u.smoothed.clone().unwrap_or(u.synthesis.frames.clone());
+    let rendered = render(model, &drawn, &backdrop);
+    let real = frames_of(&clip, rendered.len());
+    (drawn, rendered, real)
 }
 
 fn mean(all: &[Defects]) -> Defects {
@@ -94,39 +171,11 @@ fn main() {
             )
             .unwrap();
             let n = a.get(2).map_or(test.len(), |s| s.parse().unwrap());
-            let clips = root.join("../shared/data/grid-s1/clips");
-            let blend = Blend {
-                top_n: facespace::demo::GRID_TOP_N,
-                ..Blend::default()
-            };
             let alpha = feather_alpha(&model, DEFAULT_FEATHER);
             let mut all = Vec::new();
             for s in test.iter().take(n) {
-                let clip: PathBuf = clips.join(format!("{}.mp4", s.name));
-                let frames = synth::frame_count(&s.segments, 25.0);
-                let backdrop = Backdrop::video(
-                    &model,
-                    &clip,
-                    PoseMode::Replay,
-                    frames,
-                    &EncodeOptions::default(),
-                    facespace::no_progress,
-                )
-                .unwrap();
-                let request = Request {
-                    pose: backdrop.pose.clone(),
-                    ..Request::new(
-                        s.segments.clone(),
-                        25.0,
-                        Smoothing::On(facespace::demo::GRID_SMOOTHING),
-                    )
-                };
-                let mut u = synth::synthesise(&blend, &cb, request).unwrap();
-                backdrop.match_lighting(&model, &cb, &mut u);
-                let drawn = u.smoothed.as_ref().unwrap_or(&u.synthesis.frames);
-                let rendered = render(&model, drawn, &backdrop);
-                let real = frames_of(&clip, rendered.len());
-                let d = measure(&model, &alpha, drawn, &rendered, &real).unwrap();
+                let (drawn, rendered, real) = grid_sentence(&model, &cb, s);
+                let d = measure(&model, &alpha, &drawn, &rendered, &real).unwrap();
                 report(&s.name, &d);
                 all.push(d);
             }
@@ -195,6 +244,63 @@ fn main() {
                 .unwrap(),
             );
         }
-        _ => eprintln!("usage: full_size grid CORPUS [N] | demo DIR BACKGROUND"),
+        Some("picture") => {
+            let model = FaceModel::load(&root.join("models/grid/model")).unwrap();
+            let cb = Codebook::load(&root.join("models/grid/codebook")).unwrap();
+            let layout = model.layout();
+            let test =
+                corpus::load(Path::new(&a[1]), 25.0, layout, None, &PhoneMap::default()).unwrap();
+            let s = test.iter().find(|s| s.name == a[2]).expect("the sentence");
+            let t: usize = a[3].parse().unwrap();
+            let (drawn, rendered, real) = grid_sentence(&model, &cb, s);
+            let p = model.landmarks(drawn.params(t)).unwrap().points;
+            let (nose, jaw) = (p[30], p[4]);
+            let grid = join(
+                &[
+                    join(&[real[t].clone(), rendered[t].clone()], true),
+                    join(
+                        &[
+                            crop(&real[t], nose, 56, 3),
+                            crop(&rendered[t], nose, 56, 3),
+                            crop(&real[t], jaw, 56, 3),
+                            crop(&rendered[t], jaw, 56, 3),
+                        ],
+                        true,
+                    ),
+                ],
+                false,
+            );
+            // The FGNet demo's frame 18 (nose and cheeks, the region's border), drawn again.
+            let dir = Path::new(&a[4]);
+            let region = FaceModel::load(&dir.join("model")).unwrap();
+            let tracker = FaceModel::load(&facespace::demo::default_model()).unwrap();
+            let values: ndarray::ArrayD<f32> =
+                facespace::npy::read(&dir.join("smoothed/trajectory.npy")).unwrap();
+            let frames =
+                Frames::from_rows(region.layout(), 24.0, values.iter().copied().collect()).unwrap();
+            let background = facespace::demo::default_background();
+            let backdrop = Backdrop::video(
+                &tracker,
+                &background,
+                PoseMode::Replay,
+                frames.len(),
+                &EncodeOptions::default(),
+                facespace::no_progress,
+            )
+            .unwrap();
+            let fgnet = render(&region, &frames, &backdrop);
+            let fgnet_real = frames_of(&background, fgnet.len());
+            let q = region.landmarks(frames.params(18)).unwrap().points;
+            let centre = [(q[31][0] + q[35][0]) / 2.0, q[33][1] + 4.0];
+            let fg = join(
+                &[
+                    crop(&fgnet_real[18], centre, 80, 3),
+                    crop(&fgnet[18], centre, 80, 3),
+                ],
+                true,
+            );
+            join(&[grid, fg], false).save(&a[5]).unwrap();
+        }
+        _ => eprintln!("usage: full_size grid CORPUS [N] | demo DIR BACKGROUND | picture …"),
     }
 }

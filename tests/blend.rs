@@ -364,13 +364,22 @@ fn variance_preservation_scales_the_motion_by_one_gain() {
             let (mp, mk) = (mean(&p), mean(&k));
             assert!((mp - mk).abs() < 1e-5, "the mean moved: {mp} → {mk}");
             let spread = |v: &[f32], m: f64| {
-                v.iter().map(|&x| (f64::from(x) - m).powi(2)).sum::<f64>().sqrt()
+                v.iter()
+                    .map(|&x| (f64::from(x) - m).powi(2))
+                    .sum::<f64>()
+                    .sqrt()
             };
             let gain = spread(&k, mk) / spread(&p, mp);
             if n == 1 || column == 5 {
-                assert!((gain - 1.0).abs() < 1e-5, "N = {n}, column {column}: gain {gain}");
+                assert!(
+                    (gain - 1.0).abs() < 1e-5,
+                    "N = {n}, column {column}: gain {gain}"
+                );
             } else {
-                assert!(gain > 1.0 + 1e-3 && gain <= 3f64.sqrt() + 1e-9, "gain {gain}");
+                assert!(
+                    gain > 1.0 + 1e-3 && gain <= 3f64.sqrt() + 1e-9,
+                    "gain {gain}"
+                );
             }
             for (a, b) in p.iter().zip(&k) {
                 let want = mp + gain * (f64::from(*a) - mp);

@@ -144,12 +144,15 @@ fn synthetic_round_trip_recovers_the_parameters() {
     shape_errors.sort_by(f64::total_cmp);
     let median = shape_errors[shape_errors.len() / 2];
     println!("shape error median {median:.2e} σ");
-    assert!(min_psnr >= 40.0, "PSNR {psnr:?}");
+    // 40 dB before the demo model was rebuilt with its rim left out (issue 25): the rebuilt
+    // model has one appearance component fewer and frames 16–20 now reach 39.8 dB.
+    assert!(min_psnr >= 39.0, "PSNR {psnr:?}");
     // Measured: median 0.012σ, worst 0.086σ (shape) / 0.66σ (appearance: the smallest-variance
     // components, where resampling twice is a large fraction of σ). The issue's 1e-3σ is not
     // reached: see BENCHMARKS.md.
     assert!(median < 0.03, "median shape error {median} σ");
-    assert!(worst_shape < 0.2 && worst_app < 1.0);
+    // With the rebuilt demo model (rim left out): worst 0.13σ shape, 1.14σ appearance.
+    assert!(worst_shape < 0.2 && worst_app < 1.5);
 }
 
 #[test]
@@ -362,7 +365,10 @@ fn real_clip_through_the_cli() {
         report["ssim"]["mean"].as_f64().unwrap(),
     );
     println!("real clip: PSNR {psnr:.2} dB, SSIM {ssim:.4}");
-    assert!(psnr > 28.5 && ssim > 0.78, "{report}");
+    // 28.5 dB / 0.78 with the stale demo model, which had learned the blue backdrop at the
+    // face's rim and so reproduced this clip's backdrop inside the mesh; the rebuilt one draws
+    // face there (25.7 dB / 0.777 measured, BENCHMARKS.md "Stale models").
+    assert!(psnr > 25.0 && ssim > 0.76, "{report}");
     assert_eq!(report["frames"], 50);
     assert!(report["compression_ratio"].as_f64().unwrap() > 50.0);
     // The honest size: the whole folder on disk, more than the parameters alone.

@@ -515,6 +515,8 @@ fn fuzz_study_folder() {
         fps: 25.0,
         model_hash: "h".into(),
         stimuli,
+        canvas: [64, 64],
+        over_recordings: false,
         viewers: vec![Viewer {
             id: "v01".into(),
             token: "0123456789abcdef".into(),

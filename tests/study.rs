@@ -141,6 +141,7 @@ fn fixture() -> (FaceModel, Codebook, Vec<Heldout>) {
         .map(|sentence| Heldout {
             sentence,
             audio: None,
+            video: None,
         })
         .collect();
     (model, cb, heldout)
@@ -763,10 +764,12 @@ const ANSWER_TRIALS: &str = r##"async (k) => {
   let answered = 0;
   while (current && answered < k) {
     const i = current.trial;
-    for (const v of document.querySelectorAll("#trial video")) {
+    for (const box of document.querySelectorAll("#trial .clip")) {
+      const v = box.querySelector("video");
+      if (v.controls) throw new Error("the browser's controls would cover the face");
       const ended = new Promise((r) => v.addEventListener("ended", r, { once: true }));
       v.muted = true;
-      await v.play();
+      box.querySelector("button.play").click();
       await ended;
     }
     if (current.kind === "rate") {
@@ -1102,4 +1105,113 @@ fn answers_faster_than_the_clips_are_refused() {
     assert!(
         !study.join(ANSWERS).exists() || std::fs::read(study.join(ANSWERS)).unwrap().is_empty()
     );
+}
+
+/// A study of a recorded talker (GRID s1, his committed model and codebook, a test-split
+/// sentence held out beside its recording): every condition is drawn over the sentence's own
+/// video, on the same frames, in a window centred on the face that is the manifest's stated
+/// size.
+#[test]
+fn recorded_stimuli_are_drawn_over_their_recording_centred_on_the_face() {
+    use facespace::codec::EncodeOptions;
+    use facespace::synth::backdrop::{Backdrop, PoseMode};
+    let root = common::root();
+    let model = FaceModel::load(&root.join("models/grid/model")).unwrap();
+    let cb = Codebook::load(&root.join("models/grid/codebook")).unwrap();
+    let clip = root.join("tests/data/grid/bbbf9a.mp4");
+    let backdrop = Backdrop::video(
+        &model,
+        &clip,
+        PoseMode::Replay,
+        1,
+        &EncodeOptions::default(),
+        facespace::no_progress,
+    )
+    .unwrap();
+    let segments = facespace::phonemes::read_htk(
+        &root.join("tests/data/grid/bbbf9a.lab"),
+        &facespace::phonemes::PhoneMap::default(),
+    )
+    .unwrap();
+    let heldout = vec![Heldout {
+        sentence: facespace::corpus::Sentence {
+            name: "bbbf9a".into(),
+            source: clip.display().to_string(),
+            frames: backdrop.tracked.clone(),
+            segments,
+        },
+        audio: None,
+        video: Some(clip.clone()),
+    }];
+    let dir = tempfile::tempdir().unwrap();
+    let study = dir.path().join("study");
+    let manifest = create(
+        &study,
+        &model,
+        &cb,
+        &heldout,
+        "original,smoothed",
+        1,
+        Task::Rating,
+    )
+    .unwrap();
+    assert!(manifest.over_recordings);
+    let [w, h] = manifest.canvas;
+    // The face's extent over the sentence, and its centre.
+    let (mut lo, mut hi) = ([f64::MAX; 2], [f64::MIN; 2]);
+    for p in backdrop.tracked.iter() {
+        for q in model.landmarks(p).unwrap().points {
+            for k in 0..2 {
+                lo[k] = lo[k].min(q[k]);
+                hi[k] = hi[k].max(q[k]);
+            }
+        }
+    }
+    let extent = (hi[0] - lo[0]).max(hi[1] - lo[1]);
+    let share = extent / f64::from(w.max(h));
+    assert!(
+        (share - facespace::study::create::FACE_SHARE).abs() < 0.02,
+        "the face is {share:.3} of the {w}×{h} window"
+    );
+    let recording = facespace::video::Source::open(&clip)
+        .unwrap()
+        .next_frame()
+        .unwrap()
+        .unwrap();
+    let x0 = (((lo[0] + hi[0]) / 2.0 - f64::from(w) / 2.0).round())
+        .clamp(0.0, f64::from(recording.width() - w)) as u32;
+    let y0 = (((lo[1] + hi[1]) / 2.0 - f64::from(h) / 2.0).round())
+        .clamp(0.0, f64::from(recording.height() - h)) as u32;
+    let mut corners = Vec::new();
+    for s in &manifest.stimuli {
+        let first = facespace::video::Source::open(&study.join("stimuli").join(s.file_name()))
+            .unwrap()
+            .next_frame()
+            .unwrap()
+            .unwrap();
+        assert_eq!(first.dimensions(), (w, h), "{}", s.id);
+        // The window's top corners (hair and backdrop, no face) are the recording's there.
+        let mut diff = 0.0;
+        let mut corner = Vec::new();
+        for y in 0..8 {
+            for x in (0..8).chain(w - 8..w) {
+                let (a, b) = (
+                    first.get_pixel(x, y).0,
+                    recording.get_pixel(x0 + x, y0 + y).0,
+                );
+                for c in 0..3 {
+                    diff += (f64::from(a[c]) - f64::from(b[c])).abs();
+                    corner.push(a[c]);
+                }
+            }
+        }
+        let mean = diff / (8.0 * 16.0 * 3.0);
+        assert!(
+            mean < 8.0,
+            "{}: the corners differ from the recording by {mean:.1}",
+            s.id
+        );
+        corners.push(corner);
+    }
+    assert_eq!(corners.len(), 2);
 }

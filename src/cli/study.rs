@@ -136,7 +136,9 @@ fn create(a: CreateArgs) -> Result<()> {
         unit,
         seed: a.seed,
     };
-    let renderer = a.renderer.make(&model, None)?;
+    let renderer = a
+        .renderer
+        .make(&model, Some(facespace::render::DEFAULT_FEATHER))?;
     let (bar, progress) = progress_bar();
     let manifest = study::create(
         &a.output,
@@ -158,6 +160,17 @@ fn create(a: CreateArgs) -> Result<()> {
         manifest.conditions.len(),
         manifest.viewers.len(),
         manifest.viewers.first().map_or(0, |v| v.trials.len()),
+    );
+    println!(
+        "each clip {}×{}, centred on the face ({:.0} % of its side), drawn over {}",
+        manifest.canvas[0],
+        manifest.canvas[1],
+        100.0 * facespace::study::create::FACE_SHARE,
+        if manifest.over_recordings {
+            "each sentence's own recording (NAME.mp4 beside it)"
+        } else {
+            "plain grey (put NAME.mp4 beside each held-out sentence to draw it over its recording)"
+        }
     );
     println!(
         "serve it with: facespace study serve {}",

@@ -24,6 +24,10 @@ use crate::synth::{Pose, Request, Smoothing, Synthesiser, synthesise};
 use crate::video::Sink;
 use crate::{Progress, atomic, options};
 
+/// The face's extent (the larger side of its landmarks' box over the sentence) as a share of
+/// the stimulus's side: room for the forehead, hair and neck around it.
+pub const FACE_SHARE: f64 = 0.6;
+
 /// A held-out sentence and its sound, if any.
 #[derive(Clone, Debug)]
 pub struct Heldout {
@@ -31,6 +35,8 @@ pub struct Heldout {
     pub sentence: Sentence,
     /// `NAME.m4a` beside it, or the clip folder's `audio.m4a`.
     pub audio: Option<PathBuf>,
+    /// `NAME.mp4` beside it: the recording it was tracked from, drawn behind every condition.
+    pub video: Option<PathBuf>,
 }
 
 /// Reads the held-out sentences of `dir` (as `corpus` reads a corpus) with their sound, and
@@ -64,7 +70,12 @@ pub fn load_heldout(
             ]
             .into_iter()
             .find(|p| p.is_file());
-            Ok(Heldout { sentence, audio })
+            let video = Some(dir.join(format!("{}.mp4", sentence.name))).filter(|p| p.is_file());
+            Ok(Heldout {
+                sentence,
+                audio,
+                video,
+            })
         })
         .collect()
 }
@@ -284,8 +295,8 @@ pub fn create(
 ) -> Result<Manifest, StudyError> {
     check(options, heldout)?;
     let mut rng = Rng::new(options.seed);
-    let mut planned: Vec<(Stimulus, Frames, Option<&Path>)> = Vec::new();
-    for h in heldout {
+    let mut planned: Vec<(Stimulus, Frames, usize)> = Vec::new();
+    for (index, h) in heldout.iter().enumerate() {
         for &c in &options.conditions {
             let frames = condition_frames(c, &h.sentence, codebook, options)?;
             let id = loop {
@@ -301,13 +312,28 @@ pub fn create(
                 frames: frames.len(),
                 audio: h.audio.is_some(),
             };
-            planned.push((stimulus, frames, h.audio.as_deref()));
+            planned.push((stimulus, frames, index));
         }
     }
-    let (mut width, mut height) = (16, 16);
-    for (_, frames, _) in &planned {
-        let (w, h) = Background::plain_for(model, frames).size();
-        (width, height) = (width.max(w), height.max(h));
+    let over_recordings = !heldout.is_empty() && heldout.iter().all(|h| h.video.is_some());
+    let faces: Vec<FaceBox> = heldout
+        .iter()
+        .map(|h| FaceBox::of(model, &h.sentence.frames))
+        .collect();
+    let side = faces.iter().map(|f| f.extent).fold(16.0, f64::max) / FACE_SHARE;
+    let even = |v: f64| ((v.ceil() as u32) + 1) & !1;
+    let (mut width, mut height) = (even(side), even(side));
+    if over_recordings {
+        // Never wider or taller than the recordings themselves.
+        for h in heldout {
+            if let Some(v) = &h.video {
+                let source = crate::video::Source::open(v)
+                    .map_err(|e| StudyError::Design(format!("{}: {e}", v.display())))?;
+                let info = source.info();
+                width = width.min(info.width & !1);
+                height = height.min(info.height & !1);
+            }
+        }
     }
     let stimuli: Vec<Stimulus> = planned.iter().map(|p| p.0.clone()).collect();
     let sentences: Vec<String> = heldout.iter().map(|h| h.sentence.name.clone()).collect();
@@ -331,6 +357,8 @@ pub fn create(
         fps: codebook.fps,
         model_hash: model.hash(),
         stimuli,
+        canvas: [width, height],
+        over_recordings,
         viewers,
     };
     let io = |source| StudyError::Io {
@@ -343,14 +371,20 @@ pub fn create(
         |staged| {
             let folder = staged.join(STIMULI);
             std::fs::create_dir(&folder).map_err(io)?;
-            for (i, (stimulus, frames, audio)) in planned.iter().enumerate() {
+            for (i, (stimulus, frames, index)) in planned.iter().enumerate() {
+                let h = &heldout[*index];
+                let behind = Behind {
+                    video: h.video.as_deref().filter(|_| over_recordings),
+                    face: faces[*index],
+                    size: (width, height),
+                };
                 progress(Progress {
                     stage: "rendering stimuli",
                     done: i,
                     total: planned.len(),
                 });
                 let path = folder.join(stimulus.file_name());
-                render_clip(&path, renderer, frames, (width, height), *audio).map_err(
+                render_clip(&path, renderer, frames, &behind, h.audio.as_deref()).map_err(
                     |source| StudyError::Render {
                         path,
                         source: Box::new(source),
@@ -365,20 +399,98 @@ pub fn create(
     Ok(manifest)
 }
 
-/// Renders `frames` over a plain canvas of `size` into an MP4 at `path`.
+/// Where a sentence's face lies: the centre and larger side of its landmarks' box over
+/// every frame of its tracked trajectory.
+#[derive(Clone, Copy, Debug)]
+struct FaceBox {
+    centre: [f64; 2],
+    extent: f64,
+}
+
+impl FaceBox {
+    fn of(model: &FaceModel, frames: &Frames) -> FaceBox {
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for p in frames.iter() {
+            if let Ok(l) = model.landmarks(p) {
+                let (a, b) = l.bounds();
+                for k in 0..2 {
+                    lo[k] = lo[k].min(a[k]);
+                    hi[k] = hi[k].max(b[k]);
+                }
+            }
+        }
+        if !(lo[0].is_finite() && hi[0].is_finite()) {
+            return FaceBox {
+                centre: [0.0, 0.0],
+                extent: 16.0,
+            };
+        }
+        FaceBox {
+            centre: [(lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0],
+            extent: (hi[0] - lo[0]).max(hi[1] - lo[1]),
+        }
+    }
+}
+
+/// What a stimulus is drawn over and which window of it is kept.
+struct Behind<'a> {
+    /// The sentence's recording, or none for plain grey.
+    video: Option<&'a Path>,
+    /// Its face, which the window centres.
+    face: FaceBox,
+    /// The window, width × height.
+    size: (u32, u32),
+}
+
+/// Renders `frames` over their recording (replayed forwards then backwards if the frames
+/// outlast it) or a plain canvas, keeps the window of `behind.size` centred on the face
+/// (inside the frame), and writes it as an MP4 at `path`.
 fn render_clip(
     path: &Path,
     renderer: &dyn Renderer,
     frames: &Frames,
-    (width, height): (u32, u32),
+    behind: &Behind<'_>,
     audio: Option<&Path>,
 ) -> Result<(), OutputError> {
+    let background = match behind.video {
+        Some(video) => {
+            let images = crate::video::Source::open(video)?.collect::<Result<Vec<_>, _>>()?;
+            if images.is_empty() {
+                return Err(crate::video::VideoError::NoFrames(video.into()).into());
+            }
+            Background::Loop {
+                frames: images,
+                next: 0,
+            }
+        }
+        None => {
+            let (w, h) = Background::plain_for(renderer.model(), frames).size();
+            Background::Plain {
+                width: w.max(behind.size.0),
+                height: h.max(behind.size.1),
+            }
+        }
+    };
+    let (full_w, full_h) = background.size();
+    let (width, height) = (behind.size.0.min(full_w), behind.size.1.min(full_h));
+    let corner = |centre: f64, side: u32, full: u32| {
+        (centre - f64::from(side) / 2.0)
+            .round()
+            .clamp(0.0, f64::from(full - side)) as u32
+    };
+    let (x0, y0) = (
+        corner(behind.face.centre[0], width, full_w),
+        corner(behind.face.centre[1], height, full_h),
+    );
     let mut sink = Sink::create(path, width, height, frames.fps(), audio)?;
     render::stream(
         renderer,
         frames,
-        Background::Plain { width, height },
-        |image| Ok::<(), OutputError>(sink.write(&image)?),
+        background,
+        |image| {
+            let window = image::imageops::crop_imm(&image, x0, y0, width, height).to_image();
+            Ok::<(), OutputError>(sink.write(&window)?)
+        },
         |_| {},
     )?;
     sink.finish()?;

@@ -270,6 +270,14 @@ pub struct Manifest {
     pub model_hash: String,
     /// The rendered clips.
     pub stimuli: Vec<Stimulus>,
+    /// Every clip's size, width × height: a window of its sentence's frames centred on the
+    /// face, [`create::FACE_SHARE`] of it the face's extent.
+    #[serde(default)]
+    pub canvas: [u32; 2],
+    /// Whether the stimuli are drawn over their sentences' own recordings (`NAME.mp4` beside
+    /// the held-out sentence) rather than a plain grey.
+    #[serde(default)]
+    pub over_recordings: bool,
     /// The viewers.
     pub viewers: Vec<Viewer>,
 }

@@ -272,7 +272,12 @@ impl Spread {
             .max(1.0);
         let means: Vec<f64> = group
             .clone()
-            .map(|k| rows.chunks_exact(dims).map(|r| f64::from(r[k])).sum::<f64>() / n)
+            .map(|k| {
+                rows.chunks_exact(dims)
+                    .map(|r| f64::from(r[k]))
+                    .sum::<f64>()
+                    / n
+            })
             .collect();
         let blend: f64 = rows
             .chunks_exact(dims)
