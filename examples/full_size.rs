@@ -144,6 +144,74 @@ fn grid_sentence(
     (drawn, rendered, real)
 }
 
+/// Photometric matching tried on the border (issue 25): per channel, the face's offset (and,
+/// with `gain`, its gain, clamped to [0.8, 1.25]) fitted by least squares on the pixels where
+/// the face is blended in at 0.5 ≤ α < 1 against the background there, then applied to the
+/// face wherever it is drawn: `out' = out + α·((g − 1)·face + o)`.
+fn match_border(
+    model: &FaceModel,
+    alpha: &[f32],
+    frames: &Frames,
+    rendered: &mut [RgbImage],
+    background: &[RgbImage],
+    gain: bool,
+) {
+    for (t, (out, bg)) in rendered.iter_mut().zip(background).enumerate() {
+        let (w, h) = out.dimensions();
+        let points = model.landmarks(frames.params(t)).unwrap().points;
+        let a = facespace::eval::seams::alpha_on_canvas(model, alpha, &points, w, h).unwrap();
+        // The face's own colour where it is drawn: out = α·face + (1 − α)·bg, solved for face.
+        let face: Vec<[f64; 3]> = (0..a.len())
+            .map(|i| {
+                let (x, y) = ((i % w as usize) as u32, (i / w as usize) as u32);
+                let (o, b) = (out.get_pixel(x, y).0, bg.get_pixel(x, y).0);
+                std::array::from_fn(|c| {
+                    let alpha = f64::from(a[i]).max(1e-6);
+                    (f64::from(o[c]) - (1.0 - alpha) * f64::from(b[c])) / alpha
+                })
+            })
+            .collect();
+        let band: Vec<usize> = (0..a.len())
+            .filter(|&i| a[i] >= 0.5 && a[i] < 0.996)
+            .collect();
+        if band.len() < 20 {
+            continue;
+        }
+        let mut fit = [(1.0f64, 0.0f64); 3];
+        for (c, f) in fit.iter_mut().enumerate() {
+            let n = band.len() as f64;
+            let (mut sf, mut sb, mut sff, mut sfb) = (0.0, 0.0, 0.0, 0.0);
+            for &i in &band {
+                let (x, y) = ((i % w as usize) as u32, (i / w as usize) as u32);
+                let (fv, bv) = (face[i][c], f64::from(bg.get_pixel(x, y).0[c]));
+                sf += fv;
+                sb += bv;
+                sff += fv * fv;
+                sfb += fv * bv;
+            }
+            let var = sff / n - (sf / n).powi(2);
+            let g = if gain && var > 1.0 {
+                ((sfb / n - sf / n * sb / n) / var).clamp(0.8, 1.25)
+            } else {
+                1.0
+            };
+            *f = (g, sb / n - g * sf / n);
+        }
+        for i in 0..a.len() {
+            if a[i] <= 0.0 {
+                continue;
+            }
+            let (x, y) = ((i % w as usize) as u32, (i / w as usize) as u32);
+            let mut p = out.get_pixel(x, y).0;
+            for (c, &(g, o)) in fit.iter().enumerate() {
+                let v = f64::from(p[c]) + f64::from(a[i]) * ((g - 1.0) * face[i][c] + o);
+                p[c] = v.round().clamp(0.0, 255.0) as u8;
+            }
+            out.put_pixel(x, y, image::Rgb(p));
+        }
+    }
+}
+
 fn mean(all: &[Defects]) -> Defects {
     let n = all.len().max(1) as f64;
     let sum = |f: fn(&Defects) -> f64| all.iter().map(f).sum::<f64>() / n;
@@ -172,12 +240,25 @@ fn main() {
             .unwrap();
             let n = a.get(2).map_or(test.len(), |s| s.parse().unwrap());
             let alpha = feather_alpha(&model, DEFAULT_FEATHER);
+            let matching = std::env::var_os("MATCH").is_some();
             let mut all = Vec::new();
+            let (mut offset, mut gained) = (Vec::new(), Vec::new());
             for s in test.iter().take(n) {
                 let (drawn, rendered, real) = grid_sentence(&model, &cb, s);
                 let d = measure(&model, &alpha, &drawn, &rendered, &real).unwrap();
                 report(&s.name, &d);
                 all.push(d);
+                if matching {
+                    for (gain, out) in [(false, &mut offset), (true, &mut gained)] {
+                        let mut r = rendered.clone();
+                        match_border(&model, &alpha, &drawn, &mut r, &real, gain);
+                        out.push(measure(&model, &alpha, &drawn, &r, &real).unwrap());
+                    }
+                }
+            }
+            if matching {
+                report("GRID s1, border offset matched", &mean(&offset));
+                report("GRID s1, border gain and offset matched", &mean(&gained));
             }
             report(
                 &format!("GRID s1 (recorded), mean of {}", all.len()),
@@ -204,6 +285,17 @@ fn main() {
             .unwrap();
             let rendered = render(&model, &frames, &backdrop);
             let real = frames_of(background, rendered.len());
+            if std::env::var_os("MATCH").is_some() {
+                let alpha = feather_alpha(&model, DEFAULT_FEATHER);
+                for (gain, what) in [(false, "offset"), (true, "gain and offset")] {
+                    let mut r = rendered.clone();
+                    match_border(&model, &alpha, &frames, &mut r, &real, gain);
+                    report(
+                        &format!("FGNet demo, border {what} matched"),
+                        &measure(&model, &alpha, &frames, &r, &real).unwrap(),
+                    );
+                }
+            }
             if std::env::var_os("PARTS").is_some() {
                 // Where the shimmer comes from: appearance held at its mean, or cut to its
                 // first k components.

@@ -422,6 +422,7 @@ fn another_face_is_a_loud_error() {
             t.contains("built for another face") && t.contains("--allow-lost"),
             "{t}"
         );
+        assert_eq!(t.matches(f).count(), 1, "the path once: {t}");
         assert!(!out.exists(), "{command} wrote {}", out.display());
     }
     let out = tmp.path().join("lm.npy");

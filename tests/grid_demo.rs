@@ -244,3 +244,69 @@ fn the_demo_refuses_a_codebook_sentence() {
     assert!(t.contains("bare.txt") && t.contains("--text"), "{t}");
     assert!(!Path::new(&out).exists());
 }
+
+/// Full-face synthesis over a recording takes everything but the lips and chin from the
+/// recording's tracked face — eyes, brows, nose and jaw line at its head pose, not at the
+/// codebook examples' — and keeps the synthesised articulation.
+#[test]
+fn full_face_synthesis_takes_the_head_from_the_background() {
+    let model = FaceModel::load(&facespace::demo::grid_model()).unwrap();
+    let cb = Codebook::load(&facespace::demo::grid_codebook()).unwrap();
+    let articulators = model
+        .articulators()
+        .expect("a 68-point face knows its lips and chin");
+    assert!(articulators.contains(&8) && articulators.contains(&62) && !articulators.contains(&30));
+    let name = TEST_CLIPS[0];
+    let clip = grid(&format!("{name}.mp4"));
+    let target =
+        phonemes::read_labels(&grid(&format!("{name}.lab")), None, &PhoneMap::default()).unwrap();
+    let fps = Source::open(&clip).unwrap().info().fps;
+    let backdrop = Backdrop::video(
+        &model,
+        &clip,
+        PoseMode::Replay,
+        synth::frame_count(&target, fps),
+        &EncodeOptions::default(),
+        facespace::no_progress,
+    )
+    .unwrap();
+    let request = Request {
+        pose: backdrop.pose.clone(),
+        ..Request::new(target, fps, Smoothing::Off)
+    };
+    let mut u = synthesise(&Blend::default(), &cb, request).unwrap();
+    let before = u.synthesis.frames.clone();
+    assert!(backdrop.anchor_region(&model, &mut u).unwrap());
+    // Mean distance (px) of the head's landmarks, and of the lips', to the recording's.
+    let distance = |frames: &facespace::facespace::Frames, lips: bool| {
+        let (mut sum, mut n) = (0.0, 0);
+        for t in 0..frames.len().min(backdrop.landmarks.len()) {
+            let p = model.landmarks(frames.params(t)).unwrap().points;
+            for i in 0..68u32 {
+                if articulators.contains(&i) == lips {
+                    let (a, b) = (p[i as usize], backdrop.landmarks[t].points[i as usize]);
+                    sum += (a[0] - b[0]).hypot(a[1] - b[1]);
+                    n += 1;
+                }
+            }
+        }
+        sum / f64::from(n)
+    };
+    let (head_before, head_after) = (
+        distance(&before, false),
+        distance(&u.synthesis.frames, false),
+    );
+    let (lips_before, lips_after) = (distance(&before, true), distance(&u.synthesis.frames, true));
+    eprintln!(
+        "{name}: head landmarks {head_before:.2} → {head_after:.2} px from the recording's; lips {lips_before:.2} → {lips_after:.2}"
+    );
+    assert!(
+        head_after < 0.5 * head_before && head_after < 1.5,
+        "{head_before} → {head_after}"
+    );
+    // The lips are still the synthesis's, not copied from the recording.
+    assert!(
+        lips_after > 0.3,
+        "lips {lips_after} px from the recording's: copied?"
+    );
+}

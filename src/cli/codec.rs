@@ -76,7 +76,7 @@ pub fn encode(a: EncodeArgs) -> Result<()> {
     let (bar, progress) = progress_bar();
     let clock = std::time::Instant::now();
     let encoded = codec::encode(&model, source, &options, progress)
-        .with_context(|| format!("encoding {}", a.input.display()))?;
+        .map_err(|e| super::tracking_context("encoding", &a.input)(e.into()))?;
     bar.finish_and_clear();
     let seconds = clock.elapsed().as_secs_f64();
     let clip = &encoded.clip;

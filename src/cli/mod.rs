@@ -241,6 +241,34 @@ impl TrackingArgs {
     }
 }
 
+/// Context for a failed tracking command: `what` (e.g. "tracking") and the input's path,
+/// unless the error names it already; when the face was lost, the remedies its
+/// [`TrackingArgs`] offer.
+fn tracking_context<'a>(
+    what: &'a str,
+    input: &'a std::path::Path,
+) -> impl Fn(anyhow::Error) -> anyhow::Error + 'a {
+    move |e| {
+        let named = format!("{e:#}").contains(&input.display().to_string());
+        let head = if named {
+            what.to_owned()
+        } else {
+            format!("{what} {}", input.display())
+        };
+        let lost = e.chain().any(|c| {
+            c.downcast_ref::<facespace::codec::CodecError>()
+                .is_some_and(|c| c.is_lost_face())
+        });
+        if lost {
+            e.context(format!(
+                "{head} (give the first frame's landmarks with --init, or pass --allow-lost to keep the result anyway)"
+            ))
+        } else {
+            e.context(head)
+        }
+    }
+}
+
 /// One line on a tracking record.
 fn tracking_line(s: &TrackingSummary, seconds: f64) -> String {
     format!(

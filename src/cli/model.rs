@@ -122,7 +122,7 @@ fn suggest(a: SuggestArgs) -> Result<()> {
     let (bar, progress) = progress_bar();
     let chosen =
         facespace::model::suggest(&model, &a.input, a.count, &a.output, &options, progress)
-            .with_context(|| format!("suggesting frames of {}", a.input.display()))?;
+            .map_err(|e| super::tracking_context("suggesting frames of", &a.input)(e.into()))?;
     bar.finish_and_clear();
     for s in &chosen {
         println!(

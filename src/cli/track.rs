@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::Args;
 use facespace::codec::{self, TrackingSummary};
 use facespace::{shape, video};
@@ -31,7 +31,7 @@ pub fn run(a: TrackArgs) -> Result<()> {
     let (bar, progress) = progress_bar();
     let clock = std::time::Instant::now();
     let (landmarks, tracking) = codec::track_landmarks(&model, source, &options, progress)
-        .with_context(|| format!("tracking {}", a.input.display()))?;
+        .map_err(|e| super::tracking_context("tracking", &a.input)(e.into()))?;
     bar.finish_and_clear();
     let seconds = clock.elapsed().as_secs_f64();
     shape::write_sequence(&a.output, &landmarks, names.as_deref())?;

@@ -101,8 +101,10 @@ pub enum CodecError {
     #[error("{0}: no frames")]
     NoFrames(PathBuf),
     /// The model explains no face in the first frame: almost always a model of someone else.
+    /// (The three "no face" errors name no remedy flags: a command that has them adds them,
+    /// [`CodecError::is_lost_face`].)
     #[error(
-        "{path}: no face this model explains in the first frame (residual {error:.1} grey levels, a face it was built for fits under {threshold}); this model was probably built for another face: build one from your own frames (README: \"Your own talker\"), give the first frame's landmarks with --init, or pass --allow-lost to keep the result anyway"
+        "{path}: no face this model explains in the first frame (residual {error:.1} grey levels, a face it was built for fits under {threshold}); this model was probably built for another face: build one from your own frames (README: \"Your own talker\")"
     )]
     NoFace {
         /// The video.
@@ -114,7 +116,7 @@ pub enum CodecError {
     },
     /// The search diverged on the first frame: no face at all there.
     #[error(
-        "{path}: frame 0: the search diverged — there is no face in it at all (a grey, black or damaged frame?); give the first frame's landmarks with --init, or pass --allow-lost to keep the result anyway"
+        "{path}: frame 0: the search diverged — there is no face in it at all (a grey, black or damaged frame?)"
     )]
     FirstFrameDiverged {
         /// The video.
@@ -122,7 +124,7 @@ pub enum CodecError {
     },
     /// Most frames were lost.
     #[error(
-        "{path}: the face was lost on {lost} of {frames} frames (residual above {threshold} grey levels); this model was probably built for another face: build one from your own frames (README: \"Your own talker\"), or pass --allow-lost to keep the result anyway"
+        "{path}: the face was lost on {lost} of {frames} frames (residual above {threshold} grey levels); this model was probably built for another face: build one from your own frames (README: \"Your own talker\")"
     )]
     FaceLost {
         /// The video.
@@ -137,6 +139,20 @@ pub enum CodecError {
     /// An option out of range.
     #[error(transparent)]
     Option(#[from] InvalidOption),
+}
+
+impl CodecError {
+    /// Whether tracking found no face it could keep: the first frame unexplained or empty, or
+    /// the face lost on most frames — what giving the first frame's landmarks or allowing lost
+    /// frames gets past.
+    pub fn is_lost_face(&self) -> bool {
+        matches!(
+            self,
+            CodecError::NoFace { .. }
+                | CodecError::FirstFrameDiverged { .. }
+                | CodecError::FaceLost { .. }
+        )
+    }
 }
 
 /// Options of [`track`] and [`encode`].

@@ -274,6 +274,18 @@ impl FaceModel {
         })
     }
 
+    /// The landmarks synthesis moves, the others staying where a background's face has them
+    /// ([`crate::synth::backdrop::anchor`]): a region's articulators, or for a whole iBUG
+    /// 68-point face the lower face's — lips and chin — so eyes, brows, nose and the upper jaw
+    /// line, which carry head pose more than speech, come from the background's own face.
+    pub fn articulators(&self) -> Option<Vec<u32>> {
+        match &self.region {
+            Some(region) => region.articulators(),
+            None if self.shape.n_landmarks() == 68 => Region::LowerFace.articulators(),
+            None => None,
+        }
+    }
+
     /// A content hash of the model (FNV-1a 64 over the mesh, placement and every array), in
     /// hex: codebooks and encoded clips record it to refuse parameters of another model.
     pub fn hash(&self) -> String {

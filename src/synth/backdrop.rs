@@ -97,15 +97,17 @@ impl Backdrop {
         })
     }
 
-    /// For a region model (one that knows its articulators), re-fits every variant of
-    /// `utterance` so the region's seam lies on this background's face ([`anchor`]); returns
-    /// whether it did.
+    /// For a model that knows its articulators ([`FaceModel::articulators`]: a region model,
+    /// or a whole 68-point face), re-fits every variant of `utterance` so that everything but
+    /// the lips and chin lies where this background's face has it ([`anchor`]) — a region's
+    /// seam on the background's face, and a full face's eyes, brows, nose and jaw line at the
+    /// background's head pose instead of another take's; returns whether it did.
     pub fn anchor_region(
         &self,
         model: &FaceModel,
         utterance: &mut super::Utterance,
     ) -> Result<bool, crate::model::ModelError> {
-        let Some(articulators) = model.region.as_ref().and_then(|r| r.articulators()) else {
+        let Some(articulators) = model.articulators() else {
             return Ok(false);
         };
         anchor(
@@ -119,7 +121,7 @@ impl Backdrop {
         }
         utterance
             .pose
-            .push_str("; region anchored to the background's face");
+            .push_str("; all but lips and chin anchored to the background's face");
         Ok(true)
     }
 
