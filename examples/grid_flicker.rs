@@ -29,6 +29,7 @@ fn main() {
             &PhoneMap::default(),
             SimilarityOptions::default(),
             photometric,
+            corpus::DEFAULT_TOLERANCE,
             &mut facespace::no_progress,
         )
         .unwrap();

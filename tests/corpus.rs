@@ -151,12 +151,51 @@ fn corpus_from_recordings_builds_a_codebook_that_synthesises() {
         &p(&model),
         "--corpus",
         &p(&corpus),
-        "--fps",
-        "25",
         "-o",
         &p(&cb),
     ]);
     assert!(o.status.success(), "{}", common::text(&o));
+    // The frame rate comes from the corpus's record; another one given is refused, naming
+    // the file that records it.
+    let fps = facespace::codebook::Codebook::load(&cb).unwrap().fps;
+    assert_eq!(facespace::corpus::recorded_fps(&corpus), Some(fps));
+    let o = common::facespace(&[
+        "codebook",
+        "build",
+        "--model",
+        &p(&model),
+        "--corpus",
+        &p(&corpus),
+        "--fps",
+        "30",
+        "-o",
+        &p(&tmp.path().join("cb30")),
+    ]);
+    let t = common::text(&o);
+    assert_eq!(o.status.code(), Some(1), "{t}");
+    assert!(
+        t.contains("corpus.json") && t.contains("records 25 fps"),
+        "{t}"
+    );
+    // A corpus recorded at 30 fps is read at 30 without --fps: its 50 frames then last 1.67 s,
+    // and the error says so, naming both files.
+    facespace::corpus::write_manifest(&corpus, 30.0).unwrap();
+    let o = common::facespace(&[
+        "codebook",
+        "build",
+        "--model",
+        &p(&model),
+        "--corpus",
+        &p(&corpus),
+        "-o",
+        &p(&tmp.path().join("cb30")),
+    ]);
+    let t = common::text(&o);
+    assert_eq!(o.status.code(), Some(1), "{t}");
+    assert!(
+        t.contains("at 30 fps") && t.contains("s1.npy") && t.contains("s1.lab"),
+        "{t}"
+    );
     let out = tmp.path().join("out");
     let o = common::facespace(&[
         "synth",
@@ -176,7 +215,37 @@ fn corpus_from_recordings_builds_a_codebook_that_synthesises() {
     let t = common::text(&o);
     assert_eq!(o.status.code(), Some(1), "{t}");
     assert!(t.contains(&p(&clip)) && t.contains(&p(&lab)), "{t}");
+    assert!(t.contains("0.2 s allowed"), "{t}");
     assert!(!other.exists());
+    // Labels ending 0.1 s after the last frame — as aligner output does — are taken by
+    // default; 0.9 s past it, only with a wider --tolerance.
+    std::fs::write(
+        &lab,
+        "0 5000000 sil
+5000000 21800000 m
+",
+    )
+    .unwrap();
+    let o = common::facespace(&["corpus", "from-videos", &p(&dir), "-o", &p(&other)]);
+    assert!(o.status.success(), "{}", common::text(&o));
+    std::fs::write(
+        &lab,
+        "0 5000000 sil
+5000000 30000000 m
+",
+    )
+    .unwrap();
+    let wide = tmp.path().join("corpus3");
+    let o = common::facespace(&[
+        "corpus",
+        "from-videos",
+        &p(&dir),
+        "--tolerance",
+        "1.0",
+        "-o",
+        &p(&wide),
+    ]);
+    assert!(o.status.success(), "{}", common::text(&o));
 }
 
 /// Issue 15: a quantised clip folder from `encode` (`NAME.fsp/` beside `NAME.lab`) is read as

@@ -44,9 +44,12 @@ pub struct BuildArgs {
     /// Folder of NAME.npy (frames × face-space dims) with NAME.lab / NAME.TextGrid / NAME.tsv.
     #[arg(long)]
     corpus: PathBuf,
-    /// Frame rate of the trajectories.
-    #[arg(long, default_value_t = 25.0)]
-    fps: f64,
+    /// Frame rate of the trajectories (default: the corpus's `corpus.json`, else 25).
+    #[arg(long)]
+    fps: Option<f64>,
+    /// Seconds each sentence's labels may end from its frames' end.
+    #[arg(long, default_value_t = facespace::corpus::DEFAULT_TOLERANCE)]
+    tolerance: f64,
     /// TextGrid tier to read (default: "phones" or "phonemes").
     #[arg(long)]
     tier: Option<String>,
@@ -99,11 +102,28 @@ fn build(a: BuildArgs) -> Result<()> {
         gamma: a.gamma,
         ..SimilarityOptions::default()
     };
+    let recorded = facespace::corpus::recorded_fps(&a.corpus);
+    let fps = match (a.fps, recorded) {
+        (Some(given), Some(r)) if (given - r).abs() > 1e-9 => anyhow::bail!(
+            "--fps {given}, but {} records {r} fps: leave --fps out",
+            a.corpus.join(facespace::corpus::MANIFEST).display()
+        ),
+        (Some(given), _) => given,
+        (None, Some(r)) => r,
+        (None, None) => {
+            eprintln!(
+                "note: {} has no {}: its frames are taken to be at 25 fps (--fps sets it)",
+                a.corpus.display(),
+                facespace::corpus::MANIFEST
+            );
+            25.0
+        }
+    };
     let (bar, mut progress) = progress_bar();
     let cb = Codebook::from_corpus(
         &a.corpus,
         &model,
-        a.fps,
+        fps,
         a.tier.as_deref(),
         &map,
         options,
@@ -111,6 +131,7 @@ fn build(a: BuildArgs) -> Result<()> {
             PhotometricArg::None => facespace::corpus::Photometric::None,
             PhotometricArg::Sentence => facespace::corpus::Photometric::Sentence,
         },
+        a.tolerance,
         &mut progress,
     )
     .with_context(|| {

@@ -44,6 +44,10 @@ pub struct FromVideosArgs {
     /// refused.
     #[arg(long, default_value_t = facespace::corpus::DEFAULT_MAX_FAILED)]
     max_failed: f64,
+    /// Seconds the labels may end from the video's end (forced-aligner output ends with the
+    /// sound, which can outlast the last frame).
+    #[arg(long, default_value_t = facespace::corpus::DEFAULT_TOLERANCE)]
+    tolerance: f64,
     /// Output corpus folder.
     #[arg(short, long)]
     output: PathBuf,
@@ -153,6 +157,7 @@ fn from_videos(a: FromVideosArgs) -> Result<()> {
         a.tier.as_deref(),
         &map,
         a.max_failed,
+        a.tolerance,
         progress,
     )
     .with_context(|| format!("making a corpus of {}", a.dir.display()))?;
@@ -180,7 +185,7 @@ fn from_videos(a: FromVideosArgs) -> Result<()> {
         );
     }
     println!(
-        "{} sentences at {fps} fps in {:.1} s → {} (next: facespace codebook build --model {} --corpus {} --fps {fps} -o CODEBOOK)",
+        "{} sentences at {fps} fps in {:.1} s → {} (next: facespace codebook build --model {} --corpus {} -o CODEBOOK)",
         sentences.len(),
         start.elapsed().as_secs_f64(),
         a.output.display(),

@@ -242,7 +242,8 @@ impl Codebook {
     }
 
     /// Builds a codebook of `model`'s face-space from a corpus folder (see
-    /// [`crate::corpus::load`]).
+    /// [`crate::corpus::load_tolerant`]; labels within `tolerance` seconds of the frames' end).
+    #[allow(clippy::too_many_arguments)]
     pub fn from_corpus(
         dir: &std::path::Path,
         model: &FaceModel,
@@ -251,10 +252,18 @@ impl Codebook {
         map: &phonemes::PhoneMap,
         options: SimilarityOptions,
         photometric: crate::corpus::Photometric,
+        tolerance: f64,
         progress: &mut dyn FnMut(Progress),
     ) -> Result<Self, CodebookError> {
-        let mut sentences =
-            crate::corpus::load_checked(dir, fps, model.layout(), Some(&model.hash()), tier, map)?;
+        let mut sentences = crate::corpus::load_tolerant(
+            dir,
+            fps,
+            model.layout(),
+            Some(&model.hash()),
+            tier,
+            map,
+            tolerance,
+        )?;
         if photometric == crate::corpus::Photometric::Sentence {
             crate::corpus::recentre_appearance(&mut sentences);
         }

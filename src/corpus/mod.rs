@@ -93,7 +93,7 @@ pub enum CorpusError {
     },
     /// Labels and frames of different lengths.
     #[error(
-        "{npy} lasts {frames_s:.3} s ({frames} frames at {fps} fps) but {labels} ends at {labels_s:.3} s"
+        "{npy} lasts {frames_s:.3} s ({frames} frames at {fps} fps) but {labels} ends at {labels_s:.3} s: more than the {tolerance} s allowed apart (is the frame rate right?)"
     )]
     DurationMismatch {
         /// The trajectory.
@@ -108,7 +108,31 @@ pub enum CorpusError {
         frames_s: f64,
         /// Where the labels end.
         labels_s: f64,
+        /// The most they may differ, seconds.
+        tolerance: f64,
     },
+}
+
+/// How far (seconds) labels may end from the frames' end by default: forced-aligner output
+/// (ours, pocketsphinx's) ends where the sound does, which can differ from the video's last
+/// frame by a few frames.
+pub const DEFAULT_TOLERANCE: f64 = 0.2;
+
+/// The corpus folder's record of its frame rate, written by the commands that make corpora.
+pub const MANIFEST: &str = "corpus.json";
+
+/// Writes `dir/corpus.json` recording the corpus's frame rate (an error names the file).
+pub fn write_manifest(dir: &Path, fps: f64) -> Result<(), (PathBuf, std::io::Error)> {
+    let json = serde_json::json!({ "format": "facespace-corpus", "fps": fps });
+    let path = dir.join(MANIFEST);
+    crate::atomic::write_file(&path, json.to_string().as_bytes()).map_err(|e| (path, e))
+}
+
+/// The frame rate `dir/corpus.json` records, if the folder has one.
+pub fn recorded_fps(dir: &Path) -> Option<f64> {
+    let text = std::fs::read_to_string(dir.join(MANIFEST)).ok()?;
+    let value: serde_json::Value = serde_json::from_str(&text).ok()?;
+    value["fps"].as_f64().filter(|f| f.is_finite() && *f > 0.0)
 }
 
 /// One sentence: face-space frames and the phones spoken over them.
@@ -198,8 +222,8 @@ fn with_path(path: &Path, cause: &dyn std::fmt::Display) -> String {
 }
 
 /// Reads a corpus folder: every `NAME.npy` (frames × `layout` face-space parameters at `fps`)
-/// with `NAME.lab`, `NAME.TextGrid` or `NAME.tsv`. The labels must end within two frames of
-/// the frames' duration.
+/// with `NAME.lab`, `NAME.TextGrid` or `NAME.tsv`. The labels must end within
+/// [`DEFAULT_TOLERANCE`] of the frames' duration.
 pub fn load(
     dir: &Path,
     fps: f64,
@@ -219,6 +243,20 @@ pub fn load_checked(
     model_hash: Option<&str>,
     tier: Option<&str>,
     map: &PhoneMap,
+) -> Result<Vec<Sentence>, CorpusError> {
+    load_tolerant(dir, fps, layout, model_hash, tier, map, DEFAULT_TOLERANCE)
+}
+
+/// [`load_checked`] with labels allowed to end up to `tolerance` seconds from the frames'
+/// end.
+pub fn load_tolerant(
+    dir: &Path,
+    fps: f64,
+    layout: Layout,
+    model_hash: Option<&str>,
+    tier: Option<&str>,
+    map: &PhoneMap,
+    tolerance: f64,
 ) -> Result<Vec<Sentence>, CorpusError> {
     let io = |source| CorpusError::Io {
         path: dir.into(),
@@ -270,7 +308,7 @@ pub fn load_checked(
         };
         let segments = phonemes::read_labels(&labels, tier, map)?;
         let (frames_s, labels_s) = (frames.duration(), segments[segments.len() - 1].end);
-        if (frames_s - labels_s).abs() > 2.0 / fps {
+        if (frames_s - labels_s).abs() > tolerance {
             return Err(CorpusError::DurationMismatch {
                 npy: npy_path,
                 labels,
@@ -278,6 +316,7 @@ pub fn load_checked(
                 fps,
                 frames_s,
                 labels_s,
+                tolerance,
             });
         }
         let name = npy_path

@@ -143,8 +143,9 @@ pub const DEFAULT_MAX_FAILED: f64 = 0.10;
 
 /// Tracks and projects every recording in `dir` with `model` (videos in parallel) and writes
 /// the corpus folder `out` atomically: `NAME.npy`, the label file, `NAME.m4a` when the video
-/// has sound. Labels must end within two frames of the video's duration; every video must
-/// have the same frame rate (a codebook has one). A recording that cannot be used (damaged
+/// has sound, and `corpus.json` with the frame rate. Labels must end within `tolerance`
+/// seconds of the video's duration; every video must have the same frame rate (a codebook
+/// has one). A recording that cannot be used (damaged
 /// frames, a face lost, labels that do not fit) is left out and named in the result, unless
 /// more than `max_failed` of them fail: then nothing is written and every failure is named.
 #[allow(clippy::too_many_arguments)]
@@ -156,6 +157,7 @@ pub fn from_recordings(
     tier: Option<&str>,
     map: &PhoneMap,
     max_failed: f64,
+    tolerance: f64,
     progress: impl FnMut(Progress) + Send,
 ) -> Result<RecordedCorpus, CorpusError> {
     let found = recordings(dir)?;
@@ -193,7 +195,7 @@ pub fn from_recordings(
             };
             let fps = clip.frames.fps();
             let (frames_s, labels_s) = (clip.frames.duration(), segments[segments.len() - 1].end);
-            if (frames_s - labels_s).abs() > 2.0 / fps {
+            if (frames_s - labels_s).abs() > tolerance {
                 let (Timings::Labels(labels) | Timings::Transcript(labels)) = labels;
                 return Err(CorpusError::DurationMismatch {
                     npy: video.clone(),
@@ -202,6 +204,7 @@ pub fn from_recordings(
                     fps,
                     frames_s,
                     labels_s,
+                    tolerance,
                 });
             }
             Ok((name, video, labels, segments, clip))
@@ -239,15 +242,16 @@ pub fn from_recordings(
         });
     }
     let fps = encoded[0].4.frames.fps();
-    if let Some((name, ..)) = encoded
+    if let Some(odd) = encoded
         .iter()
         .find(|e| (e.4.frames.fps() - fps).abs() > 1e-9)
     {
         return Err(CorpusError::Io {
-            path: dir.join(name),
+            path: odd.1.to_path_buf(),
             source: std::io::Error::other(format!(
-                "its frame rate differs from {}'s ({fps} fps): a codebook has one frame rate",
-                encoded[0].0
+                "{} fps, but {} is at {fps} fps: a codebook has one frame rate (convert it, or leave it out)",
+                odd.4.frames.fps(),
+                encoded[0].1.display()
             )),
         });
     }
@@ -256,6 +260,8 @@ pub fn from_recordings(
         out,
         "corpus",
         |staged| -> Result<(), CorpusError> {
+            super::write_manifest(staged, fps)
+                .map_err(|(path, source)| CorpusError::Io { path, source })?;
             for (name, video, labels, segments, clip) in &encoded {
                 crate::npy::write(&staged.join(format!("{name}.npy")), clip.frames.values())?;
                 match labels {

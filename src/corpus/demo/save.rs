@@ -50,6 +50,14 @@ impl Corpus {
             crate::atomic::write_file(&txt, format!("{}\n", g.text).as_bytes())
                 .map_err(|source| SaveError::Io { path: txt, source })?;
         }
+        // Each split folder records its frame rate for `codebook build`.
+        for split in [Split::Train, Split::Validation, Split::Test] {
+            let part = dir.join(split.folder());
+            if part.is_dir() {
+                crate::corpus::write_manifest(&part, options.fps)
+                    .map_err(|(path, source)| SaveError::Io { path, source })?;
+            }
+        }
         let names = |split: Split| -> Vec<&str> {
             self.sentences
                 .iter()
