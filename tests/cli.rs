@@ -574,6 +574,7 @@ fn track_and_synth_never_overwrite_user_files() {
 /// default is shown as an absolute build-tree path where the help was rewritten.
 #[test]
 fn every_subcommand_has_an_example() {
+    let mut missing = Vec::new();
     for c in [
         "model build",
         "model info",
@@ -608,10 +609,31 @@ fn every_subcommand_has_an_example() {
             t.contains(&format!("Example: facespace {c}")),
             "{c} has no example:\n{t}"
         );
+        assert!(
+            !t.contains(env!("CARGO_MANIFEST_DIR")),
+            "{c} --help shows a build path:\n{t}"
+        );
+        // Every flag is described: on its own line (the short layout) or the next (the long).
+        let lines: Vec<&str> = t.lines().collect();
+        for (i, line) in lines.iter().enumerate() {
+            let flag = line.trim_start();
+            if !(flag.starts_with("--") || flag.starts_with('-') && flag.get(2..4) == Some(", ")) {
+                continue;
+            }
+            // What follows the flag and its value name, less any default.
+            let rest = flag
+                .split_once("  ")
+                .map_or("", |(_, r)| r.trim())
+                .split("[default:")
+                .next()
+                .unwrap_or("")
+                .trim();
+            let next = lines.get(i + 1).copied().unwrap_or("");
+            let described_below = next.starts_with("          ") && !next.trim().is_empty();
+            if rest.is_empty() && !described_below {
+                missing.push(format!("{c}: {flag}"));
+            }
+        }
     }
-    let t = text(&facespace(&["synth", "--help"]));
-    assert!(
-        !t.contains(env!("CARGO_MANIFEST_DIR")),
-        "synth --help shows a build path:\n{t}"
-    );
+    assert!(missing.is_empty(), "flags without a description: {missing:#?}");
 }

@@ -6,14 +6,14 @@ use anyhow::{Context, Result};
 use clap::Args;
 use facespace::annotate::{Annotator, Event};
 
-use super::{DEMO_MODEL, load_model};
+use super::load_model;
 
 #[derive(Args)]
 pub struct AnnotateArgs {
     /// Folder of frames (png, jpg); NAME.pts is written beside each.
     dir: PathBuf,
     /// Model for the mean shape (and, with --fit, the starting fit).
-    #[arg(long, default_value = DEMO_MODEL)]
+    #[arg(long, default_value = super::DEMO_MODEL_SHOWN, value_parser = super::committed_path)]
     model: PathBuf,
     /// Start unmarked frames from the model's fit (else: the mean shape from two eye clicks).
     #[arg(long)]

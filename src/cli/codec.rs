@@ -8,11 +8,12 @@ use facespace::codec::{self, Clip, TrackingSummary};
 use facespace::render::{Background, DEFAULT_FEATHER};
 use facespace::video::{Sink, Source};
 
-use super::{DEMO_MODEL, RendererArg, TrackingArgs, load_model, progress_bar, tracking_line};
+use super::{RendererArg, TrackingArgs, load_model, progress_bar, tracking_line};
 
 #[derive(Args)]
 pub struct EncodeArgs {
-    #[arg(long, default_value = DEMO_MODEL)]
+    /// The face model the video is tracked and encoded with.
+    #[arg(long, default_value = super::DEMO_MODEL_SHOWN, value_parser = super::committed_path)]
     model: PathBuf,
     /// An MP4, Y4M, folder of frames, or any video a system ffmpeg reads.
     input: PathBuf,
@@ -31,7 +32,8 @@ pub struct EncodeArgs {
 
 #[derive(Args)]
 pub struct DecodeArgs {
-    #[arg(long, default_value = DEMO_MODEL)]
+    /// The face model the clip was encoded with.
+    #[arg(long, default_value = super::DEMO_MODEL_SHOWN, value_parser = super::committed_path)]
     model: PathBuf,
     /// A clip folder written by `encode`.
     clip: PathBuf,
@@ -54,7 +56,8 @@ pub struct DecodeArgs {
 
 #[derive(Args)]
 pub struct ReportArgs {
-    #[arg(long, default_value = DEMO_MODEL)]
+    /// The face model the clip is encoded with.
+    #[arg(long, default_value = super::DEMO_MODEL_SHOWN, value_parser = super::committed_path)]
     model: PathBuf,
     /// The video that was encoded.
     input: PathBuf,

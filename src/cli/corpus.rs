@@ -8,7 +8,7 @@ use clap::{Args, Subcommand};
 use facespace::corpus::demo::{self, CorpusOptions, Split};
 use facespace::model::load_training_set;
 
-use super::{DEMO_MODEL, RendererArg, load_model, progress_bar};
+use super::{RendererArg, load_model, progress_bar};
 
 #[derive(Subcommand)]
 pub enum CorpusCommand {
@@ -28,7 +28,7 @@ pub enum CorpusCommand {
 #[derive(Args)]
 pub struct FromVideosArgs {
     /// The talker's model.
-    #[arg(long, default_value = DEMO_MODEL)]
+    #[arg(long, default_value = super::DEMO_MODEL_SHOWN, value_parser = super::committed_path)]
     model: PathBuf,
     /// Folder of recordings and their label files.
     dir: PathBuf,
@@ -56,10 +56,10 @@ pub struct FromVideosArgs {
 #[derive(Args)]
 pub struct DemoArgs {
     /// The demo model.
-    #[arg(long, default_value = DEMO_MODEL)]
+    #[arg(long, default_value = super::DEMO_MODEL_SHOWN, value_parser = super::committed_path)]
     model: PathBuf,
     /// Its training frames with .pts landmarks (the source of the real face-space points).
-    #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/models/demo/training"))]
+    #[arg(long, default_value = "models/demo/training", value_parser = super::committed_path)]
     training: PathBuf,
     #[arg(long, default_value_t = CorpusOptions::default().seed)]
     seed: u64,

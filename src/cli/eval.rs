@@ -13,12 +13,14 @@ use facespace::synth::blend::Blend;
 use facespace::synth::unit::{UnitSelection, WeightsFile};
 use facespace::{atomic, corpus};
 
-use super::{DEMO_MODEL, load_model};
+use super::load_model;
 
 #[derive(Args)]
 pub struct EvalArgs {
-    #[arg(long, default_value = DEMO_MODEL)]
+    /// The face model of the codebook and the held-out sentences.
+    #[arg(long, default_value = super::DEMO_MODEL_SHOWN, value_parser = super::committed_path)]
     model: PathBuf,
+    /// The codebook synthesis draws on (built from training sentences only).
     #[arg(long)]
     codebook: PathBuf,
     /// Test sentences, reported: NAME.npy (real trajectory) with NAME.lab.

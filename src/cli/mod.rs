@@ -28,6 +28,24 @@ use indicatif::{ProgressBar, ProgressStyle};
 /// The committed demo model, the default of every `--model`.
 const DEMO_MODEL: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/models/demo/model");
 
+/// The demo model as `--help` shows it: relative to the source tree ([`committed_path`]).
+const DEMO_MODEL_SHOWN: &str = "models/demo/model";
+
+/// A path argument that, relative and absent from the working folder, names the committed
+/// file or folder of that name in the source tree (`models/demo/model`, `models/grid/model`)
+/// — so defaults show as the README writes them and work from any folder.
+fn committed_path(s: &str) -> Result<PathBuf, std::convert::Infallible> {
+    let given = PathBuf::from(s);
+    let committed = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(&given);
+    Ok(
+        if given.is_relative() && !given.exists() && committed.exists() {
+            committed
+        } else {
+            given
+        },
+    )
+}
+
 #[derive(Parser)]
 #[command(
     name = "facespace",

@@ -42,7 +42,7 @@ pub enum ModelCommand {
 #[derive(Args)]
 pub struct SuggestArgs {
     /// The current model.
-    #[arg(long, default_value = super::DEMO_MODEL)]
+    #[arg(long, default_value = super::DEMO_MODEL_SHOWN, value_parser = super::committed_path)]
     model: PathBuf,
     /// The talker's video (or frame folder).
     input: PathBuf,

@@ -12,7 +12,7 @@ use facespace::study::{self, Condition, CreateOptions, StudyServer, Task};
 use facespace::synth::DEFAULT_SMOOTHING;
 use facespace::synth::unit::{UnitSelection, WeightsFile};
 
-use super::{DEMO_MODEL, RendererArg, load_model, progress_bar};
+use super::{RendererArg, load_model, progress_bar};
 
 #[derive(Subcommand)]
 pub enum StudyCommand {
@@ -42,8 +42,10 @@ pub enum TaskArg {
 
 #[derive(Args)]
 pub struct CreateArgs {
-    #[arg(long, default_value = DEMO_MODEL)]
+    /// The face model of the codebook and the held-out sentences.
+    #[arg(long, default_value = super::DEMO_MODEL_SHOWN, value_parser = super::committed_path)]
     model: PathBuf,
+    /// The codebook the synthetic conditions draw on (no held-out sentence in it).
     #[arg(long)]
     codebook: PathBuf,
     /// Held-out sentences (NAME.npy or NAME.fsp/ with NAME.lab; NAME.m4a is muxed in), none
@@ -76,6 +78,7 @@ pub struct CreateArgs {
     /// Which renderer draws the stimuli.
     #[arg(long, value_enum, default_value_t)]
     renderer: RendererArg,
+    /// The study folder to write (stimuli/, study.json).
     #[arg(short, long)]
     output: PathBuf,
 }

@@ -26,7 +26,7 @@ fn is_image(path: &std::path::Path) -> bool {
             .is_some_and(|e| video::IMAGE_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
 }
 
-use super::{DEMO_MODEL, RendererArg, load_model, progress_bar};
+use super::{RendererArg, load_model, progress_bar};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum Smooth {
@@ -152,7 +152,10 @@ pub struct SynthArgs {
 }
 
 pub fn run(a: SynthArgs) -> Result<()> {
-    let model_path = a.model.clone().unwrap_or_else(|| PathBuf::from(DEMO_MODEL));
+    let model_path = a
+        .model
+        .clone()
+        .unwrap_or_else(|| PathBuf::from(super::DEMO_MODEL));
     let model = load_model(&model_path)?;
     let cb = Codebook::load(&a.codebook)
         .with_context(|| format!("loading codebook {}", a.codebook.display()))?;

@@ -7,11 +7,12 @@ use clap::Args;
 use facespace::codec::{self, TrackingSummary};
 use facespace::{shape, video};
 
-use super::{DEMO_MODEL, TrackingArgs, load_model, progress_bar, tracking_line};
+use super::{TrackingArgs, load_model, progress_bar, tracking_line};
 
 #[derive(Args)]
 pub struct TrackArgs {
-    #[arg(long, default_value = DEMO_MODEL)]
+    /// The face model to track with.
+    #[arg(long, default_value = super::DEMO_MODEL_SHOWN, value_parser = super::committed_path)]
     model: PathBuf,
     /// A folder of frames (png, jpg), an MP4 or Y4M, or any video a system ffmpeg reads.
     input: PathBuf,

@@ -11,12 +11,14 @@ use facespace::phonemes::PhoneMap;
 use facespace::synth::pareto::{self, ParetoOptions};
 use facespace::synth::unit::{UnitConstants, WeightsFile};
 
-use super::{DEMO_MODEL, load_model, progress_bar};
+use super::{load_model, progress_bar};
 
 #[derive(Args)]
 pub struct TrainWeightsArgs {
-    #[arg(long, default_value = DEMO_MODEL)]
+    /// The face model of the codebook and the validation sentences.
+    #[arg(long, default_value = super::DEMO_MODEL_SHOWN, value_parser = super::committed_path)]
     model: PathBuf,
+    /// The codebook unit selection draws on.
     #[arg(long)]
     codebook: PathBuf,
     /// Validation sentences (NAME.npy with NAME.lab), disjoint from any test split: the
