@@ -377,7 +377,7 @@ fn killed_exports_reports_and_the_demo_leave_whole_outputs() {
         png,
     );
     killed_runs(
-        &["codebook", "similarity", &p("cb"), "--png", &p("s.png")],
+        &["codebook", "similarity", &p("cb"), "-o", &p("s.png")],
         &dir.path().join("s.png"),
         png,
     );

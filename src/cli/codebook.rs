@@ -25,13 +25,13 @@ pub enum CodebookCommand {
     },
     /// Write the phoneme similarity matrix S as a heat map.
     #[command(
-        after_help = "Example: facespace codebook similarity models/grid/codebook --png out/similarity.png"
+        after_help = "Example: facespace codebook similarity models/grid/codebook -o out/similarity.png"
     )]
     Similarity {
         /// Codebook folder.
         codebook: PathBuf,
-        /// Output PNG.
-        #[arg(long)]
+        /// Output PNG (`--png`, its old name, still works).
+        #[arg(short, long = "output", alias = "png")]
         png: PathBuf,
     },
 }
