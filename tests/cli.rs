@@ -635,5 +635,8 @@ fn every_subcommand_has_an_example() {
             }
         }
     }
-    assert!(missing.is_empty(), "flags without a description: {missing:#?}");
+    assert!(
+        missing.is_empty(),
+        "flags without a description: {missing:#?}"
+    );
 }

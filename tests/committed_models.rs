@@ -116,6 +116,23 @@ fn check(committed: &str, training: &str, region: Option<Region>, margin: f64) {
             &b.components,
         );
     }
+    // A region model carries the whole-face model it was cut from, itself current.
+    match (&saved.tracker, &built.tracker) {
+        (Some(a), Some(b)) => {
+            assert_eq!(
+                structure_hash(a),
+                structure_hash(b),
+                "{stale} (tracker mesh)"
+            );
+            close(
+                &format!("{stale}: tracker appearance"),
+                &a.appearance.pca.components,
+                &b.appearance.pca.components,
+            );
+        }
+        (None, None) => {}
+        _ => panic!("{stale} (the tracker/ inside it)"),
+    }
     if saved.hash() != built.hash() {
         eprintln!("{committed}: the same model within rounding, not bit for bit (another CPU?)");
     }

@@ -279,3 +279,78 @@ fn jaw_outline_holds_still_at_a_held_pose() {
     eprintln!("jaw outline strays {unanchored:.2} px unanchored, {anchored:.2} px anchored");
     assert!(anchored < 2.0, "{anchored} px");
 }
+
+/// Issue 26, item 1: a region model carries the whole-face model it was cut from and tracks
+/// with it — the committed GRID lower-face model follows his face on a test recording as his
+/// full model does (none lost), through `track` and `corpus from-videos` alike, with no
+/// `--track-model`; the tracker survives a save and load.
+#[test]
+fn region_models_track_with_the_whole_face_they_were_cut_from() {
+    let root = common::root();
+    let lower = FaceModel::load(&root.join("models/grid/lower")).unwrap();
+    let full = FaceModel::load(&root.join("models/grid/model")).unwrap();
+    let tracker = lower
+        .tracker
+        .as_deref()
+        .expect("the region model carries its tracker");
+    assert!(tracker.region.is_none());
+    assert_eq!(tracker.hash(), full.hash(), "the tracker is his full model");
+    let clip = root.join("tests/data/grid/bbbf9a.mp4");
+    let (by_region, tracking) = codec::track_landmarks(
+        &lower,
+        Source::open(&clip).unwrap(),
+        &EncodeOptions::default(),
+        facespace::no_progress,
+    )
+    .unwrap();
+    let (by_full, _) = codec::track_landmarks(
+        &full,
+        Source::open(&clip).unwrap(),
+        &EncodeOptions::default(),
+        facespace::no_progress,
+    )
+    .unwrap();
+    assert!(tracking.iter().all(|t| !t.lost), "a frame was lost");
+    let worst = by_region
+        .iter()
+        .zip(&by_full)
+        .flat_map(|(a, b)| a.points.iter().zip(&b.points))
+        .map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1]))
+        .fold(0f64, f64::max);
+    assert!(
+        worst < 1e-6,
+        "the region tracks {worst} px from the full model"
+    );
+    // Saved and loaded, it still tracks with it.
+    let dir = tempfile::tempdir().unwrap();
+    lower.save(&dir.path().join("lower")).unwrap();
+    let again = FaceModel::load(&dir.path().join("lower")).unwrap();
+    assert_eq!(
+        again.tracker.as_deref().map(FaceModel::hash),
+        Some(full.hash())
+    );
+    // A corpus of region-model trajectories from a recording.
+    let recordings = dir.path().join("recordings");
+    std::fs::create_dir(&recordings).unwrap();
+    std::fs::copy(&clip, recordings.join("bbbf9a.mp4")).unwrap();
+    std::fs::copy(
+        root.join("tests/data/grid/bbbf9a.lab"),
+        recordings.join("bbbf9a.lab"),
+    )
+    .unwrap();
+    let corpus = dir.path().join("corpus");
+    let s = |p: &std::path::Path| p.to_str().unwrap().to_owned();
+    let o = common::facespace(&[
+        "corpus",
+        "from-videos",
+        "--model",
+        &s(&root.join("models/grid/lower")),
+        &s(&recordings),
+        "-o",
+        &s(&corpus),
+    ]);
+    assert!(o.status.success(), "{}", common::text(&o));
+    let values: ndarray::ArrayD<f32> = facespace::npy::read(&corpus.join("bbbf9a.npy")).unwrap();
+    assert_eq!(values.shape()[1], lower.layout().dims());
+    assert!(values.iter().all(|v| v.is_finite()));
+}

@@ -236,6 +236,17 @@ fn info(dir: &Path) -> Result<()> {
     println!("model {}", dir.display());
     print_summary(&model);
     println!("  training images  {}", model.source.len());
+    match (&model.region, &model.tracker) {
+        (Some(_), Some(t)) => println!(
+            "  tracker          the whole face it was cut from ({} shape, {} appearance parameters, tracker/)",
+            t.shape.n_params(),
+            t.appearance.n_params()
+        ),
+        (Some(_), None) => println!(
+            "  tracker          none: built before region models carried one; rebuild it, or give synth --track-model"
+        ),
+        _ => {}
+    }
     let mut total = 0;
     let mut files: Vec<_> = std::fs::read_dir(dir)?.filter_map(|e| e.ok()).collect();
     files.sort_by_key(|e| e.file_name());

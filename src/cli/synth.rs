@@ -122,8 +122,9 @@ pub struct SynthArgs {
     /// image always lends its own pose.
     #[arg(long, value_enum, default_value_t = PoseArg::Replay)]
     pose: PoseArg,
-    /// The model that finds and tracks the face in the background (default: --model; give
-    /// the full-face model when --model is a region model).
+    /// The model that finds and tracks the face in the background (default: --model, which
+    /// tracks with its whole-face tracker when it is a region model built by `model build
+    /// --region`).
     #[arg(long)]
     track_model: Option<PathBuf>,
     /// A real trajectory (.npy) of the same utterance, plotted against the synthesis.

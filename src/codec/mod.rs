@@ -215,6 +215,8 @@ pub fn track(
     mut progress: impl FnMut(Progress),
     mut on_frame: impl FnMut(RgbImage, &TrackedFrame) -> Result<(), CodecError>,
 ) -> Result<Vec<FrameTrack>, CodecError> {
+    // A region model tracks with its whole-face tracker (the landmarks are the same).
+    let model = model.tracker();
     options.validate(model)?;
     let path = source.path().to_path_buf();
     let total = source.info().frames.unwrap_or(0);

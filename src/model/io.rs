@@ -18,6 +18,8 @@ use crate::shape::ShapeModel;
 
 /// The model folder format this build writes and reads.
 pub const MODEL_VERSION: u32 = 1;
+/// The folder inside a region model that holds its whole-face tracker.
+const TRACKER: &str = "tracker";
 const FORMAT: &str = "facespace-model";
 const MANIFEST: &str = "model.json";
 
@@ -132,6 +134,9 @@ impl FaceModel {
                     ArrayView::from_shape((self.frame.height, self.frame.width), &mask)
                         .expect("mask is height × width"),
                 )?;
+                if let Some(tracker) = &self.tracker {
+                    tracker.save(&tmp.join(TRACKER))?;
+                }
                 let path = tmp.join(MANIFEST);
                 std::fs::write(&path, json).map_err(|source| ModelError::Io { path, source })
             },
@@ -212,6 +217,17 @@ impl FaceModel {
                 p
             )));
         }
+        let tracker = if m.region.is_some() && dir.join(TRACKER).join(MANIFEST).is_file() {
+            let t = FaceModel::load_once(&dir.join(TRACKER))?;
+            if t.shape.n_landmarks() != n || t.region.is_some() {
+                return Err(inconsistent(format!(
+                    "{TRACKER}/ is not a whole-face model of the same {n} landmarks"
+                )));
+            }
+            Some(Box::new(t))
+        } else {
+            None
+        };
         Ok(FaceModel {
             shape,
             appearance: AppearanceModel { pca: appearance },
@@ -219,6 +235,7 @@ impl FaceModel {
             placement: m.reference.placement,
             source: m.source,
             region: m.region,
+            tracker,
         })
     }
 }

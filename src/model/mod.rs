@@ -203,11 +203,21 @@ pub struct FaceModel {
     pub source: Vec<String>,
     /// The face region the appearance model covers (`None`: the whole face).
     pub region: Option<Region>,
+    /// For a region model, the whole-face model built from the same frames, which tracks: a
+    /// region's appearance alone does not hold a face in place (saved as `tracker/` inside
+    /// the model folder).
+    pub tracker: Option<Box<FaceModel>>,
 }
 
 impl FaceModel {
+    /// The model that tracks faces for this one: its whole-face tracker, or itself.
+    pub fn tracker(&self) -> &FaceModel {
+        self.tracker.as_deref().unwrap_or(self)
+    }
+
     /// Builds both models: Procrustes + shape PCA, the reference frame, every example warped
-    /// to it (in parallel), appearance PCA.
+    /// to it (in parallel), appearance PCA; for a region, also the whole-face model that
+    /// tracks for it ([`FaceModel::tracker`]).
     pub fn build(
         examples: &[TrainingExample],
         options: &BuildOptions,
@@ -259,6 +269,23 @@ impl FaceModel {
             total: steps,
         });
         let appearance = AppearanceModel::build(&textures, options.appearance)?;
+        drop(textures);
+        let tracker = match &options.region {
+            Some(_) => {
+                progress(Progress {
+                    stage: "whole-face tracker",
+                    done: steps - 1,
+                    total: steps,
+                });
+                let whole = BuildOptions {
+                    region: None,
+                    triangles: None,
+                    ..options.clone()
+                };
+                Some(Box::new(FaceModel::build(examples, &whole, &mut |_| {})?))
+            }
+            None => None,
+        };
         progress(Progress {
             stage: "done",
             done: steps,
@@ -271,6 +298,7 @@ impl FaceModel {
             placement,
             source: examples.iter().map(|e| e.name.clone()).collect(),
             region: options.region.clone(),
+            tracker,
         })
     }
 

@@ -175,7 +175,8 @@ impl Backdrop {
 
     /// One image: the face found in it (grid search, then the AAM fit) gives the pose.
     pub fn still(tracker: &FaceModel, image: RgbImage) -> Result<Backdrop, BackdropError> {
-        let fitter = Fitter::new(tracker, FitOptions::default(), 2)?;
+        // A region model finds the face with its whole-face tracker.
+        let fitter = Fitter::new(tracker.tracker(), FitOptions::default(), 2)?;
         let start = fitter.search_start(&image)?;
         let fit = fitter.fit(&image, &start)?;
         let (pose, _) = tracker
