@@ -212,6 +212,31 @@ fn match_border(
     }
 }
 
+/// A `demo --talker fgnet` output folder drawn again over `background`: its region model, its
+/// smoothed frames, the rendered images, the background's own and the backdrop.
+fn fgnet_demo(
+    dir: &Path,
+    background: &Path,
+) -> (FaceModel, Frames, Vec<RgbImage>, Vec<RgbImage>, Backdrop) {
+    let model = FaceModel::load(&dir.join("model")).unwrap();
+    let tracker = FaceModel::load(&facespace::demo::default_model()).unwrap();
+    let values: ndarray::ArrayD<f32> =
+        facespace::npy::read(&dir.join("smoothed/trajectory.npy")).unwrap();
+    let frames = Frames::from_rows(model.layout(), 24.0, values.iter().copied().collect()).unwrap();
+    let backdrop = Backdrop::video(
+        &tracker,
+        background,
+        PoseMode::Replay,
+        frames.len(),
+        &EncodeOptions::default(),
+        facespace::no_progress,
+    )
+    .unwrap();
+    let rendered = render(&model, &frames, &backdrop);
+    let real = frames_of(background, rendered.len());
+    (model, frames, rendered, real, backdrop)
+}
+
 fn mean(all: &[Defects]) -> Defects {
     let n = all.len().max(1) as f64;
     let sum = |f: fn(&Defects) -> f64| all.iter().map(f).sum::<f64>() / n;
@@ -266,25 +291,8 @@ fn main() {
             );
         }
         Some("demo") => {
-            let dir = Path::new(&a[1]);
-            let model = FaceModel::load(&dir.join("model")).unwrap();
-            let tracker = FaceModel::load(&facespace::demo::default_model()).unwrap();
-            let values: ndarray::ArrayD<f32> =
-                facespace::npy::read(&dir.join("smoothed/trajectory.npy")).unwrap();
-            let frames =
-                Frames::from_rows(model.layout(), 24.0, values.iter().copied().collect()).unwrap();
-            let background = Path::new(&a[2]);
-            let backdrop = Backdrop::video(
-                &tracker,
-                background,
-                PoseMode::Replay,
-                frames.len(),
-                &EncodeOptions::default(),
-                facespace::no_progress,
-            )
-            .unwrap();
-            let rendered = render(&model, &frames, &backdrop);
-            let real = frames_of(background, rendered.len());
+            let (model, frames, rendered, real, backdrop) =
+                fgnet_demo(Path::new(&a[1]), Path::new(&a[2]));
             if std::env::var_os("MATCH").is_some() {
                 let alpha = feather_alpha(&model, DEFAULT_FEATHER);
                 for (gain, what) in [(false, "offset"), (true, "gain and offset")] {
@@ -363,25 +371,8 @@ fn main() {
                 false,
             );
             // The FGNet demo's frame 18 (nose and cheeks, the region's border), drawn again.
-            let dir = Path::new(&a[4]);
-            let region = FaceModel::load(&dir.join("model")).unwrap();
-            let tracker = FaceModel::load(&facespace::demo::default_model()).unwrap();
-            let values: ndarray::ArrayD<f32> =
-                facespace::npy::read(&dir.join("smoothed/trajectory.npy")).unwrap();
-            let frames =
-                Frames::from_rows(region.layout(), 24.0, values.iter().copied().collect()).unwrap();
-            let background = facespace::demo::default_background();
-            let backdrop = Backdrop::video(
-                &tracker,
-                &background,
-                PoseMode::Replay,
-                frames.len(),
-                &EncodeOptions::default(),
-                facespace::no_progress,
-            )
-            .unwrap();
-            let fgnet = render(&region, &frames, &backdrop);
-            let fgnet_real = frames_of(&background, fgnet.len());
+            let (region, frames, fgnet, fgnet_real, _) =
+                fgnet_demo(Path::new(&a[4]), &facespace::demo::default_background());
             let q = region.landmarks(frames.params(18)).unwrap().points;
             let centre = [(q[31][0] + q[35][0]) / 2.0, q[33][1] + 4.0];
             let fg = join(

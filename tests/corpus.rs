@@ -144,33 +144,22 @@ fn corpus_from_recordings_builds_a_codebook_that_synthesises() {
     assert!(corpus.join("s1.npy").is_file() && corpus.join("s1.lab").is_file());
     let cb = tmp.path().join("cb");
     let model = common::root().join("models/demo/model");
-    let o = common::facespace(&[
-        "codebook",
-        "build",
-        "--model",
-        &p(&model),
-        "--corpus",
-        &p(&corpus),
-        "-o",
-        &p(&cb),
-    ]);
+    // `codebook build` of the corpus into `out`, with `extra` flags.
+    let build = |extra: &[&str], out: &std::path::Path| {
+        let (model, corpus, out) = (p(&model), p(&corpus), p(out));
+        let mut args = vec!["codebook", "build", "--model", &model, "--corpus", &corpus];
+        args.extend_from_slice(extra);
+        args.extend(["-o", &out]);
+        common::facespace(&args)
+    };
+    let o = build(&[], &cb);
     assert!(o.status.success(), "{}", common::text(&o));
     // The frame rate comes from the corpus's record; another one given is refused, naming
     // the file that records it.
     let fps = facespace::codebook::Codebook::load(&cb).unwrap().fps;
     assert_eq!(facespace::corpus::recorded_fps(&corpus), Some(fps));
-    let o = common::facespace(&[
-        "codebook",
-        "build",
-        "--model",
-        &p(&model),
-        "--corpus",
-        &p(&corpus),
-        "--fps",
-        "30",
-        "-o",
-        &p(&tmp.path().join("cb30")),
-    ]);
+    let cb30 = tmp.path().join("cb30");
+    let o = build(&["--fps", "30"], &cb30);
     let t = common::text(&o);
     assert_eq!(o.status.code(), Some(1), "{t}");
     assert!(
@@ -180,16 +169,7 @@ fn corpus_from_recordings_builds_a_codebook_that_synthesises() {
     // A corpus recorded at 30 fps is read at 30 without --fps: its 50 frames then last 1.67 s,
     // and the error says so, naming both files.
     facespace::corpus::write_manifest(&corpus, 30.0).unwrap();
-    let o = common::facespace(&[
-        "codebook",
-        "build",
-        "--model",
-        &p(&model),
-        "--corpus",
-        &p(&corpus),
-        "-o",
-        &p(&tmp.path().join("cb30")),
-    ]);
+    let o = build(&[], &cb30);
     let t = common::text(&o);
     assert_eq!(o.status.code(), Some(1), "{t}");
     assert!(

@@ -52,26 +52,31 @@ fn column_mean(frames: &facespace::facespace::Frames, k: usize) -> f64 {
 /// Re-lighting moves the synthesis's lighting parameter (b_a1, the between-session drift)
 /// towards the take it is drawn over, on every committed test clip; a codebook that was not
 /// re-centred is left alone.
+/// A test clip's phone labels, frame rate and the clip tracked as a replayed backdrop.
+fn take(model: &FaceModel, name: &str) -> (Vec<phonemes::Segment>, f64, Backdrop) {
+    let clip = grid(&format!("{name}.mp4"));
+    let target =
+        phonemes::read_labels(&grid(&format!("{name}.lab")), None, &PhoneMap::default()).unwrap();
+    let fps = Source::open(&clip).unwrap().info().fps;
+    let backdrop = Backdrop::video(
+        model,
+        &clip,
+        PoseMode::Replay,
+        synth::frame_count(&target, fps),
+        &EncodeOptions::default(),
+        facespace::no_progress,
+    )
+    .unwrap();
+    (target, fps, backdrop)
+}
+
 #[test]
 fn synthesis_is_relit_to_the_take_it_is_drawn_over() {
     let model = FaceModel::load(&facespace::demo::grid_model()).unwrap();
     let cb = Codebook::load(&facespace::demo::grid_codebook()).unwrap();
     let a1 = model.layout().appearance_range().start;
     for name in TEST_CLIPS {
-        let clip = grid(&format!("{name}.mp4"));
-        let target =
-            phonemes::read_labels(&grid(&format!("{name}.lab")), None, &PhoneMap::default())
-                .unwrap();
-        let fps = Source::open(&clip).unwrap().info().fps;
-        let backdrop = Backdrop::video(
-            &model,
-            &clip,
-            PoseMode::Replay,
-            synth::frame_count(&target, fps),
-            &EncodeOptions::default(),
-            facespace::no_progress,
-        )
-        .unwrap();
+        let (target, fps, backdrop) = take(&model, name);
         let request = Request {
             pose: backdrop.pose.clone(),
             ..Request::new(target, fps, Smoothing::On(facespace::demo::GRID_SMOOTHING))
@@ -257,19 +262,7 @@ fn full_face_synthesis_takes_the_head_from_the_background() {
         .expect("a 68-point face knows its lips and chin");
     assert!(articulators.contains(&8) && articulators.contains(&62) && !articulators.contains(&30));
     let name = TEST_CLIPS[0];
-    let clip = grid(&format!("{name}.mp4"));
-    let target =
-        phonemes::read_labels(&grid(&format!("{name}.lab")), None, &PhoneMap::default()).unwrap();
-    let fps = Source::open(&clip).unwrap().info().fps;
-    let backdrop = Backdrop::video(
-        &model,
-        &clip,
-        PoseMode::Replay,
-        synth::frame_count(&target, fps),
-        &EncodeOptions::default(),
-        facespace::no_progress,
-    )
-    .unwrap();
+    let (target, fps, backdrop) = take(&model, name);
     let request = Request {
         pose: backdrop.pose.clone(),
         ..Request::new(target, fps, Smoothing::Off)

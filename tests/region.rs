@@ -296,20 +296,16 @@ fn region_models_track_with_the_whole_face_they_were_cut_from() {
     assert!(tracker.region.is_none());
     assert_eq!(tracker.hash(), full.hash(), "the tracker is his full model");
     let clip = root.join("tests/data/grid/bbbf9a.mp4");
-    let (by_region, tracking) = codec::track_landmarks(
-        &lower,
-        Source::open(&clip).unwrap(),
-        &EncodeOptions::default(),
-        facespace::no_progress,
-    )
-    .unwrap();
-    let (by_full, _) = codec::track_landmarks(
-        &full,
-        Source::open(&clip).unwrap(),
-        &EncodeOptions::default(),
-        facespace::no_progress,
-    )
-    .unwrap();
+    let track = |model: &FaceModel| {
+        codec::track_landmarks(
+            model,
+            Source::open(&clip).unwrap(),
+            &EncodeOptions::default(),
+            facespace::no_progress,
+        )
+        .unwrap()
+    };
+    let ((by_region, tracking), (by_full, _)) = (track(&lower), track(&full));
     assert!(tracking.iter().all(|t| !t.lost), "a frame was lost");
     let worst = by_region
         .iter()
