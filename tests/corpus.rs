@@ -261,6 +261,7 @@ fn quantised_clips_are_corpus_sentences() {
         Some(&model.hash()),
         None,
         &facespace::phonemes::PhoneMap::default(),
+        facespace::corpus::DEFAULT_TOLERANCE,
     )
     .unwrap();
     assert_eq!(sentences.len(), 1);
@@ -272,6 +273,7 @@ fn quantised_clips_are_corpus_sentences() {
         Some("0000000000000000"),
         None,
         &facespace::phonemes::PhoneMap::default(),
+        facespace::corpus::DEFAULT_TOLERANCE,
     )
     .unwrap_err()
     .to_string();

@@ -242,7 +242,7 @@ impl Codebook {
     }
 
     /// Builds a codebook of `model`'s face-space from a corpus folder (see
-    /// [`crate::corpus::load_tolerant`]; labels within `tolerance` seconds of the frames' end).
+    /// [`crate::corpus::load_checked`]; labels within `tolerance` seconds of the frames' end).
     #[allow(clippy::too_many_arguments)]
     pub fn from_corpus(
         dir: &std::path::Path,
@@ -255,7 +255,7 @@ impl Codebook {
         tolerance: f64,
         progress: &mut dyn FnMut(Progress),
     ) -> Result<Self, CodebookError> {
-        let mut sentences = crate::corpus::load_tolerant(
+        let mut sentences = crate::corpus::load_checked(
             dir,
             fps,
             model.layout(),

@@ -231,25 +231,13 @@ pub fn load(
     tier: Option<&str>,
     map: &PhoneMap,
 ) -> Result<Vec<Sentence>, CorpusError> {
-    load_checked(dir, fps, layout, None, tier, map)
+    load_checked(dir, fps, layout, None, tier, map, DEFAULT_TOLERANCE)
 }
 
 /// [`load`], also reading encoded clip folders (`NAME.fsp/`, float or quantised, from
-/// `facespace encode`) in place of `NAME.npy`; `model_hash` (when given) must be theirs.
+/// `facespace encode`) in place of `NAME.npy`; `model_hash` (when given) must be theirs;
+/// labels may end up to `tolerance` seconds from the frames' end.
 pub fn load_checked(
-    dir: &Path,
-    fps: f64,
-    layout: Layout,
-    model_hash: Option<&str>,
-    tier: Option<&str>,
-    map: &PhoneMap,
-) -> Result<Vec<Sentence>, CorpusError> {
-    load_tolerant(dir, fps, layout, model_hash, tier, map, DEFAULT_TOLERANCE)
-}
-
-/// [`load_checked`] with labels allowed to end up to `tolerance` seconds from the frames'
-/// end.
-pub fn load_tolerant(
     dir: &Path,
     fps: f64,
     layout: Layout,

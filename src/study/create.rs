@@ -53,6 +53,7 @@ pub fn load_heldout(
         Some(model_hash),
         None,
         &PhoneMap::default(),
+        corpus::DEFAULT_TOLERANCE,
     )
     .map_err(|e| StudyError::Design(format!("reading held-out sentences: {e}")))?;
     sentences
