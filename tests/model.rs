@@ -508,3 +508,59 @@ fn unreadable_image_and_malformed_pts_are_named() {
     let err = load_training_set(dir.path(), None).unwrap_err();
     assert!(err.to_string().contains("einstein.pts:4"), "{err}");
 }
+
+/// Issue 26: a frame folder only partly marked on the annotate page stops `model build` at
+/// the first frame without landmarks, naming it and the flag that leaves such frames out;
+/// with `--skip-unmarked` the model is built from the marked ones.
+#[test]
+fn skip_unmarked_builds_from_the_marked_frames() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("frames");
+    std::fs::create_dir(&dir).unwrap();
+    let training = common::root().join("models/demo/training");
+    let mut images: Vec<_> = std::fs::read_dir(&training)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|x| x == "jpg"))
+        .collect();
+    images.sort();
+    for (i, image) in images.iter().take(8).enumerate() {
+        std::fs::copy(image, dir.join(image.file_name().unwrap())).unwrap();
+        // The last two frames are not marked yet.
+        if i < 6 {
+            let pts = image.with_extension("pts");
+            std::fs::copy(&pts, dir.join(pts.file_name().unwrap())).unwrap();
+        }
+    }
+    let (d, out) = (dir.to_str().unwrap(), tmp.path().join("model"));
+    let o = common::facespace(&[
+        "model",
+        "build",
+        "--images",
+        d,
+        "--pixels",
+        "5000",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let t = common::text(&o);
+    assert_eq!(o.status.code(), Some(1), "{t}");
+    assert!(t.contains("--skip-unmarked") && t.contains(".pts"), "{t}");
+    assert!(!out.exists());
+    let o = common::facespace(&[
+        "model",
+        "build",
+        "--images",
+        d,
+        "--pixels",
+        "5000",
+        "--skip-unmarked",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let t = common::text(&o);
+    assert!(o.status.success(), "{t}");
+    assert!(t.contains("left out 2 image(s)"), "{t}");
+    let model = facespace::model::FaceModel::load(&out).unwrap();
+    assert_eq!(model.source.len(), 6);
+}

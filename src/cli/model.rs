@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
 use facespace::mesh::{Region, Triangle};
-use facespace::model::{BuildOptions, FaceModel, load_training_set};
+use facespace::model::{BuildOptions, FaceModel, load_marked};
 use facespace::pca::Components;
 use facespace::shape::read_pts;
 use facespace::video;
@@ -83,6 +83,10 @@ pub struct BuildArgs {
     /// (background that outlines let in; rendering fills the rim from the background).
     #[arg(long, default_value_t = facespace::model::DEFAULT_MARGIN)]
     margin: f64,
+    /// Leave out images that have no landmarks yet (frames not marked on the annotate page)
+    /// instead of stopping at the first.
+    #[arg(long)]
+    skip_unmarked: bool,
     /// Model only a face region's appearance: `lower-face` (iBUG-68 jaw, nose base, lips) or
     /// a JSON file listing landmark indices `[i, j, …]`.
     #[arg(long)]
@@ -177,8 +181,26 @@ fn build(a: BuildArgs) -> Result<()> {
         region,
         margin: a.margin,
     };
-    let examples = load_training_set(&a.images, a.landmarks.as_deref())
-        .with_context(|| format!("loading training images from {}", a.images.display()))?;
+    let (examples, unmarked) = load_marked(&a.images, a.landmarks.as_deref(), a.skip_unmarked)
+        .map_err(|e| {
+            let hint = match e {
+                facespace::model::ModelError::MissingLandmarks { .. } => {
+                    " (--skip-unmarked leaves images without landmarks out)"
+                }
+                _ => "",
+            };
+            anyhow::Error::from(e).context(format!(
+                "loading training images from {}{hint}",
+                a.images.display()
+            ))
+        })?;
+    if !unmarked.is_empty() {
+        eprintln!(
+            "left out {} image(s) without landmarks (--skip-unmarked), e.g. {}",
+            unmarked.len(),
+            unmarked[0].display()
+        );
+    }
     let (bar, mut progress) = progress_bar();
     let model =
         FaceModel::build(&examples, &options, &mut progress).context("building the model")?;

@@ -14,7 +14,7 @@ use thiserror::Error;
 
 pub use io::MODEL_VERSION;
 pub use suggest::{Suggestion, suggest};
-pub use training::{TrainingExample, load_training_set};
+pub use training::{TrainingExample, load_marked, load_training_set};
 
 use crate::Progress;
 use crate::appearance::AppearanceModel;

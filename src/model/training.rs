@@ -30,12 +30,30 @@ pub fn load_training_set(
     images: &Path,
     landmarks: Option<&Path>,
 ) -> Result<Vec<TrainingExample>, ModelError> {
+    Ok(load_marked(images, landmarks, false)?.0)
+}
+
+/// [`load_training_set`] of the images that have landmarks, when `skip_unmarked` (a frame
+/// folder only partly marked on the annotate page); also returns the images left out.
+pub fn load_marked(
+    images: &Path,
+    landmarks: Option<&Path>,
+    skip_unmarked: bool,
+) -> Result<(Vec<TrainingExample>, Vec<PathBuf>), ModelError> {
     let pts_dir = landmarks.unwrap_or(images);
     let io = |dir: &Path| {
         let dir = dir.to_path_buf();
         move |source| ModelError::Io { path: dir, source }
     };
-    let image_paths = video::image_files(images).map_err(io(images))?;
+    let mut image_paths = video::image_files(images).map_err(io(images))?;
+    let mut unmarked = Vec::new();
+    if skip_unmarked {
+        let marked = |p: &PathBuf| {
+            let stem = pts_dir.join(p.file_stem().unwrap_or_default());
+            stem.with_extension("pts").is_file() || stem.with_extension("ljson").is_file()
+        };
+        (image_paths, unmarked) = image_paths.into_iter().partition(marked);
+    }
     if image_paths.is_empty() {
         return Err(ModelError::NoImages { dir: images.into() });
     }
@@ -89,7 +107,7 @@ pub fn load_training_set(
             });
         }
     }
-    Ok(examples.into_iter().map(|(_, e)| e).collect())
+    Ok((examples.into_iter().map(|(_, e)| e).collect(), unmarked))
 }
 
 fn check_inside(
