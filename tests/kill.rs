@@ -161,8 +161,9 @@ fn killed_decodes_tracks_and_synthesis_leave_whole_outputs() {
         for split in ["train", "validation", "heldout"] {
             assert!(c.join(split).is_dir(), "no {split}/");
         }
+        // 48 sentences × (.npy, .lab, .txt), and corpus.json with the frame rate.
         let train = std::fs::read_dir(c.join("train")).unwrap().count();
-        assert_eq!(train, 48 * 3, "train/ holds {train} files");
+        assert_eq!(train, 48 * 3 + 1, "train/ holds {train} files");
     });
     let model = common::root().join("models/demo/model");
     let cb = dir.path().join("cb");

@@ -31,7 +31,7 @@ pub enum CodebookCommand {
         /// Codebook folder.
         codebook: PathBuf,
         /// Output PNG (`--png`, its old name, still works).
-        #[arg(short, long = "output", alias = "png")]
+        #[arg(short = 'o', long = "output", alias = "png")]
         png: PathBuf,
     },
 }

@@ -34,8 +34,9 @@ pub struct Blend {
     pub context: usize,
     /// Examples averaged per phone, N.
     pub top_n: usize,
-    /// Scale the blend's deviations from the codebook mean back to the examples' spread
-    /// (module docs); off: the plain weighted average of \[blend\] §5.
+    /// Scale the blend's deviations from the utterance's mean back to the examples' spread
+    /// about their sentences' means (module docs); off: the plain weighted average of
+    /// \[blend\] §5.
     pub preserve_variance: bool,
 }
 
