@@ -533,31 +533,19 @@ fn skip_unmarked_builds_from_the_marked_frames() {
         }
     }
     let (d, out) = (dir.to_str().unwrap(), tmp.path().join("model"));
-    let o = common::facespace(&[
-        "model",
-        "build",
-        "--images",
-        d,
-        "--pixels",
-        "5000",
-        "-o",
-        out.to_str().unwrap(),
-    ]);
+    // `model build` of the folder, with `extra` flags.
+    let build = |extra: &[&str]| {
+        let mut args = vec!["model", "build", "--images", d, "--pixels", "5000"];
+        args.extend_from_slice(extra);
+        args.extend(["-o", out.to_str().unwrap()]);
+        common::facespace(&args)
+    };
+    let o = build(&[]);
     let t = common::text(&o);
     assert_eq!(o.status.code(), Some(1), "{t}");
     assert!(t.contains("--skip-unmarked") && t.contains(".pts"), "{t}");
     assert!(!out.exists());
-    let o = common::facespace(&[
-        "model",
-        "build",
-        "--images",
-        d,
-        "--pixels",
-        "5000",
-        "--skip-unmarked",
-        "-o",
-        out.to_str().unwrap(),
-    ]);
+    let o = build(&["--skip-unmarked"]);
     let t = common::text(&o);
     assert!(o.status.success(), "{t}");
     assert!(t.contains("left out 2 image(s)"), "{t}");
