@@ -88,20 +88,14 @@ fn server_serves_saves_and_refuses() {
     assert!(Annotator::bind(dir.path(), demo_model(), false, "0.0.0.0:0", true).is_ok());
 }
 
-/// What the browser test does on the page, from outside it: for the first two frames, place
-/// the mean from two eye clicks where there are no points yet, drag landmark 30 by (+5, +3)
-/// image pixels with pointer events, and report each frame's point before and after.
+/// What the browser test does on the page, from outside it: for the first two frames (the
+/// second starts from the first's points), drag landmark 30 by (+5, +3) image pixels with
+/// pointer events, and report each frame's point before and after.
 const DRAG_TWO_FRAMES: &str = r#"(async () => {
   const at = (px, py) => ({clientX: canvas.getBoundingClientRect().left + px, clientY: canvas.getBoundingClientRect().top + py, bubbles: true, pointerId: 1});
   const log = [];
   for (let k = 0; k < Math.min(2, frames.length); k++) {
     await load(k);
-    if (!points) {
-      for (const c of [[image.width * 0.4, image.height * 0.4], [image.width * 0.6, image.height * 0.4]]) {
-        const [x, y] = toCanvas(c);
-        canvas.dispatchEvent(new PointerEvent("pointerdown", at(x, y)));
-      }
-    }
     const before = points[30].slice();
     const [x, y] = toCanvas(centre(points[30]));
     canvas.dispatchEvent(new PointerEvent("pointerdown", at(x, y)));
@@ -113,9 +107,9 @@ const DRAG_TWO_FRAMES: &str = r#"(async () => {
   return log.join("\n");
 })()"#;
 
-/// The page in a real browser: for each of two frames (one with landmarks, one placed from two
-/// eye clicks on the mean shape), drag landmark 30 by (+5, +3) pixels, then check the `.pts`
-/// on disk holds the moved point.
+/// The page in a real browser: for each of two frames (one with landmarks, one starting from
+/// the first's), drag landmark 30 by (+5, +3) pixels, then check the `.pts` on disk holds the
+/// moved point.
 #[test]
 fn headless_chromium_drags_a_point_and_it_is_saved() {
     let Some(chromium) = common::chromium() else {
@@ -490,4 +484,357 @@ fn soak() {
     assert!(!log.contains("panicked"), "{log}");
     assert!(worst < std::time::Duration::from_secs(1), "{worst:?}");
     assert!(peak < 500.0, "{peak} MB");
+}
+
+/// Issue 26: the listing gives the iBUG contours, the click anchors and which frames are
+/// marked (here with a region model, which marks and fits with its whole-face tracker);
+/// `{"points": null}` removes a frame's `.pts` (never a link's target).
+#[test]
+fn listing_contours_and_unmarking() {
+    let dir = tempfile::tempdir().unwrap();
+    frames(dir.path());
+    let lower = FaceModel::load(&common::root().join("models/grid/lower")).unwrap();
+    let annotator = Annotator::bind(dir.path(), lower, false, "127.0.0.1:0", false).unwrap();
+    let url = annotator.url();
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    std::thread::spawn(move || annotator.run(|_| {}, move || flag.load(Ordering::Relaxed)));
+    let (_, body) = common::http(&url, "GET", "/api/frames", "");
+    let listing: serde_json::Value = serde_json::from_str(&body).unwrap();
+    assert_eq!(listing["mean"].as_array().unwrap().len(), 68);
+    assert_eq!(listing["marked"], serde_json::json!(["01000.jpg"]));
+    let contours = listing["contours"].as_array().unwrap();
+    assert_eq!(contours.len(), 9);
+    assert_eq!(contours[0], serde_json::json!([0, 16, false]));
+    assert_eq!(contours[8], serde_json::json!([60, 67, true]));
+    let anchors = listing["anchors"].as_array().unwrap();
+    assert_eq!(anchors[2].as_array().unwrap().len(), 20, "the mouth: 48–67");
+    // Unmarking: the .pts goes, a second time there is nothing to remove.
+    let none = "{\"points\": null}";
+    let (code, reply) = common::http(&url, "POST", "/api/points/01000.jpg", none);
+    assert!(code == 200 && reply.contains("removed"), "{code} {reply}");
+    assert!(!dir.path().join("01000.pts").exists());
+    let (code, reply) = common::http(&url, "POST", "/api/points/01000.jpg", none);
+    assert!(
+        code == 200 && reply.contains("\"removed\":null"),
+        "{code} {reply}"
+    );
+    // A .pts planted as a link is not removed (nor is its target).
+    let outside = tempfile::tempdir().unwrap();
+    std::fs::write(outside.path().join("x.pts"), "keep").unwrap();
+    std::os::unix::fs::symlink(outside.path().join("x.pts"), dir.path().join("01001.pts")).unwrap();
+    let (code, _) = common::http(&url, "POST", "/api/points/01001.jpg", none);
+    assert_eq!(code, 403);
+    assert!(dir.path().join("01001.pts").is_symlink());
+    assert_eq!(
+        std::fs::read_to_string(outside.path().join("x.pts")).unwrap(),
+        "keep"
+    );
+    stop.store(true, Ordering::Relaxed);
+}
+
+/// Issue 26: the model refitted from the points the page shows (`/api/fit`): the demo
+/// model's own talker, started 6 px right and 4 px up of the marked landmarks, comes back to
+/// them; bad starts are refused.
+#[test]
+fn the_model_refits_from_the_points_shown() {
+    let dir = tempfile::tempdir().unwrap();
+    frames(dir.path());
+    let truth = facespace::shape::read_pts(&dir.path().join("01000.pts")).unwrap();
+    let (url, stop) = start(dir.path());
+    let start: Vec<[f64; 2]> = truth
+        .points
+        .iter()
+        .map(|p| [p[0] + 6.0, p[1] - 4.0])
+        .collect();
+    let body = serde_json::json!({ "points": start }).to_string();
+    let (code, reply) = common::http(&url, "POST", "/api/fit/01000.jpg", &body);
+    assert_eq!(code, 200, "{reply}");
+    let reply: serde_json::Value = serde_json::from_str(&reply).unwrap();
+    let fitted = facespace::shape::Landmarks {
+        points: serde_json::from_value(reply["points"].clone()).unwrap(),
+    };
+    let before = common::mean_error(&facespace::shape::Landmarks { points: start }, &truth);
+    let after = common::mean_error(&fitted, &truth);
+    eprintln!("refit: {before:.2} px → {after:.2} px from the marked points");
+    assert!(after < 2.0 && after < before / 3.0, "{before} → {after}");
+    assert!(reply["error"].as_f64().unwrap() < 25.0, "{reply}");
+    for bad in ["{\"points\": null}", "{\"points\": [[1, 2]]}", "nonsense"] {
+        assert_eq!(
+            common::http(&url, "POST", "/api/fit/01000.jpg", bad).0,
+            400,
+            "{bad}"
+        );
+    }
+    stop.store(true, Ordering::Relaxed);
+}
+
+/// Runs `script` (an async body) on the page and returns its value.
+fn run(
+    browser: &mut common::cdp::Browser,
+    page: &common::cdp::Page,
+    script: &str,
+) -> serde_json::Value {
+    let helpers = r#"
+      const at = (px, py, more) => Object.assign({clientX: canvas.getBoundingClientRect().left + px, clientY: canvas.getBoundingClientRect().top + py, bubbles: true, pointerId: 1}, more || {});
+      const press = (x, y, more) => canvas.dispatchEvent(new PointerEvent("pointerdown", at(x, y, more)));
+      const click = p => { const [x, y] = toCanvas(centre(p)); press(x, y); canvas.dispatchEvent(new PointerEvent("pointerup", at(x, y))); };
+      const dragBy = (p, dx, dy, more) => { const [x, y] = toCanvas(centre(p)); press(x, y, more);
+        canvas.dispatchEvent(new PointerEvent("pointermove", at(x + dx * view.s, y + dy * view.s, more)));
+        canvas.dispatchEvent(new PointerEvent("pointerup", at(x + dx * view.s, y + dy * view.s, more))); };
+      const key = k => document.dispatchEvent(new KeyboardEvent("keydown", {key: k, bubbles: true}));
+      const onDisk = async name => (await (await fetch("api/points/" + name)).json()).source === "pts";
+    "#;
+    browser.eval(page, &format!("(async () => {{ {helpers} {script} }})()"))
+}
+
+fn points_of(v: &serde_json::Value) -> Vec<[f64; 2]> {
+    serde_json::from_value(v.clone()).unwrap()
+}
+
+/// Issue 26, the page's tools in a real browser, on two unmarked frames of the FGNet clip
+/// with GRID s1's model (a model of someone else, as a new user's first model is):
+/// - three clicks (eye centres in either order, then the mouth) place the mean with its mouth
+///   where it was clicked, where two eye clicks alone put it 0.1 inter-ocular or more off;
+/// - a start is not saved until accepted (Enter); undo back to unmarked removes the `.pts`,
+///   also after a drag;
+/// - Shift+drag moves, Alt+drag rotates and scales, `]` scales the whole shape — each saved;
+/// - contours and point numbers are drawn (pixels on a contour, pixels that change with `l`);
+/// - `f` with a model of someone else keeps the points and says why; with the demo model on
+///   its own talker, the next frame starts from the previous frame's points, `f` refits the
+///   model from them, unsaved until Enter.
+#[test]
+fn headless_chromium_places_moves_undoes_and_starts_from_the_previous_frame() {
+    let Some(chromium) = common::chromium() else {
+        eprintln!("skipped: no Chromium on PATH (.ci/run installs the distribution's package)");
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let clip = common::root().join("tests/data/clip");
+    for f in ["01000.jpg", "01001.jpg"] {
+        std::fs::copy(clip.join(f), dir.path().join(f)).unwrap();
+    }
+    let truth = facespace::shape::read_pts(&clip.join("01000.pts")).unwrap();
+    let grid = FaceModel::load(&common::root().join("models/grid/model")).unwrap();
+    let annotator = Annotator::bind(dir.path(), grid, false, "127.0.0.1:0", false).unwrap();
+    let url = annotator.url();
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    std::thread::spawn(move || annotator.run(|_| {}, move || flag.load(Ordering::Relaxed)));
+    let mut browser = common::cdp::Browser::launch(chromium);
+    let page = browser.open(&url);
+    browser.wait_for(&page, "frames.length > 0 && image && image.complete");
+    let pts0 = dir.path().join("01000.pts");
+    let truth_js = serde_json::to_string(&truth.points).unwrap();
+
+    // Three clicks on the true eye and mouth centres, the left eye first.
+    let placed = run(
+        &mut browser,
+        &page,
+        &format!(
+            r#"const truth = {truth_js};
+      await load(0);
+      const unmarked = points === null;
+      const c = ids => average(ids.map(i => truth[i]));
+      const cs = [c(anchors[1]), c(anchors[0]), c(anchors[2])];
+      cs.forEach(click);
+      const io = Math.hypot(cs[0][0] - cs[1][0], cs[0][1] - cs[1][1]);
+      const err = ps => ps.reduce((s, p, k) => s + Math.hypot(p[0] - truth[k][0], p[1] - truth[k][1]), 0) / ps.length / io;
+      const mouth = ps => {{ const m = c(anchors[2]), n = average(anchors[2].map(i => ps[i])); return Math.hypot(m[0] - n[0], m[1] - n[1]) / io; }};
+      const two = placeMean(cs.slice(0, 2));
+      return {{unmarked, three: err(points), two: err(two), mouth3: mouth(points), mouth2: mouth(two), saved: await onDisk("01000.jpg")}};"#
+        ),
+    );
+    eprintln!("placement (inter-ocular units): {placed}");
+    assert_eq!(placed["unmarked"], true);
+    assert_eq!(
+        placed["saved"], false,
+        "a placed start is not saved unasked"
+    );
+    assert!(!pts0.exists());
+    let f = |k: &str| placed[k].as_f64().unwrap();
+    assert!(f("mouth3") < 1e-6, "{placed}");
+    assert!(f("mouth2") > 0.1, "{placed}");
+    assert!(f("three") < f("two"), "{placed}");
+
+    // Enter saves the start; undo removes the .pts again, then returns to clicking.
+    let shown = run(
+        &mut browser,
+        &page,
+        "key(\"Enter\"); await saving; return points;",
+    );
+    let saved = facespace::shape::read_pts(&pts0).unwrap();
+    for (a, b) in saved.points.iter().zip(points_of(&shown)) {
+        assert!((a[0] - b[0]).abs() < 1e-3 && (a[1] - b[1]).abs() < 1e-3);
+    }
+    let back = run(
+        &mut browser,
+        &page,
+        "undo(); await saving; const placed = points !== null; undo(); await saving; return [placed, points === null];",
+    );
+    assert_eq!(back, serde_json::json!([true, true]));
+    assert!(!pts0.exists(), "undo back to unmarked removes the .pts");
+
+    // Placed, a point dragged (saved at once), undone: unmarked on disk again.
+    run(
+        &mut browser,
+        &page,
+        &format!(
+            r#"const truth = {truth_js}; const c = ids => average(ids.map(i => truth[i]));
+      [c(anchors[0]), c(anchors[1]), c(anchors[2])].forEach(click);
+      dragBy(points[30], 5, 3); await saving;"#
+        ),
+    );
+    assert!(pts0.exists());
+    run(&mut browser, &page, "undo(); await saving;");
+    assert!(
+        !pts0.exists(),
+        "the drag undone leaves the unsaved placement"
+    );
+
+    // The whole shape: Shift+drag moves it by (10, 4); Alt+drag turns (40, 0) from its centre
+    // into (0, 44): a quarter turn, scaled 1.1; `]` scales by 1.02. Each is saved. (Pointer
+    // positions reach the page in layout units, so drags are exact to about 1e-5 px.)
+    let moves = run(
+        &mut browser,
+        &page,
+        r#"key("Enter"); await saving;
+      const a = points.map(p => p.slice());
+      dragBy(points[8], 10, 4, {shiftKey: true}); await saving;
+      const b = points.map(p => p.slice());
+      const m = average(points);
+      const [x, y] = toCanvas(centre([m[0] + 40, m[1]]));
+      press(x, y, {altKey: true});
+      canvas.dispatchEvent(new PointerEvent("pointermove", at(x - 40 * view.s, y + 44 * view.s, {altKey: true})));
+      canvas.dispatchEvent(new PointerEvent("pointerup", at(x - 40 * view.s, y + 44 * view.s, {altKey: true})));
+      await saving;
+      const c = points.map(p => p.slice());
+      key("]"); await saving;
+      return [a, b, c, points];"#,
+    );
+    let [a, b, c, d] = [0, 1, 2, 3].map(|k| points_of(&moves[k]));
+    let centroid = |ps: &[[f64; 2]]| {
+        let n = ps.len() as f64;
+        ps.iter()
+            .fold([0.0, 0.0], |s, p| [s[0] + p[0] / n, s[1] + p[1] / n])
+    };
+    for k in 0..68 {
+        assert!(
+            (b[k][0] - a[k][0] - 10.0).abs() < 1e-3 && (b[k][1] - a[k][1] - 4.0).abs() < 1e-3,
+            "{k}: {:?} → {:?}",
+            a[k],
+            b[k]
+        );
+        let (cb, cc) = (centroid(&b), centroid(&c));
+        let (u, v) = (
+            [b[k][0] - cb[0], b[k][1] - cb[1]],
+            [c[k][0] - cc[0], c[k][1] - cc[1]],
+        );
+        // A quarter turn (x, y) → (−y, x) in image coordinates, scaled 1.1.
+        assert!(
+            (v[0] + 1.1 * u[1]).abs() < 1e-3 && (v[1] - 1.1 * u[0]).abs() < 1e-3,
+            "{k}"
+        );
+        let cd = centroid(&d);
+        assert!(
+            (d[k][0] - cd[0] - 1.02 * v[0]).abs() < 1e-6
+                && (d[k][1] - cd[1] - 1.02 * v[1]).abs() < 1e-6
+        );
+    }
+    let saved = facespace::shape::read_pts(&pts0).unwrap();
+    assert!(
+        saved
+            .points
+            .iter()
+            .zip(&d)
+            .all(|(s, p)| (s[0] - p[0]).abs() < 1e-3 && (s[1] - p[1]).abs() < 1e-3),
+        "the scaled shape is on disk"
+    );
+
+    // Contours and numbers: zoomed in on the nose, the middle of the longest contour segment
+    // in view has the contour's colour, and the pixels beside point 30 change when `l` hides
+    // the numbers.
+    let drawn = run(
+        &mut browser,
+        &page,
+        r#"view.s *= 3; view.ox = canvas.width / 2 - points[30][0] * view.s; view.oy = canvas.height / 2 - points[30][1] * view.s; draw();
+      let best = null;
+      for (const [first, last] of contours) for (let k = first; k < last; k++) {
+        const [p, q] = [toCanvas(centre(points[k])), toCanvas(centre(points[k + 1]))];
+        const len = Math.hypot(p[0] - q[0], p[1] - q[1]);
+        const mid = [(p[0] + q[0]) / 2, (p[1] + q[1]) / 2];
+        const inside = mid[0] > 20 && mid[1] > 20 && mid[0] < canvas.width - 20 && mid[1] < canvas.height - 20;
+        if (inside && (!best || len > best.len)) best = {len, mid};
+      }
+      const px = ctx.getImageData(Math.round(best.mid[0]), Math.round(best.mid[1]), 1, 1).data;
+      const [x, y] = toCanvas(centre(points[30]));
+      const box = () => Array.from(ctx.getImageData(Math.round(x) + 3, Math.round(y) - 14, 16, 12).data);
+      const on = box(); key("l"); const off = box(); key("l");
+      const changed = on.filter((v, i) => v !== off[i]).length;
+      return {pixel: Array.from(px), segment: best.len, changed};"#,
+    );
+    eprintln!("drawn: {drawn}");
+    let px: Vec<u8> = serde_json::from_value(drawn["pixel"].clone()).unwrap();
+    assert!(drawn["segment"].as_f64().unwrap() > 20.0, "{drawn}");
+    assert!(
+        px[1] > 150 && i32::from(px[1]) > i32::from(px[0]) + 60,
+        "contour colour: {drawn}"
+    );
+    assert!(drawn["changed"].as_u64().unwrap() > 10, "{drawn}");
+
+    // A model of someone else: `f` keeps the points and says why.
+    let refused = run(
+        &mut browser,
+        &page,
+        r#"const before = points.map(p => p.slice());
+      key("f");
+      for (let i = 0; i < 400 && !status.textContent.includes("explain"); i++) await new Promise(r => setTimeout(r, 50));
+      return {kept: same(points, before), status: status.textContent};"#,
+    );
+    assert_eq!(refused["kept"], true, "{refused}");
+    assert!(
+        refused["status"]
+            .as_str()
+            .unwrap()
+            .contains("does not explain this face"),
+        "{refused}"
+    );
+    stop.store(true, Ordering::Relaxed);
+
+    // The demo model on its own talker: the next frame starts from the marked one's points,
+    // unsaved; `f` refits the model from them (still unsaved); Enter saves.
+    let dir = tempfile::tempdir().unwrap();
+    frames(dir.path());
+    let (url, stop) = start(dir.path());
+    let page = browser.open(&url);
+    browser.wait_for(
+        &page,
+        "frames.length > 0 && image && image.complete && points",
+    );
+    let next = run(
+        &mut browser,
+        &page,
+        r#"const before = points.map(p => p.slice());
+      await load(1);
+      const started = same(points, before) && status.textContent.includes("01000.jpg");
+      const saved = await onDisk("01001.jpg");
+      key("f");
+      for (let i = 0; i < 400 && same(points, before); i++) await new Promise(r => setTimeout(r, 50));
+      const fitted = !same(points, before), fitSaved = await onDisk("01001.jpg");
+      const status1 = status.textContent;
+      key("Enter"); await saving;
+      return {started, saved, fitted, fitSaved, status: status1, after: await onDisk("01001.jpg")};"#,
+    );
+    eprintln!("next frame: {next}");
+    assert_eq!(next["started"], true, "{next}");
+    assert_eq!(next["saved"], false, "{next}");
+    assert_eq!(next["fitted"], true, "{next}");
+    assert!(
+        next["status"].as_str().unwrap().contains("residual"),
+        "{next}"
+    );
+    assert_eq!(next["fitSaved"], false, "{next}");
+    assert_eq!(next["after"], true, "{next}");
+    assert!(dir.path().join("01001.pts").is_file());
+    stop.store(true, Ordering::Relaxed);
 }

@@ -444,6 +444,67 @@ fn another_face_is_a_loud_error() {
     assert!(text(&o).contains("0 lost"), "{}", text(&o));
 }
 
+/// Issue 26: `synth` over a background video of someone else (lenna, for GRID s1's model)
+/// stops with the lost face and the remedy `synth` has (`--track-model`), never `--init` or
+/// `--allow-lost` (flags it lacks); nothing written. A still background whose face the model
+/// cannot explain is a lost face too (it used to be drawn over regardless).
+#[test]
+fn synth_over_another_face_names_its_own_remedy() {
+    let tmp = tempfile::tempdir().unwrap();
+    let frames = tmp.path().join("lenna");
+    std::fs::create_dir(&frames).unwrap();
+    for i in 0..3 {
+        std::fs::copy(
+            common::faces_dir().join("lenna.png"),
+            frames.join(format!("{i:05}.png")),
+        )
+        .unwrap();
+    }
+    let root = common::root();
+    let (model, codebook) = (
+        root.join("models/grid/model"),
+        root.join("models/grid/codebook"),
+    );
+    let out = tmp.path().join("out");
+    let o = facespace(&[
+        "synth",
+        "--model",
+        model.to_str().unwrap(),
+        "--codebook",
+        codebook.to_str().unwrap(),
+        "--text",
+        "bin blue",
+        "--background",
+        frames.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let t = text(&o);
+    assert_eq!(o.status.code(), Some(1), "{t}");
+    assert!(
+        t.contains("built for another face") && t.contains("--track-model"),
+        "{t}"
+    );
+    assert!(!t.contains("--allow-lost") && !t.contains("--init"), "{t}");
+    assert_eq!(
+        t.matches(frames.to_str().unwrap()).count(),
+        1,
+        "the path once: {t}"
+    );
+    assert!(!out.exists(), "synth wrote {}", out.display());
+
+    let demo = facespace::model::FaceModel::load(&root.join("models/demo/model")).unwrap();
+    let still = frames.join("00000.png");
+    let err = facespace::synth::backdrop::Backdrop::still(&demo, &still)
+        .err()
+        .expect("lenna is not the demo talker");
+    assert!(
+        matches!(&err, facespace::synth::backdrop::BackdropError::Track(c) if c.is_lost_face()),
+        "{err}"
+    );
+    assert!(err.to_string().contains("00000.png"), "{err}");
+}
+
 /// `facespace frames` spreads its frames from the first to the last, names them by their
 /// index in the video (so tracked landmarks line up), and refuses a count of 0.
 #[test]

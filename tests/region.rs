@@ -246,8 +246,10 @@ fn jaw_outline_holds_still_at_a_held_pose() {
         &mut facespace::no_progress,
     )
     .unwrap();
-    let still = frames[generated.still_frame].image.clone();
-    let backdrop = Backdrop::still(&model, still).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let still = dir.path().join("still.png");
+    frames[generated.still_frame].image.save(&still).unwrap();
+    let backdrop = Backdrop::still(&model, &still).unwrap();
     let target =
         phonemes::text_to_segments(facespace::demo::DEMO_TEXT, &cb.mean_durations()).unwrap();
     let request = Request {

@@ -1,8 +1,11 @@
 //! `annotate`: a local page where a person places or corrects the 68 iBUG landmarks on each
 //! frame of a folder (issue 15). The server only answers on the loopback interface unless
 //! told otherwise, serves only the image files it listed, and writes `NAME.pts` atomically on
-//! every change. Starting points: the frame's own `.pts`; else the model's fit; else the
-//! model's mean shape, which the page places from two clicks on the eye centres.
+//! every change. Starting points: the frame's own `.pts`; else the model's fit (`--fit`); else
+//! the previous frame's points; else the model's mean shape, which the page places from three
+//! clicks (the eye centres and the mouth). The page draws the iBUG contours and point numbers,
+//! moves, rotates and scales the whole shape, refits the model from the points shown, saves an
+//! accepted start with one key, and removes a `.pts` when undo returns a frame to unmarked.
 
 use std::path::{Path, PathBuf};
 
@@ -53,6 +56,8 @@ pub struct Annotator {
 pub enum Event {
     /// Landmarks saved.
     Saved(PathBuf),
+    /// A frame's landmarks removed (undo back to unmarked).
+    Removed(PathBuf),
     /// A request refused (path and reason).
     Refused(String, String),
     /// The server refused or dropped connections for want of resources (said once per
@@ -62,7 +67,8 @@ pub enum Event {
 
 impl Annotator {
     /// Binds `addr` for the images in `dir`. `model` gives the mean shape and, when `fit` is
-    /// set, each unmarked frame's starting fit. Non-loopback addresses need `allow_remote`.
+    /// set, each unmarked frame's starting fit; a region model lends its whole-face tracker,
+    /// since frames are marked with all 68 points. Non-loopback addresses need `allow_remote`.
     pub fn bind(
         dir: &Path,
         model: FaceModel,
@@ -144,11 +150,7 @@ impl Annotator {
                 PAGE.as_bytes().to_vec(),
                 "text/html; charset=utf-8",
             )),
-            (false, "/api/frames") => Ok(Reply::json(json!({
-                "frames": self.frames,
-                "mean": self.model.shape.mean(),
-                "eyes": [[36, 37, 38, 39, 40, 41], [42, 43, 44, 45, 46, 47]],
-            }))),
+            (false, "/api/frames") => Ok(Reply::json(self.listing())),
             (false, p) if p.starts_with("/frames/") => {
                 self.frame(&p["/frames/".len()..]).and_then(|name| {
                     let bytes = crate::manifest::read_inside(&self.dir, &name, MAX_FRAME_BYTES)
@@ -162,13 +164,51 @@ impl Annotator {
             (true, p) if p.starts_with("/api/points/") => self
                 .frame(&p["/api/points/".len()..])
                 .and_then(|name| self.save(&name, &request.body))
-                .map(|saved| {
-                    on_event(Event::Saved(saved.clone()));
-                    Reply::json(json!({"saved": saved.display().to_string()}))
+                .map(|change| match change {
+                    Change::Saved(path) => {
+                        on_event(Event::Saved(path.clone()));
+                        Reply::json(json!({"saved": path.display().to_string()}))
+                    }
+                    Change::Removed(path) => {
+                        on_event(Event::Removed(path.clone()));
+                        Reply::json(json!({"removed": path.display().to_string()}))
+                    }
+                    Change::Unmarked => Reply::json(json!({"removed": null})),
                 }),
+            (true, p) if p.starts_with("/api/fit/") => self
+                .frame(&p["/api/fit/".len()..])
+                .and_then(|name| self.refit(&name, &request.body))
+                .map(Reply::json),
             _ => Err((404, "not found".into())),
         };
         reply.unwrap_or_else(|(code, why)| Reply::error(code, why))
+    }
+
+    /// The frames, which of them are marked, the mean shape and, for the iBUG scheme, its
+    /// contours and the point groups the page places from clicks (eyes, then mouth).
+    fn listing(&self) -> Value {
+        let marker = self.model.tracker();
+        let marked: Vec<&String> = self
+            .frames
+            .iter()
+            .filter(|f| std::fs::symlink_metadata(self.pts_path(f)).is_ok_and(|m| m.is_file()))
+            .collect();
+        let ibug = marker.shape.n_landmarks() == shape::IBUG_POINTS;
+        let contours: Vec<Value> = shape::IBUG_CONTOURS
+            .iter()
+            .map(|&(first, last, closed)| json!([first, last, closed]))
+            .collect();
+        json!({
+            "frames": self.frames,
+            "marked": marked,
+            "mean": marker.shape.mean(),
+            "contours": if ibug { json!(contours) } else { json!([]) },
+            "anchors": if ibug {
+                json!([(36..42).collect::<Vec<_>>(), (42..48).collect::<Vec<_>>(), (48..68).collect::<Vec<_>>()])
+            } else {
+                json!([])
+            },
+        })
     }
 
     /// The frame named `name`, if it is one of the listed images.
@@ -197,8 +237,7 @@ impl Annotator {
         }
         if self.fit {
             let fitted = self.image(name).and_then(|image| {
-                let fitter = Fitter::new(&self.model, FitOptions::default(), 2)
-                    .map_err(|e| e.to_string())?;
+                let fitter = self.fitter()?;
                 let start = fitter.search_start(&image).map_err(|e| e.to_string())?;
                 fitter.fit(&image, &start).map_err(|e| e.to_string())
             });
@@ -207,6 +246,47 @@ impl Annotator {
             }
         }
         Ok(json!({"points": null, "source": "none"}))
+    }
+
+    fn fitter(&self) -> Result<Fitter<'_>, String> {
+        Fitter::new(self.model.tracker(), FitOptions::default(), 2).map_err(|e| e.to_string())
+    }
+
+    /// The model fitted to a frame from the points the page shows (`{"points": …}`): the
+    /// previous frame's marking, a placed mean or a rough drag, refined by AAM search.
+    fn refit(&self, name: &str, body: &str) -> Result<Value, (u16, String)> {
+        let start = self
+            .posted(name, body)?
+            .ok_or((400, "points: none given".to_owned()))?;
+        let image = self.image(name).map_err(|e| (500, e))?;
+        let fit = self
+            .fitter()
+            .and_then(|f| f.fit(&image, &start).map_err(|e| e.to_string()))
+            .map_err(|e| (422, format!("the model could not be fitted: {e}")))?;
+        // A fit the model cannot explain (as the tracker judges a lost face), or one that
+        // left the image, would only replace the person's points with worse ones.
+        let threshold = crate::fit::DEFAULT_REINIT_ERROR;
+        let (w, h) = (f64::from(image.width()), f64::from(image.height()));
+        let inside = fit
+            .landmarks
+            .points
+            .iter()
+            .all(|p| (0.0..=w).contains(&p[0]) && (0.0..=h).contains(&p[1]));
+        if !(fit.error <= threshold) || !inside {
+            return Err((
+                422,
+                format!(
+                    "the model does not explain this face (residual {:.1} grey levels, a face it was built for fits under {threshold}{}): points kept; correct them by hand, or start from a model of this talker",
+                    fit.error,
+                    if inside {
+                        ""
+                    } else {
+                        "; the fit left the image"
+                    }
+                ),
+            ));
+        }
+        Ok(json!({"points": fit.landmarks.points, "error": fit.error, "source": "fit"}))
     }
 
     /// A listed frame, read as a plain file of the folder.
@@ -222,14 +302,18 @@ impl Annotator {
         self.dir.join(Path::new(name).with_extension("pts"))
     }
 
-    /// Validates and writes posted landmarks (`{"points": [[x, y], …]}`) atomically.
-    fn save(&self, name: &str, body: &str) -> Result<PathBuf, (u16, String)> {
+    /// Validates posted landmarks (`{"points": [[x, y], …]}`, or `null` for none): the
+    /// marker's count, inside the image, spread out.
+    fn posted(&self, name: &str, body: &str) -> Result<Option<Landmarks>, (u16, String)> {
         let value: Value = serde_json::from_str(body).map_err(|e| (400, e.to_string()))?;
-        let points: Vec<[f64; 2]> = serde_json::from_value(value["points"].clone())
+        let points: Option<Vec<[f64; 2]>> = serde_json::from_value(value["points"].clone())
             .map_err(|e| (400, format!("points: {e}")))?;
+        let Some(points) = points else {
+            return Ok(None);
+        };
         let landmarks = Landmarks { points };
         landmarks
-            .validate(Some(self.model.shape.n_landmarks()), name)
+            .validate(Some(self.model.tracker().shape.n_landmarks()), name)
             .map_err(|e| (400, e.to_string()))?;
         // Inside the image, and spread out: a shape collapsed onto a point is no marking.
         let image = self.image(name).map_err(|e| (500, e))?;
@@ -258,8 +342,36 @@ impl Annotator {
                 "the points are all in one place (under 2 px apart)".into(),
             ));
         }
-        let path = self.pts_path(name);
-        shape::write_pts(&path, &landmarks).map_err(|e| (500, e.to_string()))?;
-        Ok(path)
+        Ok(Some(landmarks))
     }
+
+    /// Writes posted landmarks atomically, or with `{"points": null}` removes the frame's
+    /// `.pts` (a plain file of the folder, never a link's target).
+    fn save(&self, name: &str, body: &str) -> Result<Change, (u16, String)> {
+        let path = self.pts_path(name);
+        match self.posted(name, body)? {
+            Some(landmarks) => {
+                shape::write_pts(&path, &landmarks).map_err(|e| (500, e.to_string()))?;
+                Ok(Change::Saved(path))
+            }
+            None => match std::fs::symlink_metadata(&path) {
+                Err(_) => Ok(Change::Unmarked),
+                Ok(m) if m.is_file() => std::fs::remove_file(&path)
+                    .map(|()| Change::Removed(path.clone()))
+                    .map_err(|e| (500, format!("{}: {e}", path.display()))),
+                Ok(_) => Err((
+                    403,
+                    format!("{}: not a regular file (not removed)", path.display()),
+                )),
+            },
+        }
+    }
+}
+
+/// What a posted marking did to a frame's `.pts`.
+enum Change {
+    Saved(PathBuf),
+    Removed(PathBuf),
+    /// Asked to remove, but there was none.
+    Unmarked,
 }

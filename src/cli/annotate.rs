@@ -15,7 +15,8 @@ pub struct AnnotateArgs {
     /// Model for the mean shape (and, with --fit, the starting fit).
     #[arg(long, default_value = super::DEMO_MODEL_SHOWN, value_parser = super::committed_path)]
     model: PathBuf,
-    /// Start unmarked frames from the model's fit (else: the mean shape from two eye clicks).
+    /// Start unmarked frames from the model's fit (else: the previous frame's points, or the
+    /// mean shape placed by three clicks: the two eye centres, then the mouth).
     #[arg(long)]
     fit: bool,
     /// Address to listen on.
@@ -42,6 +43,7 @@ pub fn run(a: AnnotateArgs) -> Result<()> {
     annotator.run(
         |event| match event {
             Event::Saved(path) => println!("saved {}", path.display()),
+            Event::Removed(path) => println!("removed {} (undone)", path.display()),
             Event::Refused(path, why) => refusals.log(&path, &why),
             Event::Notice(what) => eprintln!("note: {what}"),
         },

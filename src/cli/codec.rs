@@ -78,8 +78,9 @@ pub fn encode(a: EncodeArgs) -> Result<()> {
     }
     let (bar, progress) = progress_bar();
     let clock = std::time::Instant::now();
-    let encoded = codec::encode(&model, source, &options, progress)
-        .map_err(|e| super::tracking_context("encoding", &a.input)(e.into()))?;
+    let encoded = codec::encode(&model, source, &options, progress).map_err(|e| {
+        super::tracking_context("encoding", &a.input, super::TRACKING_REMEDY)(e.into())
+    })?;
     bar.finish_and_clear();
     let seconds = clock.elapsed().as_secs_f64();
     let clip = &encoded.clip;

@@ -260,11 +260,12 @@ impl TrackingArgs {
 }
 
 /// Context for a failed tracking command: `what` (e.g. "tracking") and the input's path,
-/// unless the error names it already; when the face was lost, the remedies its
-/// [`TrackingArgs`] offer.
+/// unless the error names it already; when the face was lost, the `remedy` that command's
+/// flags offer.
 fn tracking_context<'a>(
     what: &'a str,
     input: &'a std::path::Path,
+    remedy: &'a str,
 ) -> impl Fn(anyhow::Error) -> anyhow::Error + 'a {
     move |e| {
         let named = format!("{e:#}").contains(&input.display().to_string());
@@ -278,14 +279,16 @@ fn tracking_context<'a>(
                 .is_some_and(|c| c.is_lost_face())
         });
         if lost {
-            e.context(format!(
-                "{head} (give the first frame's landmarks with --init, or pass --allow-lost to keep the result anyway)"
-            ))
+            e.context(format!("{head} ({remedy})"))
         } else {
             e.context(head)
         }
     }
 }
+
+/// The remedies [`TrackingArgs`] offer for a lost face.
+const TRACKING_REMEDY: &str =
+    "give the first frame's landmarks with --init, or pass --allow-lost to keep the result anyway";
 
 /// One line on a tracking record.
 fn tracking_line(s: &TrackingSummary, seconds: f64) -> String {

@@ -126,7 +126,11 @@ fn suggest(a: SuggestArgs) -> Result<()> {
     let (bar, progress) = progress_bar();
     let chosen =
         facespace::model::suggest(&model, &a.input, a.count, &a.output, &options, progress)
-            .map_err(|e| super::tracking_context("suggesting frames of", &a.input)(e.into()))?;
+            .map_err(|e| {
+                super::tracking_context("suggesting frames of", &a.input, super::TRACKING_REMEDY)(
+                    e.into(),
+                )
+            })?;
     bar.finish_and_clear();
     for s in &chosen {
         println!(

@@ -28,6 +28,10 @@ fn is_image(path: &std::path::Path) -> bool {
 
 use super::{RendererArg, load_model, progress_bar};
 
+/// What to do when the background's face is lost: it is tracked with --model (or its
+/// whole-face tracker), which may be of someone else.
+const BACKGROUND_REMEDY: &str = "the background is tracked with --model; for a background of another talker give a model of theirs with --track-model MODEL, or use a background of the codebook's talker";
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum Smooth {
     On,
@@ -256,7 +260,11 @@ pub fn run(a: SynthArgs) -> Result<()> {
     };
     let tracker = tracker.as_ref().unwrap_or(&model);
     let backdrop = match &a.background {
-        Some(p) if is_image(p) => Some(Backdrop::still(tracker, video::read_frame(p)?)?),
+        Some(p) if is_image(p) => {
+            Some(Backdrop::still(tracker, p).map_err(|e| {
+                super::tracking_context("background", p, BACKGROUND_REMEDY)(e.into())
+            })?)
+        }
         Some(p) => {
             let mode = match a.pose {
                 PoseArg::Hold => PoseMode::Hold,
@@ -271,7 +279,7 @@ pub fn run(a: SynthArgs) -> Result<()> {
                 &EncodeOptions::default(),
                 progress,
             )
-            .with_context(|| format!("background {}", p.display()))?;
+            .map_err(|e| super::tracking_context("background", p, BACKGROUND_REMEDY)(e.into()))?;
             bar.finish_and_clear();
             Some(b)
         }

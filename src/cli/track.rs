@@ -32,7 +32,9 @@ pub fn run(a: TrackArgs) -> Result<()> {
     let (bar, progress) = progress_bar();
     let clock = std::time::Instant::now();
     let (landmarks, tracking) = codec::track_landmarks(&model, source, &options, progress)
-        .map_err(|e| super::tracking_context("tracking", &a.input)(e.into()))?;
+        .map_err(|e| {
+            super::tracking_context("tracking", &a.input, super::TRACKING_REMEDY)(e.into())
+        })?;
     bar.finish_and_clear();
     let seconds = clock.elapsed().as_secs_f64();
     shape::write_sequence(&a.output, &landmarks, names.as_deref())?;

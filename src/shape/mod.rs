@@ -25,6 +25,23 @@ use crate::pca::{Components, PcaError, PcaModel};
 /// A 2-D point `[x, y]` in pixels.
 pub type Point = [f64; 2];
 
+/// The iBUG 68-point scheme's contours, as index ranges `(first, last, closed)`: jaw, brows,
+/// nose bridge and base, eyes, outer and inner lips (the 300-W annotation guide's figure).
+pub const IBUG_CONTOURS: [(usize, usize, bool); 9] = [
+    (0, 16, false),
+    (17, 21, false),
+    (22, 26, false),
+    (27, 30, false),
+    (31, 35, false),
+    (36, 41, true),
+    (42, 47, true),
+    (48, 59, true),
+    (60, 67, true),
+];
+
+/// The iBUG scheme's point count.
+pub const IBUG_POINTS: usize = 68;
+
 /// One face's landmarks, in a fixed order (68 for the iBUG scheme, any count allowed).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Landmarks {

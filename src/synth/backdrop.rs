@@ -173,12 +173,24 @@ impl Backdrop {
         true
     }
 
-    /// One image: the face found in it (grid search, then the AAM fit) gives the pose.
-    pub fn still(tracker: &FaceModel, image: RgbImage) -> Result<Backdrop, BackdropError> {
+    /// One image (read from `path`): the face found in it (grid search, then the AAM fit)
+    /// gives the pose. A fit the model cannot explain (residual above the tracker's
+    /// re-initialisation threshold) is a lost face, as on a video's first frame.
+    pub fn still(tracker: &FaceModel, path: &Path) -> Result<Backdrop, BackdropError> {
+        let image = crate::video::read_frame(path)?;
         // A region model finds the face with its whole-face tracker.
         let fitter = Fitter::new(tracker.tracker(), FitOptions::default(), 2)?;
         let start = fitter.search_start(&image)?;
         let fit = fitter.fit(&image, &start)?;
+        let threshold = crate::fit::DEFAULT_REINIT_ERROR;
+        if !(fit.error <= threshold) {
+            return Err(CodecError::NoFace {
+                path: path.into(),
+                error: fit.error,
+                threshold,
+            }
+            .into());
+        }
         let (pose, _) = tracker
             .shape
             .project(&fit.landmarks)
