@@ -426,21 +426,7 @@ fn soak() {
         .spawn()
         .unwrap();
     let mut out = server.stdout.take().unwrap();
-    let mut text = String::new();
-    let mut byte = [0u8; 1];
-    while !text.contains("(Ctrl+C") {
-        assert_eq!(
-            std::io::Read::read(&mut out, &mut byte).unwrap(),
-            1,
-            "{text}"
-        );
-        text.push(byte[0] as char);
-    }
-    let url = text
-        .split_whitespace()
-        .find(|w| w.starts_with("http://"))
-        .unwrap()
-        .to_owned();
+    let url = common::url_in(&common::read_until_started(&mut out));
     let pid = server.id();
     let rss_mb = || {
         std::fs::read_to_string(format!("/proc/{pid}/status"))

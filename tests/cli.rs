@@ -403,15 +403,7 @@ fn outputs_never_delete_user_files() {
 #[test]
 fn another_face_is_a_loud_error() {
     let tmp = tempfile::tempdir().unwrap();
-    let frames = tmp.path().join("lenna");
-    std::fs::create_dir(&frames).unwrap();
-    for i in 0..4 {
-        std::fs::copy(
-            common::faces_dir().join("lenna.png"),
-            frames.join(format!("{i:05}.png")),
-        )
-        .unwrap();
-    }
+    let frames = common::lenna_frames(tmp.path(), 4);
     let f = frames.to_str().unwrap();
     for (command, out) in [("track", "lm.npy"), ("encode", "clip.fsp")] {
         let out = tmp.path().join(out);
@@ -451,15 +443,7 @@ fn another_face_is_a_loud_error() {
 #[test]
 fn synth_over_another_face_names_its_own_remedy() {
     let tmp = tempfile::tempdir().unwrap();
-    let frames = tmp.path().join("lenna");
-    std::fs::create_dir(&frames).unwrap();
-    for i in 0..3 {
-        std::fs::copy(
-            common::faces_dir().join("lenna.png"),
-            frames.join(format!("{i:05}.png")),
-        )
-        .unwrap();
-    }
+    let frames = common::lenna_frames(tmp.path(), 3);
     let root = common::root();
     let (model, codebook) = (
         root.join("models/grid/model"),

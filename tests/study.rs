@@ -92,8 +92,6 @@ fn binomial_matches_scipy() {
 // ---------------------------------------------------------------------------------------
 // The study folder: design, answer log, refusals, crash safety, the browser.
 
-use std::io::Read;
-
 use common::http;
 use std::path::Path;
 
@@ -717,16 +715,7 @@ fn serve(study: &Path) -> (std::process::Child, Vec<String>) {
         .spawn()
         .unwrap();
     let mut out = child.stdout.take().unwrap();
-    let mut text = String::new();
-    let mut byte = [0u8; 1];
-    while !text.contains("(Ctrl+C") {
-        assert_eq!(
-            out.read(&mut byte).unwrap(),
-            1,
-            "the server stopped: {text}"
-        );
-        text.push(byte[0] as char);
-    }
+    let text = common::read_until_started(&mut out);
     // Keep reading (and dropping) its log so the pipe never fills.
     std::thread::spawn(move || std::io::copy(&mut out, &mut std::io::sink()));
     let links = text

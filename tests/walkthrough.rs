@@ -5,7 +5,6 @@
 //! `models/`, so `out/` is the test's own.
 mod common;
 
-use std::io::Read;
 use std::path::Path;
 use std::process::{Command, Stdio};
 
@@ -67,16 +66,7 @@ fn annotate(dir: &Path, line: &str) {
         .spawn()
         .unwrap();
     let mut out = server.stdout.take().unwrap();
-    let (mut text, mut byte) = (String::new(), [0u8; 1]);
-    while !text.contains("(Ctrl+C") {
-        assert_eq!(out.read(&mut byte).unwrap(), 1, "{text}");
-        text.push(byte[0] as char);
-    }
-    let url = text
-        .split_whitespace()
-        .find(|w| w.starts_with("http://"))
-        .unwrap()
-        .to_owned();
+    let url = common::url_in(&common::read_until_started(&mut out));
     let (code, body) = common::http(&url, "GET", "/api/frames", "");
     let _ = server.kill();
     let _ = server.wait();
@@ -127,7 +117,10 @@ fn the_own_talker_walkthrough_runs_as_written() {
         .position(|c| c.contains("-- synth "))
         .unwrap()];
     assert!(synth.contains("75 frames at 25 fps"), "{synth}");
-    assert!(synth.contains("is absent from the codebook: used"), "{synth}");
+    assert!(
+        synth.contains("is absent from the codebook: used"),
+        "{synth}"
+    );
     let video = own.join("synth/video.mp4");
     let frames = facespace::video::Source::open(&video).unwrap().count();
     assert_eq!(frames, 75);

