@@ -464,6 +464,13 @@ pub fn quantile(sorted: &[f64], p: f64) -> f64 {
     sorted[lo] + (h - lo as f64) * (sorted[hi] - sorted[lo])
 }
 
+/// The median (the mean of the middle two for an even count; NaN for none).
+pub fn median(v: &[f64]) -> f64 {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    quantile(&s, 0.5)
+}
+
 /// Box plots of `groups` side by side: the box spans the quartiles with the median across it,
 /// whiskers reach the furthest values within 1.5 IQR of the box, values beyond are dots, and
 /// a diamond marks the mean.

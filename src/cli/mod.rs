@@ -293,10 +293,11 @@ const TRACKING_REMEDY: &str =
 /// One line on a tracking record.
 fn tracking_line(s: &TrackingSummary, seconds: f64) -> String {
     format!(
-        "{} frames in {seconds:.2} s ({:.0} fps incl. decoding): residual mean {:.2}, max {:.2} grey levels; {} re-initialised, {} lost",
+        "{} frames in {seconds:.2} s ({:.0} fps incl. decoding): residual mean {:.2}, median {:.2}, max {:.2} grey levels; {} re-initialised, {} lost",
         s.frames,
         s.frames as f64 / seconds,
         s.mean_error,
+        s.median_error,
         s.max_error,
         s.reinitialised,
         s.lost,

@@ -318,6 +318,8 @@ pub struct TrackingSummary {
     pub frames: usize,
     /// Mean residual RMS (grey levels).
     pub mean_error: f64,
+    /// Median residual RMS.
+    pub median_error: f64,
     /// Largest residual RMS.
     pub max_error: f64,
     /// Frames re-initialised.
@@ -333,6 +335,9 @@ impl TrackingSummary {
         TrackingSummary {
             frames: tracking.len(),
             mean_error: tracking.iter().map(|t| t.fit_error).sum::<f64>() / n,
+            median_error: crate::plot::median(
+                &tracking.iter().map(|t| t.fit_error).collect::<Vec<_>>(),
+            ),
             max_error: tracking.iter().map(|t| t.fit_error).fold(0.0, f64::max),
             reinitialised: tracking.iter().filter(|t| t.reinitialised).count(),
             lost: tracking.iter().filter(|t| t.lost).count(),

@@ -162,13 +162,6 @@ fn mean(v: &[f64]) -> f64 {
     }
 }
 
-/// The median (the mean of the middle two for an even count).
-fn median(v: &[f64]) -> f64 {
-    let mut s = v.to_vec();
-    s.sort_by(f64::total_cmp);
-    plot::quantile(&s, 0.5)
-}
-
 /// Reads the study in `dir` and its answers and computes the report.
 pub fn analyse(dir: &Path) -> Result<Report, StudyError> {
     let manifest = Manifest::load(dir)?;
@@ -273,7 +266,7 @@ pub fn report(manifest: &Manifest, answers: &[Answer]) -> Report {
             condition,
             n: scores.len(),
             mean: mean(scores),
-            median: median(scores),
+            median: plot::median(scores),
             rank: kruskal.as_ref().map(|k| k.groups[i]),
             scores: scores.clone(),
         })
