@@ -204,7 +204,7 @@ impl Annotator {
             "mean": marker.shape.mean(),
             "contours": if ibug { json!(contours) } else { json!([]) },
             "anchors": if ibug {
-                json!([(36..42).collect::<Vec<_>>(), (42..48).collect::<Vec<_>>(), (48..68).collect::<Vec<_>>()])
+                json!(shape::IBUG_EYES_AND_MOUTH.map(|r| r.collect::<Vec<_>>()))
             } else {
                 json!([])
             },
@@ -266,12 +266,7 @@ impl Annotator {
         // A fit the model cannot explain (as the tracker judges a lost face), or one that
         // left the image, would only replace the person's points with worse ones.
         let threshold = crate::fit::DEFAULT_REINIT_ERROR;
-        let (w, h) = (f64::from(image.width()), f64::from(image.height()));
-        let inside = fit
-            .landmarks
-            .points
-            .iter()
-            .all(|p| (0.0..=w).contains(&p[0]) && (0.0..=h).contains(&p[1]));
+        let inside = first_outside(&fit.landmarks, &image).is_none();
         if !(fit.error <= threshold) || !inside {
             return Err((
                 422,
@@ -317,13 +312,8 @@ impl Annotator {
             .map_err(|e| (400, e.to_string()))?;
         // Inside the image, and spread out: a shape collapsed onto a point is no marking.
         let image = self.image(name).map_err(|e| (500, e))?;
-        let (w, h) = (f64::from(image.width()), f64::from(image.height()));
-        if let Some((k, p)) = landmarks
-            .points
-            .iter()
-            .enumerate()
-            .find(|(_, p)| !(0.0..=w).contains(&p[0]) || !(0.0..=h).contains(&p[1]))
-        {
+        let (w, h) = (image.width(), image.height());
+        if let Some((k, p)) = first_outside(&landmarks, &image) {
             return Err((
                 400,
                 format!(
@@ -366,6 +356,19 @@ impl Annotator {
             },
         }
     }
+}
+
+/// The first point outside the image (its index and the point), if any.
+fn first_outside<'a>(
+    landmarks: &'a Landmarks,
+    image: &image::RgbImage,
+) -> Option<(usize, &'a shape::Point)> {
+    let (w, h) = (f64::from(image.width()), f64::from(image.height()));
+    landmarks
+        .points
+        .iter()
+        .enumerate()
+        .find(|(_, p)| !(0.0..=w).contains(&p[0]) || !(0.0..=h).contains(&p[1]))
 }
 
 /// What a posted marking did to a frame's `.pts`.

@@ -42,6 +42,10 @@ pub const IBUG_CONTOURS: [(usize, usize, bool); 9] = [
 /// The iBUG scheme's point count.
 pub const IBUG_POINTS: usize = 68;
 
+/// The iBUG scheme's eyes (the subject's right, on the image's left, first) and mouth (outer
+/// and inner lips): the groups whose centres place a face.
+pub const IBUG_EYES_AND_MOUTH: [std::ops::Range<usize>; 3] = [36..42, 42..48, 48..68];
+
 /// One face's landmarks, in a fixed order (68 for the iBUG scheme, any count allowed).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Landmarks {

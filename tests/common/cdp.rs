@@ -55,10 +55,16 @@ impl Browser {
             ])
             .stdout(std::process::Stdio::null())
             .stderr(std::process::Stdio::null());
-        // SAFETY: only async-signal-safe dup2 calls between fork and exec.
+        // SAFETY: only async-signal-safe fcntl and dup2 calls between fork and exec.
         unsafe {
             command.pre_exec(move || {
-                if libc::dup2(fd3, 3) < 0 || libc::dup2(fd4, 4) < 0 {
+                // Both ends first moved above 4, so that neither dup2 below can overwrite the
+                // other (pipe2 may have handed out 3 and 4 themselves, swapped).
+                let (read, write) = (
+                    libc::fcntl(fd3, libc::F_DUPFD_CLOEXEC, 10),
+                    libc::fcntl(fd4, libc::F_DUPFD_CLOEXEC, 10),
+                );
+                if read < 0 || write < 0 || libc::dup2(read, 3) < 0 || libc::dup2(write, 4) < 0 {
                     return Err(std::io::Error::last_os_error());
                 }
                 Ok(())

@@ -219,7 +219,8 @@ pub fn mouth_shape(points: &[[f64; 2]]) -> (f64, f64) {
             [c[0] + points[i][0] / n, c[1] + points[i][1] / n]
         })
     };
-    let (l, r) = (centre(36..42), centre(42..48));
+    let [eye_r, eye_l, _] = crate::shape::IBUG_EYES_AND_MOUTH;
+    let (l, r) = (centre(eye_r), centre(eye_l));
     let iod = (l[0] - r[0]).hypot(l[1] - r[1]);
     (
         (d(61, 67) + d(62, 66) + d(63, 65)) / 3.0 / iod,
