@@ -201,12 +201,11 @@ fn the_demo_speaks_beside_the_real_recording() {
     ] {
         let sound = facespace::audio::read(&out.join(video), 16_000, 60.0).unwrap();
         let source = facespace::audio::read(&clip, 16_000, 60.0).unwrap();
-        let seconds = |s: &facespace::audio::Audio| s.samples.len() as f64 / f64::from(s.rate);
         assert!(
-            (seconds(&sound) - seconds(&source)).abs() < 0.05,
+            (sound.seconds() - source.seconds()).abs() < 0.05,
             "{video}: {:.3} s of sound, the recording has {:.3}",
-            seconds(&sound),
-            seconds(&source)
+            sound.seconds(),
+            source.seconds()
         );
         let rms = |s: &[f32]| (s.iter().map(|x| x * x).sum::<f32>() / s.len() as f32).sqrt();
         assert!(

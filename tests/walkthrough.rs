@@ -132,12 +132,11 @@ fn the_own_talker_walkthrough_runs_as_written() {
         60.0,
     )
     .unwrap();
-    let seconds = |a: &facespace::audio::Audio| a.samples.len() as f64 / f64::from(a.rate);
     assert!(
-        (seconds(&sound) - seconds(&recording)).abs() < 0.1,
+        (sound.seconds() - recording.seconds()).abs() < 0.1,
         "{} s of sound for a {} s recording",
-        seconds(&sound),
-        seconds(&recording)
+        sound.seconds(),
+        recording.seconds()
     );
     // The recording's own sound, sample for sample (its AAC packets are copied).
     let n = sound.samples.len().min(recording.samples.len());
