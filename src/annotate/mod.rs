@@ -222,7 +222,7 @@ impl Annotator {
     }
 
     /// Starting points for a frame: its `.pts`, else the model's fit (when asked), else none
-    /// (the page places the mean shape from two eye clicks).
+    /// (the page starts from the previous frame's points, or places the mean from clicks).
     fn points(&self, name: &str) -> Result<Value, (u16, String)> {
         let pts = self.pts_path(name);
         if std::fs::symlink_metadata(&pts).is_ok() {
