@@ -22,9 +22,14 @@ fn demo_model() -> FaceModel {
     FaceModel::load(&common::root().join("models/demo/model")).unwrap()
 }
 
-/// Starts a server on a free loopback port; returns its address and the stop flag.
+/// Starts a server with the demo model on a free loopback port; returns its address and the
+/// stop flag.
 fn start(dir: &Path) -> (String, Arc<AtomicBool>) {
-    let annotator = Annotator::bind(dir, demo_model(), false, "127.0.0.1:0", false).unwrap();
+    serve(Annotator::bind(dir, demo_model(), false, "127.0.0.1:0", false).unwrap())
+}
+
+/// Runs `annotator` on a thread of its own; returns its address and the stop flag.
+fn serve(annotator: Annotator) -> (String, Arc<AtomicBool>) {
     let url = annotator.url();
     let stop = Arc::new(AtomicBool::new(false));
     let flag = stop.clone();
@@ -268,10 +273,7 @@ fn planted_links_fifos_and_odd_names_are_not_served() {
     for name in ["evil.png", "outside.jpg", "UTF-8"] {
         assert!(skipped.contains(name), "{name} not reported: {skipped}");
     }
-    let url = annotator.url();
-    let stop = Arc::new(AtomicBool::new(false));
-    let flag = stop.clone();
-    std::thread::spawn(move || annotator.run(|_| {}, move || flag.load(Ordering::Relaxed)));
+    let (url, stop) = serve(annotator);
     let clock = std::time::Instant::now();
     let (_, listed) = common::http(&url, "GET", "/api/frames", "");
     let listed: serde_json::Value = serde_json::from_str(&listed).unwrap();
@@ -481,10 +483,7 @@ fn listing_contours_and_unmarking() {
     frames(dir.path());
     let lower = FaceModel::load(&common::root().join("models/grid/lower")).unwrap();
     let annotator = Annotator::bind(dir.path(), lower, false, "127.0.0.1:0", false).unwrap();
-    let url = annotator.url();
-    let stop = Arc::new(AtomicBool::new(false));
-    let flag = stop.clone();
-    std::thread::spawn(move || annotator.run(|_| {}, move || flag.load(Ordering::Relaxed)));
+    let (url, stop) = serve(annotator);
     let (_, body) = common::http(&url, "GET", "/api/frames", "");
     let listing: serde_json::Value = serde_json::from_str(&body).unwrap();
     assert_eq!(listing["mean"].as_array().unwrap().len(), 68);
@@ -603,10 +602,7 @@ fn headless_chromium_places_moves_undoes_and_starts_from_the_previous_frame() {
     let truth = facespace::shape::read_pts(&clip.join("01000.pts")).unwrap();
     let grid = FaceModel::load(&common::root().join("models/grid/model")).unwrap();
     let annotator = Annotator::bind(dir.path(), grid, false, "127.0.0.1:0", false).unwrap();
-    let url = annotator.url();
-    let stop = Arc::new(AtomicBool::new(false));
-    let flag = stop.clone();
-    std::thread::spawn(move || annotator.run(|_| {}, move || flag.load(Ordering::Relaxed)));
+    let (url, stop) = serve(annotator);
     let mut browser = common::cdp::Browser::launch(chromium);
     let page = browser.open(&url);
     browser.wait_for(&page, "frames.length > 0 && image && image.complete");

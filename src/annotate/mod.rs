@@ -255,10 +255,9 @@ impl Annotator {
     /// The model fitted to a frame from the points the page shows (`{"points": …}`): the
     /// previous frame's marking, a placed mean or a rough drag, refined by AAM search.
     fn refit(&self, name: &str, body: &str) -> Result<Value, (u16, String)> {
-        let start = self
+        let (start, image) = self
             .posted(name, body)?
             .ok_or((400, "points: none given".to_owned()))?;
-        let image = self.image(name).map_err(|e| (500, e))?;
         let fit = self
             .fitter()
             .and_then(|f| f.fit(&image, &start).map_err(|e| e.to_string()))
@@ -298,8 +297,13 @@ impl Annotator {
     }
 
     /// Validates posted landmarks (`{"points": [[x, y], …]}`, or `null` for none): the
-    /// marker's count, inside the image, spread out.
-    fn posted(&self, name: &str, body: &str) -> Result<Option<Landmarks>, (u16, String)> {
+    /// marker's count, inside the image, spread out. Returns them with the frame they were
+    /// checked against.
+    fn posted(
+        &self,
+        name: &str,
+        body: &str,
+    ) -> Result<Option<(Landmarks, image::RgbImage)>, (u16, String)> {
         let value: Value = serde_json::from_str(body).map_err(|e| (400, e.to_string()))?;
         let points: Option<Vec<[f64; 2]>> = serde_json::from_value(value["points"].clone())
             .map_err(|e| (400, format!("points: {e}")))?;
@@ -332,7 +336,7 @@ impl Annotator {
                 "the points are all in one place (under 2 px apart)".into(),
             ));
         }
-        Ok(Some(landmarks))
+        Ok(Some((landmarks, image)))
     }
 
     /// Writes posted landmarks atomically, or with `{"points": null}` removes the frame's
@@ -340,7 +344,7 @@ impl Annotator {
     fn save(&self, name: &str, body: &str) -> Result<Change, (u16, String)> {
         let path = self.pts_path(name);
         match self.posted(name, body)? {
-            Some(landmarks) => {
+            Some((landmarks, _)) => {
                 shape::write_pts(&path, &landmarks).map_err(|e| (500, e.to_string()))?;
                 Ok(Change::Saved(path))
             }
