@@ -36,6 +36,85 @@ struct Owned {
     files: Vec<String>,
 }
 
+/// Why a destination is refused before anything is written ([`check_destination`]).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum DestinationError {
+    /// A device, FIFO or socket: renaming a file over it would replace it (as root,
+    /// `/dev/null` itself).
+    #[error("refusing to write over {path}: it exists and is not a regular file or folder (a device or FIFO)")]
+    NotRegular {
+        /// The destination.
+        path: PathBuf,
+    },
+    /// The destination is one of the command's inputs (the same file, links resolved).
+    #[error("refusing to write over {path}: it is also an input ({input}); give another output")]
+    IsInput {
+        /// The destination.
+        path: PathBuf,
+        /// The input it is.
+        input: PathBuf,
+    },
+    /// An input lies inside the destination folder, which the result replaces whole.
+    #[error("refusing to replace {path}: the input {input} lies inside that folder; give another output")]
+    HoldsInput {
+        /// The destination folder.
+        path: PathBuf,
+        /// The input inside it.
+        input: PathBuf,
+    },
+}
+
+/// Refuses a destination that exists as something other than a regular file or folder, that
+/// is the same file as one of `inputs` (after links), or that is a folder holding one of
+/// them. Checked before any work, so a command never runs long to then write over its own
+/// input or a device (issue 39).
+pub fn check_destination(path: &Path, inputs: &[&Path]) -> Result<(), DestinationError> {
+    let Ok(meta) = std::fs::metadata(path) else {
+        // Nothing there (or a dangling link, which the rename replaces): no input is it.
+        return Ok(());
+    };
+    if !meta.is_file() && !meta.is_dir() {
+        return Err(DestinationError::NotRegular { path: path.into() });
+    }
+    let real = path.canonicalize().ok();
+    for input in inputs {
+        let Ok(m) = std::fs::metadata(input) else {
+            continue;
+        };
+        if same_file(&meta, &m) {
+            return Err(DestinationError::IsInput {
+                path: path.into(),
+                input: input.to_path_buf(),
+            });
+        }
+        if meta.is_dir()
+            && let (Some(real), Ok(inside)) = (&real, input.canonicalize())
+            && inside.starts_with(real)
+        {
+            return Err(DestinationError::HoldsInput {
+                path: path.into(),
+                input: input.to_path_buf(),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Whether two metadata are of one file (device and inode on Unix).
+fn same_file(a: &std::fs::Metadata, b: &std::fs::Metadata) -> bool {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        a.dev() == b.dev() && a.ino() == b.ino()
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = (a, b);
+        false
+    }
+}
+
 /// Writes `bytes` to `path` through a temporary file in the same folder and a rename.
 pub fn write_file(path: &Path, bytes: &[u8]) -> io::Result<()> {
     let mut tmp = staging_file(path)?;
@@ -46,6 +125,13 @@ pub fn write_file(path: &Path, bytes: &[u8]) -> io::Result<()> {
 /// A locked temporary file beside `path` (its folder created if need be), for [`persist`];
 /// dropped instead, it is removed.
 pub fn staging_file(path: &Path) -> io::Result<tempfile::NamedTempFile> {
+    // A file is renamed only over a file: never over a device, FIFO or folder.
+    if std::fs::metadata(path).is_ok_and(|m| !m.is_file()) {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            "it exists and is not a regular file (a device, FIFO or folder); not written over",
+        ));
+    }
     let dir = parent_of(path);
     std::fs::create_dir_all(dir)?;
     let dir = dir.canonicalize()?;

@@ -80,6 +80,14 @@ pub enum AudioError {
         /// The limit, seconds.
         max: f64,
     },
+    /// The header is damaged or declares nonsense (checked before any decoder sees it).
+    #[error("{path}: malformed audio header: {why}")]
+    Malformed {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        why: String,
+    },
     /// ffmpeg could not read it.
     #[error("{path}: ffmpeg could not decode the audio ({status})")]
     Ffmpeg {
@@ -102,13 +110,35 @@ pub fn read_native(path: &Path, max_seconds: f64) -> Result<Audio, AudioError> {
     read_at(path, None, max_seconds)
 }
 
-fn read_at(path: &Path, rate: Option<u32>, max_seconds: f64) -> Result<Audio, AudioError> {
+/// The duration of `path`'s audio in seconds, refusing more than `max_seconds` — from the
+/// header when it tells, else by decoding without keeping the samples, so even an hour of
+/// 96 kHz sound costs no memory.
+pub fn duration(path: &Path, max_seconds: f64) -> Result<f64, AudioError> {
+    let file = open_checked(path)?;
+    match decode_native(path, file, max_seconds, false) {
+        Ok((audio, frames)) => Ok(frames as f64 / f64::from(audio.rate.max(1))),
+        Err(AudioError::Unsupported { .. }) => Ok(read_native(path, max_seconds)?.seconds()),
+        Err(e) => Err(e),
+    }
+}
+
+/// `path` opened as a regular file whose header passed [`check_header`].
+fn open_checked(path: &Path) -> Result<std::fs::File, AudioError> {
     let io = |source| AudioError::Io {
         path: path.to_owned(),
         source,
     };
-    let file = crate::manifest::open_regular(path).map_err(io)?;
-    match decode_native(path, file, max_seconds) {
+    let mut file = crate::manifest::open_regular(path).map_err(io)?;
+    check_header(&mut file).map_err(|why| AudioError::Malformed {
+        path: path.to_owned(),
+        why,
+    })?;
+    Ok(file)
+}
+
+fn read_at(path: &Path, rate: Option<u32>, max_seconds: f64) -> Result<Audio, AudioError> {
+    let file = open_checked(path)?;
+    match decode_native(path, file, max_seconds, true).map(|(a, _)| a) {
         Ok(a) if is_mp4(path) => trim_to_edit_list(path, a),
         Ok(a) => Ok(a),
         Err(AudioError::Unsupported { why, .. }) => match system_ffmpeg() {
@@ -119,6 +149,90 @@ fn read_at(path: &Path, rate: Option<u32>, max_seconds: f64) -> Result<Audio, Au
             }),
         },
         Err(e) => Err(e),
+    }
+}
+
+/// Largest sample rate taken (768 kHz, the highest any audio interface records at).
+const MAX_RATE: u32 = 768_000;
+
+/// The header checks run before symphonia sees a file, which panics on some declared values
+/// (issue 39: a WAV at 0 Hz, an MP4 `mdhd` timescale of 0, an `hdlr` box of size 0). A RIFF
+/// WAVE file must have a sane `fmt ` chunk; a file whose second word is `ftyp` (MP4, M4A,
+/// MOV) must pass the MP4 box check. Anything else is left to the decoders. The file is
+/// rewound.
+fn check_header(file: &mut std::fs::File) -> Result<(), String> {
+    use std::io::{Seek, SeekFrom};
+    let mut head = [0u8; 12];
+    let n = read_up_to(file, &mut head).map_err(|e| e.to_string())?;
+    let head = &head[..n];
+    let result = if head.len() == 12 && &head[..4] == b"RIFF" && &head[8..12] == b"WAVE" {
+        check_wav(file)
+    } else if head.len() >= 8 && &head[4..8] == b"ftyp" {
+        crate::video::mp4::check_structure(file).map_err(|e| e.to_string())
+    } else {
+        Ok(())
+    };
+    file.seek(SeekFrom::Start(0)).map_err(|e| e.to_string())?;
+    result
+}
+
+/// Reads until `buf` is full or the file ends; the bytes read.
+fn read_up_to(file: &mut std::fs::File, buf: &mut [u8]) -> std::io::Result<usize> {
+    let mut n = 0;
+    while n < buf.len() {
+        match file.read(&mut buf[n..])? {
+            0 => break,
+            k => n += k,
+        }
+    }
+    Ok(n)
+}
+
+/// A WAV's chunks up to its `fmt ` chunk: each must fit the file, and the format must have
+/// 1–64 channels, a rate of 1 Hz–[`MAX_RATE`], a non-zero block size and 1–64 bits a sample.
+fn check_wav(file: &mut std::fs::File) -> Result<(), String> {
+    use std::io::{Seek, SeekFrom};
+    let len = file.metadata().map_err(|e| e.to_string())?.len();
+    let mut at = 12u64;
+    loop {
+        let mut head = [0u8; 8];
+        file.seek(SeekFrom::Start(at)).map_err(|e| e.to_string())?;
+        if read_up_to(file, &mut head).map_err(|e| e.to_string())? < 8 {
+            return Err("no fmt chunk".into());
+        }
+        let size = u64::from(u32::from_le_bytes(head[4..8].try_into().expect("4 bytes")));
+        let name = String::from_utf8_lossy(&head[..4]).into_owned();
+        if &head[..4] == b"fmt " {
+            if !(16..=1024).contains(&size) || at + 8 + size > len {
+                return Err(format!("fmt chunk of {size} bytes"));
+            }
+            let mut fmt = [0u8; 16];
+            read_up_to(file, &mut fmt).map_err(|e| e.to_string())?;
+            let u16_at = |i: usize| u16::from_le_bytes([fmt[i], fmt[i + 1]]);
+            let (channels, rate) = (u16_at(2), u32::from_le_bytes(fmt[4..8].try_into().expect("4")));
+            let (block, bits) = (u16_at(12), u16_at(14));
+            if !(1..=64).contains(&channels) {
+                return Err(format!("{channels} channels (1 to 64 are read)"));
+            }
+            if !(1..=MAX_RATE).contains(&rate) {
+                return Err(format!("a sample rate of {rate} Hz (1 to {MAX_RATE} are read)"));
+            }
+            if block == 0 || !(1..=64).contains(&bits) {
+                return Err(format!(
+                    "a block of {block} bytes with {bits} bits a sample"
+                ));
+            }
+            return Ok(());
+        }
+        if &head[..4] == b"data" {
+            return Err("the data chunk comes before the fmt chunk".into());
+        }
+        // Chunks are padded to an even size.
+        let next = at + 8 + size + (size & 1);
+        if next > len {
+            return Err(format!("{name:?} chunk of {size} bytes runs past the end"));
+        }
+        at = next;
     }
 }
 
@@ -151,7 +265,13 @@ fn trim_to_edit_list(path: &Path, mut audio: Audio) -> Result<Audio, AudioError>
     Ok(audio)
 }
 
-fn decode_native(path: &Path, file: std::fs::File, max_seconds: f64) -> Result<Audio, AudioError> {
+/// The audio of `file` (its samples when `keep`, else none) and how many frames it holds.
+fn decode_native(
+    path: &Path,
+    file: std::fs::File,
+    max_seconds: f64,
+    keep: bool,
+) -> Result<(Audio, u64), AudioError> {
     let unsupported = |why: String| AudioError::Unsupported {
         path: path.to_owned(),
         why,
@@ -199,6 +319,7 @@ fn decode_native(path: &Path, file: std::fs::File, max_seconds: f64) -> Result<A
         .make(&track.codec_params, &DecoderOptions::default())
         .map_err(|e| unsupported(format!("audio codec not supported ({e})")))?;
     let mut samples = Vec::new();
+    let mut count = 0u64;
     let mut buffer: Option<SampleBuffer<f32>> = None;
     let mut packet_index = 0;
     loop {
@@ -225,6 +346,13 @@ fn decode_native(path: &Path, file: std::fs::File, max_seconds: f64) -> Result<A
         })?;
         let spec = *decoded.spec();
         let channels = spec.channels.count().max(1);
+        count += decoded.frames() as u64;
+        if count > max_frames {
+            return Err(too_long(count));
+        }
+        if !keep {
+            continue;
+        }
         let buf = match &mut buffer {
             Some(b) if b.capacity() >= decoded.capacity() * channels => b,
             _ => buffer.insert(SampleBuffer::new(decoded.capacity() as u64, spec)),
@@ -235,11 +363,8 @@ fn decode_native(path: &Path, file: std::fs::File, max_seconds: f64) -> Result<A
                 .chunks_exact(channels)
                 .map(|c| c.iter().sum::<f32>() / channels as f32),
         );
-        if samples.len() as u64 > max_frames {
-            return Err(too_long(samples.len() as u64));
-        }
     }
-    Ok(Audio { samples, rate })
+    Ok((Audio { samples, rate }, count))
 }
 
 /// `ffmpeg -i PATH -f s16le -ac 1 -ar RATE -`, read as it streams, stopped past the limit.

@@ -10,7 +10,10 @@
 //!   a POST needs a same-origin `Origin` and a JSON body (`Content-Type: application/json`),
 //!   so no cross-site form or page can write;
 //! - handlers run one at a time in the loop (each answer is on disk before the next request
-//!   is read) and map a parsed request to a reply; every reply closes its connection.
+//!   is read) and map a parsed request to a reply; every reply closes its connection;
+//! - slow work (a model fit) is handed off the loop as an [`Answer::Later`] to at most
+//!   [`WORKERS`] threads with at most [`QUEUED`] waiting (more are refused with 503), so a
+//!   flood of slow requests never delays anyone else's answer.
 
 use std::collections::HashMap;
 use std::io::{Read, Write};
@@ -27,6 +30,11 @@ use thiserror::Error;
 const MAX_BODY: usize = 1 << 20;
 /// Largest request head (request line and headers).
 const MAX_HEAD: usize = 16 << 10;
+
+/// Threads running [`Answer::Later`] jobs.
+pub const WORKERS: usize = 2;
+/// [`Answer::Later`] jobs waiting for a worker; one more is refused (503).
+pub const QUEUED: usize = 16;
 
 /// What the server holds to.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -141,6 +149,24 @@ impl Reply {
     }
 }
 
+/// A handler's answer: a reply now, or slow work to run off the event loop whose reply is
+/// sent when it is done.
+pub enum Answer<'a> {
+    /// The reply.
+    Now(Reply),
+    /// Work for a worker thread (bounded: see [`QUEUED`]).
+    Later(Box<dyn FnOnce() -> Reply + Send + 'a>),
+}
+
+impl From<Reply> for Answer<'_> {
+    fn from(reply: Reply) -> Self {
+        Answer::Now(reply)
+    }
+}
+
+/// A job handed to a worker: whose it is and what to run.
+type Job<'a> = (Token, Box<dyn FnOnce() -> Reply + Send + 'a>);
+
 impl Server {
     /// Binds `addr`; a non-loopback address needs `allow_remote`.
     pub fn bind(addr: &str, allow_remote: bool) -> Result<Self, HttpError> {
@@ -185,27 +211,57 @@ impl Server {
     /// Answers requests with `handle` until `stop` returns true (checked at least every
     /// 100 ms); `notice` hears, once per episode, of connections refused or dropped for want
     /// of resources.
-    pub fn serve(
+    pub fn serve<'a>(
         &self,
-        mut handle: impl FnMut(&Request) -> Reply,
+        mut handle: impl FnMut(&Request) -> Answer<'a>,
         stop: impl Fn() -> bool,
         mut notice: impl FnMut(String),
     ) {
         let Ok(mut looped) = EventLoop::new(self, &mut notice) else {
             return;
         };
-        while !stop() {
-            looped.turn(&mut handle, &mut notice);
-        }
+        let Ok(waker) = mio::Waker::new(looped.poll.registry(), WAKER) else {
+            return;
+        };
+        let waker = std::sync::Arc::new(waker);
+        let (jobs, queue) = std::sync::mpsc::sync_channel::<Job<'a>>(QUEUED);
+        let queue = std::sync::Mutex::new(queue);
+        let (done, finished) = std::sync::mpsc::channel::<(Token, Reply)>();
+        std::thread::scope(|scope| {
+            for _ in 0..WORKERS {
+                let (queue, done, waker) = (&queue, done.clone(), waker.clone());
+                scope.spawn(move || {
+                    loop {
+                        let job = queue.lock().unwrap_or_else(|e| e.into_inner()).recv();
+                        let Ok((token, work)) = job else { return };
+                        let reply = std::panic::catch_unwind(std::panic::AssertUnwindSafe(work))
+                            .unwrap_or_else(|_| Reply::error(500, "the request failed"));
+                        if done.send((token, reply)).is_err() {
+                            return;
+                        }
+                        let _ = waker.wake();
+                    }
+                });
+            }
+            while !stop() {
+                looped.turn(&mut handle, &jobs, &finished, &mut notice);
+            }
+            // Closing the queue ends the workers once their current job is done.
+            drop(jobs);
+        });
     }
 }
 
 const LISTENER: Token = Token(usize::MAX);
+/// Wakes the loop when a worker has finished a job.
+const WAKER: Token = Token(usize::MAX - 1);
 
 /// Where a connection is.
 enum Stage {
     /// Reading the request (head and body).
     Reading,
+    /// Waiting for a worker's reply ([`Answer::Later`]).
+    Waiting,
     /// Sending the reply; `usize` bytes sent.
     Writing(Vec<u8>, usize),
     /// Reply sent and the write side shut: reading what the peer still sends (a body
@@ -275,9 +331,11 @@ impl EventLoop {
         })
     }
 
-    fn turn(
+    fn turn<'a>(
         &mut self,
-        handle: &mut impl FnMut(&Request) -> Reply,
+        handle: &mut impl FnMut(&Request) -> Answer<'a>,
+        jobs: &std::sync::mpsc::SyncSender<Job<'a>>,
+        finished: &std::sync::mpsc::Receiver<(Token, Reply)>,
         notice: &mut impl FnMut(String),
     ) {
         if let Err(e) = self
@@ -293,8 +351,19 @@ impl EventLoop {
         for token in ready {
             if token == LISTENER {
                 self.accept(notice);
-            } else {
-                self.progress(token, handle);
+            } else if token != WAKER {
+                self.progress(token, handle, jobs);
+            }
+        }
+        // Workers' replies, each sent as soon as it is there (a connection that timed out
+        // meanwhile is gone, and its reply with it).
+        while let Ok((token, reply)) = finished.try_recv() {
+            if let Some(c) = self.connections.get_mut(&token)
+                && matches!(c.stage, Stage::Waiting)
+            {
+                c.stage = Stage::Writing(response(reply), 0);
+                c.deadline = Instant::now() + self.limits.write;
+                self.progress(token, handle, jobs);
             }
         }
         self.expire();
@@ -326,7 +395,7 @@ impl EventLoop {
             match self.listener.accept() {
                 Ok((mut stream, _)) => {
                     let token = Token(self.next);
-                    self.next = (self.next + 1) % (usize::MAX - 1);
+                    self.next = (self.next + 1) % (usize::MAX - 2);
                     if self
                         .poll
                         .registry()
@@ -363,7 +432,7 @@ impl EventLoop {
         let idlest = self
             .connections
             .iter()
-            .filter(|(_, c)| !matches!(c.stage, Stage::Writing(..)))
+            .filter(|(_, c)| !matches!(c.stage, Stage::Writing(..) | Stage::Waiting))
             .min_by_key(|(_, c)| (!matches!(c.stage, Stage::Draining), c.head_done, c.deadline))
             .map(|(t, _)| *t);
         if let Some(t) = idlest {
@@ -391,7 +460,12 @@ impl EventLoop {
     }
 
     /// Reads what has arrived, answers a complete request, sends what can be sent.
-    fn progress(&mut self, token: Token, handle: &mut impl FnMut(&Request) -> Reply) {
+    fn progress<'a>(
+        &mut self,
+        token: Token,
+        handle: &mut impl FnMut(&Request) -> Answer<'a>,
+        jobs: &std::sync::mpsc::SyncSender<Job<'a>>,
+    ) {
         let Some(c) = self.connections.get_mut(&token) else {
             return;
         };
@@ -427,7 +501,20 @@ impl EventLoop {
                     None
                 }
                 Parsed::Refused(reply) => Some(reply),
-                Parsed::Request(request) => Some(handle(&request)),
+                Parsed::Request(request) => match handle(&request) {
+                    Answer::Now(reply) => Some(reply),
+                    Answer::Later(work) => match jobs.try_send((token, work)) {
+                        Ok(()) => {
+                            c.stage = Stage::Waiting;
+                            c.deadline = Instant::now() + self.limits.write;
+                            return;
+                        }
+                        Err(_) => Some(Reply::error(
+                            503,
+                            format!("busy: {QUEUED} slow requests are waiting; try again shortly"),
+                        )),
+                    },
+                },
             };
             let Some(reply) = reply else { return };
             c.stage = Stage::Writing(response(reply), 0);

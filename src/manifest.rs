@@ -72,9 +72,10 @@ pub fn read_versions<T: DeserializeOwned>(
     format: &'static str,
     versions: std::ops::RangeInclusive<u32>,
 ) -> Result<(T, u32), ManifestError> {
+    // serde quotes the offending value: a 100 KB field is not echoed whole.
     let invalid = |reason: String| ManifestError::Invalid {
         path: path.into(),
-        reason,
+        reason: crate::options::clipped(&reason, 300),
     };
     let meta = std::fs::metadata(path).map_err(|source| ManifestError::Io {
         path: path.into(),
@@ -207,18 +208,39 @@ pub fn read_inside(dir: &Path, name: &str, max: u64) -> std::io::Result<Vec<u8>>
     Ok(bytes)
 }
 
-/// The bytes of a regular file ([`open_regular`]).
+/// Largest text or small input file read whole ([`read_regular`]): far more than any
+/// transcript, label file, landmark file or manifest holds, far less than memory.
+pub const MAX_READ: u64 = 64 << 20;
+
+/// The bytes of a regular file ([`open_regular`]), refused past [`MAX_READ`] bytes.
 pub fn read_regular(path: &Path) -> std::io::Result<Vec<u8>> {
-    let mut bytes = Vec::new();
-    std::io::Read::read_to_end(&mut open_regular(path)?, &mut bytes)?;
+    let file = open_regular(path)?;
+    let len = file.metadata()?.len();
+    let too_long = |len: u64| {
+        std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            format!("{len} bytes, more than the {MAX_READ} read"),
+        )
+    };
+    if len > MAX_READ {
+        return Err(too_long(len));
+    }
+    let mut bytes = Vec::with_capacity(len as usize);
+    std::io::Read::read_to_end(&mut std::io::Read::take(file, MAX_READ + 1), &mut bytes)?;
+    if bytes.len() as u64 > MAX_READ {
+        return Err(too_long(bytes.len() as u64));
+    }
     Ok(bytes)
 }
 
-/// The text of a regular UTF-8 file ([`open_regular`]).
+/// The text of a regular UTF-8 file ([`read_regular`]).
 pub fn read_regular_string(path: &Path) -> std::io::Result<String> {
-    let mut text = String::new();
-    std::io::Read::read_to_string(&mut open_regular(path)?, &mut text)?;
-    Ok(text)
+    String::from_utf8(read_regular(path)?).map_err(|_| {
+        std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            "stream did not contain valid UTF-8",
+        )
+    })
 }
 
 /// Reads the array `name` of folder `dir` (see [`npy::read_checked`]).

@@ -70,3 +70,24 @@ pub fn count_in(name: &str, value: usize, lo: usize, hi: usize) -> Result<usize,
         ))
     }
 }
+
+/// `s` for an error message: whole up to `max` characters, else its first `max` and its size,
+/// so an error never echoes megabytes (a 1 MB "word", a 100 KB manifest field).
+pub fn clipped(s: &str, max: usize) -> String {
+    if s.chars().count() <= max {
+        s.to_owned()
+    } else {
+        let head: String = s.chars().take(max).collect();
+        format!("{head}… ({} bytes)", s.len())
+    }
+}
+
+/// Words for an error message: each [`clipped`] to 40 characters, at most 20 of them, then
+/// how many more.
+pub fn clipped_list(words: &[String]) -> String {
+    let mut shown: Vec<String> = words.iter().take(20).map(|w| clipped(w, 40)).collect();
+    if words.len() > 20 {
+        shown.push(format!("and {} more", words.len() - 20));
+    }
+    shown.join(", ")
+}

@@ -44,6 +44,12 @@ pub enum TtsError {
     /// Nothing to say.
     #[error("no words to say")]
     NoWords,
+    /// More words than one utterance takes.
+    #[error("{words} words: at most {MAX_WORDS} (about 13 minutes of speech) are spoken at once; split the text")]
+    TooLong {
+        /// How many were given.
+        words: usize,
+    },
 }
 
 /// The engine that spoke.
@@ -95,16 +101,25 @@ fn run(engine: &'static str, command: &mut Command) -> Result<(), TtsError> {
     })
 }
 
-/// Speaks `text` into the WAV `out` with the best engine installed.
+/// Most words `speak` takes at once: about 13 minutes of speech, refused before any engine
+/// runs (an engine given 10 000 words ran for five minutes before the length was refused).
+pub const MAX_WORDS: usize = 2000;
+
+/// Speaks `text` into the WAV `out` with the best engine installed. The text is handed to
+/// Festival in a file beside `out` (`out` with `.txt`), so a caller that puts `out` in its
+/// own staging folder leaves nothing of the user's words elsewhere if it is killed.
 pub fn speak(text: &str, out: &Path) -> Result<Engine, TtsError> {
-    if crate::align::dict::words(text).is_empty() {
+    let words = crate::align::dict::words(text).len();
+    if words == 0 {
         return Err(TtsError::NoWords);
+    }
+    if words > MAX_WORDS {
+        return Err(TtsError::TooLong { words });
     }
     match available() {
         Some(Engine::Festival) => {
             let engine = "Festival";
-            let dir = tempfile::tempdir().map_err(|source| TtsError::Io { engine, source })?;
-            let input = dir.path().join("text.txt");
+            let input = out.with_extension("txt");
             std::fs::write(&input, text).map_err(|source| TtsError::Io { engine, source })?;
             let with_voice = run(
                 engine,

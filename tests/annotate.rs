@@ -820,3 +820,58 @@ fn headless_chromium_places_moves_undoes_and_starts_from_the_previous_frame() {
     assert!(dir.path().join("01001.pts").is_file());
     stop.store(true, Ordering::Relaxed);
 }
+
+/// Issue 39, finding 2: a JSON body without `points` (`{}`, `[]`, `{"x":1}`, a string) is a
+/// 400 that leaves the frame's hand-made `.pts` as it was; only `{"points": null}` unmarks.
+#[test]
+fn a_body_without_points_never_unmarks() {
+    let dir = tempfile::tempdir().unwrap();
+    frames(dir.path());
+    let pts = dir.path().join("01000.pts");
+    let before = std::fs::read(&pts).unwrap();
+    let (url, stop) = start(dir.path());
+    for body in ["{}", "[]", "{\"x\":1}", "\"points\"", "null", "{\"Points\": null}"] {
+        let (code, reply) = common::http(&url, "POST", "/api/points/01000.jpg", body);
+        assert_eq!(code, 400, "{body}: {reply}");
+        assert!(reply.contains("points"), "{body}: {reply}");
+        assert_eq!(std::fs::read(&pts).unwrap(), before, "{body}");
+        assert_eq!(
+            common::http(&url, "POST", "/api/fit/01000.jpg", body).0,
+            400,
+            "{body}"
+        );
+    }
+    let (code, _) = common::http(&url, "POST", "/api/points/01000.jpg", "{\"points\": null}");
+    assert_eq!(code, 200);
+    assert!(!pts.exists());
+    stop.store(true, Ordering::Relaxed);
+}
+
+/// Issue 39, finding 9: forty clients posting refits at once never make another client's
+/// answer wait a second — fits run off the event loop, a bounded few at a time (the rest are
+/// told 503), and every refit that was taken is answered.
+#[test]
+fn a_refit_flood_does_not_stall_the_page() {
+    let dir = tempfile::tempdir().unwrap();
+    frames(dir.path());
+    let truth = facespace::shape::read_pts(&dir.path().join("01000.pts")).unwrap();
+    let (url, stop) = start(dir.path());
+    let body = serde_json::json!({ "points": truth.points }).to_string();
+    let fits: Vec<_> = (0..40)
+        .map(|_| {
+            let (url, body) = (url.clone(), body.clone());
+            std::thread::spawn(move || common::http(&url, "POST", "/api/fit/01000.jpg", &body).0)
+        })
+        .collect();
+    let mut worst = std::time::Duration::ZERO;
+    for _ in 0..20 {
+        worst = worst.max(answer_time(&url));
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let codes: Vec<u16> = fits.into_iter().map(|t| t.join().unwrap()).collect();
+    eprintln!("slowest of 20 answers during 40 refits: {worst:?}; refit answers {codes:?}");
+    assert!(worst < std::time::Duration::from_secs(1), "{worst:?}");
+    assert!(codes.iter().all(|c| *c == 200 || *c == 503), "{codes:?}");
+    assert!(codes.iter().filter(|c| **c == 200).count() >= 2, "{codes:?}");
+    stop.store(true, Ordering::Relaxed);
+}

@@ -157,7 +157,7 @@ fn corpus_from_recordings_builds_a_codebook_that_synthesises() {
     // The frame rate comes from the corpus's record; another one given is refused, naming
     // the file that records it.
     let fps = facespace::codebook::Codebook::load(&cb).unwrap().fps;
-    assert_eq!(facespace::corpus::recorded_fps(&corpus), Some(fps));
+    assert_eq!(facespace::corpus::recorded_fps(&corpus).unwrap(), Some(fps));
     let cb30 = tmp.path().join("cb30");
     let o = build(&["--fps", "30"], &cb30);
     let t = common::text(&o);

@@ -549,8 +549,41 @@ fn fuzz_study_folder() {
     });
 }
 
-/// The cases the long runs found, kept in `tests/data/fuzz/` (named `READER-what.ext`): each
-/// must now be a typed error within the time limit.
+/// Every audio reader on `path`: the samples at the aligner's rate, the native samples, the
+/// duration (header or a count without samples).
+fn audio_all(path: &Path) -> Result<(), String> {
+    facespace::audio::read(path, 16_000, 600.0).map_err(err)?;
+    facespace::audio::read_native(path, 600.0).map_err(err)?;
+    facespace::audio::duration(path, 600.0).map_err(err)?;
+    Ok(())
+}
+
+#[test]
+fn fuzz_wav() {
+    let seed = seed_of(&["tests/data/grid/bbbf9a.wav"]);
+    fuzz(file_target("wav", seed, "bbbf9a.wav", audio_all));
+}
+
+#[test]
+fn fuzz_m4a() {
+    let seed = seed_of(&["tests/data/grid/bbbf9a.mp4"]);
+    fuzz(Target {
+        name: "m4a",
+        seed,
+        mutable: vec!["bbbf9a.mp4"],
+        read: Arc::new(|d| {
+            // The same bytes as an MP4 and as an M4A (the extension picks the probe's hint).
+            let m4a = d.join("bbbf9a.m4a");
+            std::fs::copy(d.join("bbbf9a.mp4"), &m4a).map_err(err)?;
+            let mp4 = audio_all(&d.join("bbbf9a.mp4"));
+            audio_all(&m4a).and(mp4)
+        }),
+    });
+}
+
+/// The cases the long runs found, kept in `tests/data/fuzz/` (named `READER-what.ext`; an
+/// `audio-` case goes to the audio readers, the rest to the video readers): each must now be
+/// a typed error within the time limit.
 #[test]
 fn found_cases_are_errors() {
     let dir = common::root().join("tests/data/fuzz");
@@ -559,8 +592,24 @@ fn found_cases_are_errors() {
         let path = e.unwrap().path();
         let (tx, rx) = mpsc::channel();
         let p = path.clone();
+        let audio = p
+            .file_name()
+            .is_some_and(|n| n.to_string_lossy().starts_with("audio-"));
         std::thread::spawn(move || {
-            let _ = tx.send(decode_some(&p));
+            let _ = tx.send(if audio {
+                // Each reader alone must refuse it.
+                let readers: [&dyn Fn(&Path) -> Result<(), String>; 3] = [
+                    &|p| facespace::audio::read(p, 16_000, 600.0).map(|_| ()).map_err(err),
+                    &|p| facespace::audio::read_native(p, 600.0).map(|_| ()).map_err(err),
+                    &|p| facespace::audio::duration(p, 600.0).map(|_| ()).map_err(err),
+                ];
+                match readers.iter().map(|r| r(&p)).find(|r| r.is_ok()) {
+                    Some(ok) => ok,
+                    None => Err("refused by every audio reader".into()),
+                }
+            } else {
+                decode_some(&p)
+            });
         });
         let outcome = rx.recv_timeout(CASE_LIMIT);
         assert!(

@@ -111,13 +111,7 @@ fn fixture() -> Fixture {
 
 /// A copy of folder `from` at `to` with `edit` applied to its JSON file `name`.
 fn edited(from: &Path, to: &Path, name: &str, edit: impl FnOnce(&mut serde_json::Value)) {
-    std::fs::create_dir_all(to).unwrap();
-    for e in std::fs::read_dir(from).unwrap() {
-        let e = e.unwrap();
-        if e.file_type().unwrap().is_file() {
-            std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
-        }
-    }
+    copy_files(from, to);
     let path = to.join(name);
     let mut v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
@@ -518,4 +512,378 @@ fn codebooks_models_videos_and_options() {
         "--bits 12 refused only after {:?}",
         start.elapsed()
     );
+}
+
+// ---- Issue 39: data safety, round three -------------------------------------------------
+
+/// Makes a FIFO at `path`.
+fn mkfifo(path: &Path) {
+    let c = std::ffi::CString::new(path.as_os_str().as_encoded_bytes()).unwrap();
+    // SAFETY: mkfifo reads the NUL-terminated path it is given.
+    assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+}
+
+/// Copies the files (not folders) of `from` into a new folder `to`.
+fn copy_files(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let e = e.unwrap();
+        if e.file_type().unwrap().is_file() {
+            std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
+        }
+    }
+}
+
+fn is_fifo(path: &Path) -> bool {
+    use std::os::unix::fs::FileTypeExt;
+    std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_fifo())
+}
+
+const GRID_WORDS: &str = "bin blue by f nine again";
+
+fn grid(name: &str) -> PathBuf {
+    common::root().join("tests/data/grid").join(name)
+}
+
+/// Finding 1 (data loss): an output over one of its own inputs — the recording, the
+/// transcript, the background video — is refused and the input is untouched; so is every
+/// single-file `-o` that is a FIFO or a link to a device (each command given inputs that
+/// would otherwise run to the write).
+#[test]
+fn outputs_never_replace_their_inputs_or_devices() {
+    let f = fixture();
+    let d = f.dir.path();
+    let wav = d.join("mine.wav");
+    std::fs::copy(grid("bbbf9a.wav"), &wav).unwrap();
+    let transcript = d.join("words.txt");
+    std::fs::write(&transcript, GRID_WORDS).unwrap();
+    let bg = d.join("bg.mp4");
+    std::fs::copy(common::root().join("models/demo/background.mp4"), &bg).unwrap();
+    let kept = |p: &Path, from: &Path| {
+        assert_eq!(std::fs::read(p).unwrap(), std::fs::read(from).unwrap(), "{p:?} changed");
+    };
+    refused(&["align", s(&wav), "--text", GRID_WORDS, "-o", s(&wav)], &["also an input"]);
+    kept(&wav, &grid("bbbf9a.wav"));
+    refused(
+        &["align", s(&wav), "--transcript", s(&transcript), "-o", s(&transcript)],
+        &["also an input"],
+    );
+    assert_eq!(std::fs::read_to_string(&transcript).unwrap(), GRID_WORDS);
+    // The same file through a link is the same input.
+    let link = d.join("link.wav");
+    std::os::unix::fs::symlink(&wav, &link).unwrap();
+    refused(&["align", s(&wav), "--text", GRID_WORDS, "-o", s(&link)], &["also an input"]);
+    kept(&wav, &grid("bbbf9a.wav"));
+    refused(
+        &["decode", s(&f.clip), "--background", s(&bg), "-o", s(&bg)],
+        &["also an input"],
+    );
+    kept(&bg, &common::root().join("models/demo/background.mp4"));
+    // FIFOs and a link to /dev/null as the destination of every single-file writer.
+    let frames = common::root().join("tests/data/clip");
+    let init = frames.join("01000.pts");
+    let corpus = d.join("corpus");
+    let model = common::root().join("models/demo/model");
+    let image = common::root().join("tests/data/demo-heldout/f00804.jpg");
+    let dev_null = d.join("null.lab");
+    std::os::unix::fs::symlink("/dev/null", &dev_null).unwrap();
+    refused(
+        &["align", s(&wav), "--text", GRID_WORDS, "-o", s(&dev_null)],
+        &["not a regular file"],
+    );
+    assert!(std::fs::symlink_metadata(&dev_null).unwrap().is_symlink());
+    let cases: Vec<(&str, Vec<String>)> = vec![
+        ("a.lab", vec!["align".into(), s(&wav).into(), "--text".into(), GRID_WORDS.into()]),
+        ("b.mp4", vec!["decode".into(), s(&f.clip).into()]),
+        (
+            "c.npy",
+            vec!["track".into(), s(&frames).into(), "--init".into(), s(&init).into()],
+        ),
+        (
+            "d.json",
+            vec![
+                "eval".into(),
+                "--codebook".into(),
+                s(&f.cb).into(),
+                "--heldout".into(),
+                format!("{}/heldout", s(&corpus)),
+            ],
+        ),
+        (
+            "e.json",
+            vec![
+                "train-weights".into(),
+                "--codebook".into(),
+                s(&f.cb).into(),
+                "--validation".into(),
+                format!("{}/heldout", s(&corpus)),
+                "--population".into(),
+                "4".into(),
+                "--generations".into(),
+                "1".into(),
+            ],
+        ),
+        ("f.png", vec!["codebook".into(), "similarity".into(), s(&f.cb).into()]),
+        (
+            "g.png",
+            vec![
+                "model".into(),
+                "reconstruct".into(),
+                s(&model).into(),
+                "--image".into(),
+                s(&image).into(),
+            ],
+        ),
+        ("h.json", vec!["codec-report".into(), s(&frames).into(), s(&f.clip).into()]),
+    ];
+    for (name, mut args) in cases {
+        let fifo = d.join(name);
+        mkfifo(&fifo);
+        args.extend(["-o".into(), s(&fifo).into()]);
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        refused(&args, &["not a regular file"]);
+        assert!(is_fifo(&fifo), "{args:?} replaced the FIFO");
+    }
+}
+
+/// The three audio headers of finding 3 (kept in `tests/data/fuzz/`, where the fuzz suite
+/// replays them), copied into `dir`: a WAV at 0 Hz, an MP4 whose `mdhd` timescales are 0, an
+/// MP4 whose `hdlr` boxes have size 0.
+fn broken_audio(dir: &Path) -> Vec<PathBuf> {
+    [
+        "audio-wav-rate-0.wav",
+        "audio-mp4-mdhd-timescale-0.mp4",
+        "audio-mp4-hdlr-size-0.mp4",
+    ]
+    .iter()
+    .map(|name| {
+        let p = dir.join(name);
+        std::fs::copy(common::root().join("tests/data/fuzz").join(name), &p).unwrap();
+        p
+    })
+    .collect()
+}
+
+/// Finding 3: audio headers that made symphonia panic (exit 101) are refused with a message
+/// by every command that reads sound: align, synth --audio, decode (a clip's audio.m4a),
+/// corpus from-videos (NAME.wav beside frames) and demo --clip.
+#[test]
+fn audio_headers_that_crashed_the_decoder_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let grid_model = common::root().join("models/grid/model");
+    let grid_cb = common::root().join("models/grid/codebook");
+    for bad in broken_audio(d) {
+        let out = d.join("out");
+        refused(&["align", s(&bad), "--text", GRID_WORDS, "-o", s(&d.join("a.lab"))], &[s(&bad)]);
+        refused(
+            &[
+                "synth", "--model", s(&grid_model), "--codebook", s(&grid_cb), "--audio", s(&bad),
+                "--text", GRID_WORDS, "--renderer", "cpu", "-o", s(&out),
+            ],
+            &[s(&bad)],
+        );
+        // demo --clip: the clip's own sound.
+        if bad.extension().is_some_and(|e| e == "mp4") {
+            std::fs::write(bad.with_extension("txt"), GRID_WORDS).unwrap();
+            refused(&["demo", "--clip", s(&bad), "-o", s(&out)], &[s(&bad)]);
+        }
+        // corpus from-videos: a frame folder with NAME.wav and NAME.txt beside it.
+        let rec = d.join("rec");
+        let _ = std::fs::remove_dir_all(&rec);
+        std::fs::create_dir_all(rec.join("x")).unwrap();
+        for f in ["01000.jpg", "01001.jpg", "01002.jpg"] {
+            std::fs::copy(common::root().join("tests/data/clip").join(f), rec.join("x").join(f))
+                .unwrap();
+        }
+        std::fs::write(rec.join("x.txt"), GRID_WORDS).unwrap();
+        let ext = bad.extension().unwrap().to_str().unwrap();
+        let ext = if ext == "wav" { "wav" } else { "m4a" };
+        std::fs::copy(&bad, rec.join(format!("x.{ext}"))).unwrap();
+        let (code, text) = run(&["corpus", "from-videos", s(&rec), "-o", s(&d.join("corpus"))]);
+        assert_eq!(code, Some(1), "{text}");
+    }
+}
+
+/// Finding 4: inputs that still bypassed the one opener — a FIFO blocked forever, `/dev/zero`
+/// was read to 4 GB or taken for an absent `corpus.json`. Each is refused at once.
+#[test]
+fn fifos_and_devices_as_inputs_are_refused() {
+    let f = fixture();
+    let d = f.dir.path();
+    let fifo = d.join("fifo");
+    mkfifo(&fifo);
+    let zero = Path::new("/dev/zero");
+    let wav = grid("bbbf9a.wav");
+    let training = common::root().join("models/demo/training");
+    for input in [fifo.as_path(), zero] {
+        refused(
+            &["align", s(&wav), "--transcript", s(input), "-o", s(&d.join("a.lab"))],
+            &["transcript", "not a regular file"],
+        );
+        for flag in ["--region", "--triangles"] {
+            refused(
+                &["model", "build", "--images", s(&training), flag, s(input), "-o", s(&d.join("m"))],
+                &["not a regular file"],
+            );
+        }
+        refused(
+            &[
+                "model", "reconstruct", s(&common::root().join("models/demo/model")), "--image",
+                s(input), "-o", s(&d.join("r.png")),
+            ],
+            &["not a regular file"],
+        );
+    }
+    // demo --clip: the words beside the clip.
+    let clip = d.join("x.mp4");
+    std::fs::copy(grid("bbbf9a.mp4"), &clip).unwrap();
+    mkfifo(&d.join("x.txt"));
+    refused(&["demo", "--clip", s(&clip), "-o", s(&d.join("demo"))], &["x.txt"]);
+    // codebook build: corpus.json as a link to /dev/zero, and as a FIFO.
+    for planted in [None, Some(())] {
+        let corpus = d.join(format!("corpus-{}", planted.is_some()));
+        copy_files(&d.join("corpus/train"), &corpus);
+        let _ = std::fs::remove_file(corpus.join("corpus.json"));
+        match planted {
+            None => std::os::unix::fs::symlink(zero, corpus.join("corpus.json")).unwrap(),
+            Some(()) => mkfifo(&corpus.join("corpus.json")),
+        }
+        refused(
+            &[
+                "codebook", "build", "--model", s(&common::root().join("models/demo/model")),
+                "--corpus", s(&corpus), "-o", s(&d.join("cb2")),
+            ],
+            &["corpus.json", "not a regular file"],
+        );
+    }
+}
+
+/// Finding 7: a `corpus.json` that lies about its frame rate is an error naming the file and
+/// the field, never taken for an absent one.
+#[test]
+fn corpus_json_lies_are_errors() {
+    let f = fixture();
+    let d = f.dir.path();
+    let model = common::root().join("models/demo/model");
+    let lies = [
+        "{\"fps\": 0}",
+        "{\"fps\": -1}",
+        "{\"fps\": -1e308}",
+        "{\"fps\": \"NaN\"}",
+        "{\"fps\": \"25\"}",
+        "{\"fps\": null}",
+        "{\"fps\": []}",
+        "{}",
+        "not JSON",
+    ];
+    for (i, lie) in lies.iter().enumerate() {
+        let corpus = d.join(format!("corpus{i}"));
+        copy_files(&d.join("corpus/train"), &corpus);
+        std::fs::write(corpus.join("corpus.json"), lie).unwrap();
+        refused(
+            &["codebook", "build", "--model", s(&model), "--corpus", s(&corpus), "-o", s(&d.join("cb2"))],
+            &["corpus.json"],
+        );
+        let (_, text) = run(&["codebook", "build", "--model", s(&model), "--corpus", s(&corpus), "-o", s(&d.join("cb2"))]);
+        assert!(text.contains("fps") || lie == &"not JSON", "{lie}: {text}");
+    }
+    // A folder under that name.
+    let corpus = d.join("corpus-dir");
+    copy_files(&d.join("corpus/train"), &corpus);
+    let _ = std::fs::remove_file(corpus.join("corpus.json"));
+    std::fs::create_dir(corpus.join("corpus.json")).unwrap();
+    refused(
+        &["codebook", "build", "--model", s(&model), "--corpus", s(&corpus), "-o", s(&d.join("cb2"))],
+        &["corpus.json"],
+    );
+}
+
+/// Finding 5: well-formed but absurd inputs cost bounded time and memory — 10⁶ label
+/// segments in every format, a TextGrid holding more intervals than it declares, an hour of
+/// sound under 3 s of labels, a 10 000-word `--say` (refused before any engine runs).
+#[test]
+fn absurd_inputs_are_refused_quickly() {
+    let f = fixture();
+    let d = f.dir.path();
+    let out = d.join("syn");
+    let synth = |extra: &[&str], words: &[&str]| {
+        let mut args = vec!["synth", "--codebook", s(&f.cb), "--renderer", "cpu", "-o", s(&out)];
+        args.extend_from_slice(extra);
+        let clock = Instant::now();
+        refused(&args, words);
+        let took = clock.elapsed();
+        assert!(took < Duration::from_secs(10), "{extra:?} took {took:?}");
+        assert!(!out.exists());
+    };
+    let n = 1_000_000;
+    let mut lab = String::new();
+    let mut tsv = String::new();
+    // The short TextGrid form (the long one of 10⁶ intervals is over the 64 MiB read whole).
+    let mut tg = format!(
+        "File type = \"ooTextFile\"\nObject class = \"TextGrid\"\n0\n3\n<exists>\n1\n\"IntervalTier\"\n\"phones\"\n0\n3\n{n}\n"
+    );
+    let mut long_tg = "File type = \"ooTextFile\"\nObject class = \"TextGrid\"\nxmin = 0\nxmax = 3\ntiers? <exists>\nsize = 1\nitem []:\n    item [1]:\n        class = \"IntervalTier\"\n        name = \"phones\"\n        xmin = 0\n        xmax = 3\n        intervals: size = 10\n".to_owned();
+    for i in 0..n {
+        let (a, b) = (i as f64 * 3e-6, (i + 1) as f64 * 3e-6);
+        lab.push_str(&format!("{} {} ah\n", i * 30, (i + 1) * 30));
+        tsv.push_str(&format!("{a}\t{b}\tah\n"));
+        tg.push_str(&format!("{a}\n{b}\n\"ah\"\n"));
+        if i < 100_000 {
+            let (a, b) = (i as f64 * 3e-5, (i + 1) as f64 * 3e-5);
+            long_tg.push_str(&format!("        intervals [{}]:\n            xmin = {a}\n            xmax = {b}\n            text = \"ah\"\n", i + 1));
+        }
+    }
+    for (name, text) in [("many.lab", &lab), ("many.tsv", &tsv), ("many.TextGrid", &tg)] {
+        let p = d.join(name);
+        std::fs::write(&p, text).unwrap();
+        synth(&["--labels", s(&p)], &[name, "segments"]);
+    }
+    // A TextGrid declaring 10 intervals and holding 10⁵.
+    let p = d.join("lying.TextGrid");
+    std::fs::write(&p, &long_tg).unwrap();
+    synth(&["--labels", s(&p)], &["lying.TextGrid", "declares"]);
+    // Sound far longer than the labels: 20 minutes (8 kHz, 8 bit) under demo55's few seconds.
+    let long = d.join("long.wav");
+    let samples = 8000 * 1200;
+    let mut wav = Vec::with_capacity(44 + samples);
+    wav.extend_from_slice(b"RIFF");
+    wav.extend_from_slice(&(36 + samples as u32).to_le_bytes());
+    wav.extend_from_slice(b"WAVEfmt ");
+    for v in [16u32] {
+        wav.extend_from_slice(&v.to_le_bytes());
+    }
+    wav.extend_from_slice(&1u16.to_le_bytes()); // PCM
+    wav.extend_from_slice(&1u16.to_le_bytes()); // mono
+    wav.extend_from_slice(&8000u32.to_le_bytes());
+    wav.extend_from_slice(&8000u32.to_le_bytes());
+    wav.extend_from_slice(&1u16.to_le_bytes());
+    wav.extend_from_slice(&8u16.to_le_bytes());
+    wav.extend_from_slice(b"data");
+    wav.extend_from_slice(&(samples as u32).to_le_bytes());
+    wav.extend((0..samples).map(|i| 128u8.wrapping_add(((i / 10) % 20) as u8)));
+    std::fs::write(&long, &wav).unwrap();
+    synth(&["--labels", s(&f.lab), "--audio", s(&long)], &["long.wav", "the sound lasts"]);
+    // 10 000 words to speak: refused from the text, whether or not an engine is installed.
+    let words = vec!["hello"; 10_000].join(" ");
+    synth(&["--say", &words], &["10000 words", "at most 2000"]);
+}
+
+/// Finding 8: an unknown 1 MB "word" and a codebook whose `photometric` record is 100 KB are
+/// quoted in a few hundred bytes, not echoed whole.
+#[test]
+fn errors_do_not_echo_megabytes() {
+    let f = fixture();
+    let d = f.dir.path();
+    let words = d.join("words.txt");
+    std::fs::write(&words, format!("bin {} again", "q".repeat(1 << 20))).unwrap();
+    refused(
+        &["align", s(&grid("bbbf9a.wav")), "--transcript", s(&words), "-o", s(&d.join("a.lab"))],
+        &["not in the pronouncing dictionary", "bytes)"],
+    );
+    let cb = d.join("cb-photometric");
+    edited(&f.cb, &cb, "codebook.json", |v| {
+        v["photometric"] = serde_json::Value::String("x".repeat(100_000));
+    });
+    refused(&["codebook", "info", s(&cb)], &["codebook.json", "bytes)"]);
 }

@@ -45,11 +45,7 @@ fn read_text(path: &Path) -> Result<String, AlignError> {
         line: 0,
         why: e.to_string(),
     };
-    let mut raw = Vec::new();
-    crate::manifest::open_regular(path)
-        .map_err(io)?
-        .read_to_end(&mut raw)
-        .map_err(io)?;
+    let raw = crate::manifest::read_regular(path).map_err(io)?;
     if raw.starts_with(&[0x1f, 0x8b]) {
         let mut s = String::new();
         flate2::read::GzDecoder::new(&raw[..])

@@ -55,7 +55,7 @@ pub enum AlignError {
     /// Words without a pronunciation.
     #[error(
         "words not in the pronouncing dictionary: {}; add them with --dict FILE (lines like `WORD  W ER D`)",
-        .0.join(", ")
+        crate::options::clipped_list(.0)
     )]
     OutOfDictionary(Vec<String>),
     /// The transcript has no words.

@@ -13,7 +13,7 @@ use serde_json::{Value, json};
 use thiserror::Error;
 
 use crate::fit::{FitOptions, Fitter};
-use crate::http::{self, HttpError, Reply, Request, Server};
+use crate::http::{self, Answer, HttpError, Reply, Request, Server};
 use crate::model::FaceModel;
 use crate::shape::{self, Landmarks};
 use crate::video;
@@ -126,24 +126,29 @@ impl Annotator {
     }
 
     /// Serves requests until `stop` returns true (checked between requests and every 100 ms).
+    /// Model fits (a refit, a `--fit` start) run off the event loop ([`http::Answer::Later`]),
+    /// so a flood of them never delays another answer; their refusals (422, 503) go to the
+    /// page, not to `on_event`.
     pub fn run(&self, on_event: impl FnMut(Event), stop: impl Fn() -> bool) {
         let on_event = std::cell::RefCell::new(on_event);
         self.server.serve(
             |request| {
                 let mut on_event = on_event.borrow_mut();
-                let reply = self.answer(request, &mut *on_event);
-                if !reply.is_ok() {
+                let answer = self.answer(request, &mut *on_event);
+                if let Answer::Now(reply) = &answer
+                    && !reply.is_ok()
+                {
                     let why = String::from_utf8_lossy(&reply.body).into_owned();
                     on_event(Event::Refused(request.path.clone(), why));
                 }
-                reply
+                answer
             },
             stop,
             |notice| (on_event.borrow_mut())(Event::Notice(notice)),
         )
     }
 
-    fn answer(&self, request: &Request, on_event: &mut impl FnMut(Event)) -> Reply {
+    fn answer(&self, request: &Request, on_event: &mut impl FnMut(Event)) -> Answer<'_> {
         let path = request.path.as_str();
         let reply = match (request.post, path) {
             (false, "/") => Ok(Reply::ok(
@@ -158,9 +163,12 @@ impl Annotator {
                     Ok(Reply::ok(bytes, http::mime(&name)))
                 })
             }
-            (false, p) if p.starts_with("/api/points/") => self
-                .frame(&p["/api/points/".len()..])
-                .and_then(|name| self.points(&name).map(Reply::json)),
+            (false, p) if p.starts_with("/api/points/") => {
+                match self.frame(&p["/api/points/".len()..]) {
+                    Ok(name) => return self.points(name),
+                    Err(e) => Err(e),
+                }
+            }
             (true, p) if p.starts_with("/api/points/") => self
                 .frame(&p["/api/points/".len()..])
                 .and_then(|name| self.save(&name, &request.body))
@@ -175,13 +183,25 @@ impl Annotator {
                     }
                     Change::Unmarked => Reply::json(json!({"removed": null})),
                 }),
-            (true, p) if p.starts_with("/api/fit/") => self
-                .frame(&p["/api/fit/".len()..])
-                .and_then(|name| self.refit(&name, &request.body))
-                .map(Reply::json),
+            (true, p) if p.starts_with("/api/fit/") => {
+                let checked = self
+                    .frame(&p["/api/fit/".len()..])
+                    .and_then(|name| self.posted(&name, &request.body))
+                    .and_then(|posted| posted.ok_or((400, "points: none given".to_owned())));
+                match checked {
+                    Ok((start, image)) => {
+                        return Answer::Later(Box::new(move || {
+                            self.refit(&start, &image)
+                                .map(Reply::json)
+                                .unwrap_or_else(|(code, why)| Reply::error(code, why))
+                        }));
+                    }
+                    Err(e) => Err(e),
+                }
+            }
             _ => Err((404, "not found".into())),
         };
-        reply.unwrap_or_else(|(code, why)| Reply::error(code, why))
+        Answer::Now(reply.unwrap_or_else(|(code, why)| Reply::error(code, why)))
     }
 
     /// The frames, which of them are marked, the mean shape and, for the iBUG scheme, its
@@ -223,29 +243,39 @@ impl Annotator {
 
     /// Starting points for a frame: its `.pts`, else the model's fit (when asked), else none
     /// (the page starts from the previous frame's points, or places the mean from clicks).
-    fn points(&self, name: &str) -> Result<Value, (u16, String)> {
-        let pts = self.pts_path(name);
+    /// The model's fit runs off the event loop.
+    fn points(&self, name: String) -> Answer<'_> {
+        let pts = self.pts_path(&name);
         if std::fs::symlink_metadata(&pts).is_ok() {
             // Read only as a plain file of this folder (not a link to one outside it).
             let pts_name = pts.file_name().map(|n| n.to_string_lossy().into_owned());
-            let text =
+            let read =
                 crate::manifest::read_inside(&self.dir, &pts_name.unwrap_or_default(), 1 << 20)
-                    .map_err(|e| (403, format!("{}: {e}", pts.display())))?;
-            let l = shape::parse_pts(&String::from_utf8_lossy(&text), &pts)
-                .map_err(|e| (500, e.to_string()))?;
-            return Ok(json!({"points": l.points, "source": "pts"}));
+                    .map_err(|e| (403, format!("{}: {e}", pts.display())))
+                    .and_then(|text| {
+                        shape::parse_pts(&String::from_utf8_lossy(&text), &pts)
+                            .map_err(|e| (500, e.to_string()))
+                    });
+            return Answer::Now(match read {
+                Ok(l) => Reply::json(json!({"points": l.points, "source": "pts"})),
+                Err((code, why)) => Reply::error(code, why),
+            });
         }
-        if self.fit {
-            let fitted = self.image(name).and_then(|image| {
+        let none = || Reply::json(json!({"points": null, "source": "none"}));
+        if !self.fit {
+            return Answer::Now(none());
+        }
+        Answer::Later(Box::new(move || {
+            let fitted = self.image(&name).and_then(|image| {
                 let fitter = self.fitter()?;
                 let start = fitter.search_start(&image).map_err(|e| e.to_string())?;
                 fitter.fit(&image, &start).map_err(|e| e.to_string())
             });
-            if let Ok(fit) = fitted {
-                return Ok(json!({"points": fit.landmarks.points, "source": "fit"}));
+            match fitted {
+                Ok(fit) => Reply::json(json!({"points": fit.landmarks.points, "source": "fit"})),
+                Err(_) => none(),
             }
-        }
-        Ok(json!({"points": null, "source": "none"}))
+        }))
     }
 
     fn fitter(&self) -> Result<Fitter<'_>, String> {
@@ -254,18 +284,15 @@ impl Annotator {
 
     /// The model fitted to a frame from the points the page shows (`{"points": …}`): the
     /// previous frame's marking, a placed mean or a rough drag, refined by AAM search.
-    fn refit(&self, name: &str, body: &str) -> Result<Value, (u16, String)> {
-        let (start, image) = self
-            .posted(name, body)?
-            .ok_or((400, "points: none given".to_owned()))?;
+    fn refit(&self, start: &Landmarks, image: &image::RgbImage) -> Result<Value, (u16, String)> {
         let fit = self
             .fitter()
-            .and_then(|f| f.fit(&image, &start).map_err(|e| e.to_string()))
+            .and_then(|f| f.fit(image, start).map_err(|e| e.to_string()))
             .map_err(|e| (422, format!("the model could not be fitted: {e}")))?;
         // A fit the model cannot explain (as the tracker judges a lost face), or one that
         // left the image, would only replace the person's points with worse ones.
         let threshold = crate::fit::DEFAULT_REINIT_ERROR;
-        let inside = first_outside(&fit.landmarks, &image).is_none();
+        let inside = first_outside(&fit.landmarks, image).is_none();
         if !(fit.error <= threshold) || !inside {
             return Err((
                 422,
@@ -305,7 +332,15 @@ impl Annotator {
         body: &str,
     ) -> Result<Option<(Landmarks, image::RgbImage)>, (u16, String)> {
         let value: Value = serde_json::from_str(body).map_err(|e| (400, e.to_string()))?;
-        let points: Option<Vec<[f64; 2]>> = serde_json::from_value(value["points"].clone())
+        // Only an explicit `{"points": null}` unmarks: a body without the key (`{}`, `[]`,
+        // `{"x": 1}`) would otherwise read as null and delete a hand-made `.pts`.
+        let Some(points) = value.as_object().and_then(|o| o.get("points")) else {
+            return Err((
+                400,
+                "the body must be {\"points\": [[x, y], …]} or {\"points\": null}".into(),
+            ));
+        };
+        let points: Option<Vec<[f64; 2]>> = serde_json::from_value(points.clone())
             .map_err(|e| (400, format!("points: {e}")))?;
         let Some(points) = points else {
             return Ok(None);

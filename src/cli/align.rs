@@ -34,9 +34,13 @@ pub struct AlignArgs {
 }
 
 pub fn run(a: AlignArgs) -> Result<()> {
+    let mut inputs = vec![a.audio.as_path()];
+    inputs.extend(a.transcript.as_deref());
+    inputs.extend(a.dicts.iter().map(|d| d.as_path()));
+    super::check_output(&a.output, &inputs)?;
     let text = match (&a.text, &a.transcript) {
         (Some(t), _) => t.clone(),
-        (None, Some(p)) => std::fs::read_to_string(p)
+        (None, Some(p)) => facespace::manifest::read_regular_string(p)
             .with_context(|| format!("reading the transcript {}", p.display()))?,
         (None, None) => bail!("give the words with --text or --transcript"),
     };

@@ -83,7 +83,10 @@ pub fn run(command: CodebookCommand) -> Result<()> {
             info(&load(&codebook)?);
             Ok(())
         }
-        CodebookCommand::Similarity { codebook, png } => similarity_png(&load(&codebook)?, &png),
+        CodebookCommand::Similarity { codebook, png } => {
+            super::check_output(&png, &[&codebook])?;
+            similarity_png(&load(&codebook)?, &png)
+        }
     }
 }
 
@@ -92,6 +95,9 @@ fn load(dir: &Path) -> Result<Codebook> {
 }
 
 fn build(a: BuildArgs) -> Result<()> {
+    let mut inputs = vec![a.model.as_path(), a.corpus.as_path()];
+    inputs.extend(a.phone_map.as_deref());
+    super::check_output(&a.output, &inputs)?;
     let start = std::time::Instant::now();
     let model = load_model(&a.model)?;
     let map = match &a.phone_map {
@@ -102,7 +108,7 @@ fn build(a: BuildArgs) -> Result<()> {
         gamma: a.gamma,
         ..SimilarityOptions::default()
     };
-    let recorded = facespace::corpus::recorded_fps(&a.corpus);
+    let recorded = facespace::corpus::recorded_fps(&a.corpus)?;
     let fps = match (a.fps, recorded) {
         (Some(given), Some(r)) if (given - r).abs() > 1e-9 => anyhow::bail!(
             "--fps {given}, but {} records {r} fps: leave --fps out",

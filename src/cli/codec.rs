@@ -69,6 +69,9 @@ pub struct ReportArgs {
 }
 
 pub fn encode(a: EncodeArgs) -> Result<()> {
+    let mut inputs = vec![a.input.as_path(), a.model.as_path()];
+    inputs.extend(a.tracking.init.as_deref());
+    super::check_output(&a.output, &inputs)?;
     let model = load_model(&a.model)?;
     let options = a.tracking.options(a.bits)?;
     options.validate(&model)?;
@@ -116,6 +119,9 @@ pub fn encode(a: EncodeArgs) -> Result<()> {
 pub fn decode(a: DecodeArgs) -> Result<()> {
     // Checked even without --background: a nonsense value is an error, not silently unused.
     facespace::options::in_range("--feather", a.feather, 0.0, 1000.0)?;
+    let mut inputs = vec![a.clip.as_path(), a.model.as_path()];
+    inputs.extend(a.background.as_deref());
+    super::check_output(&a.output, &inputs)?;
     let model = load_model(&a.model)?;
     let clip = Clip::load(&a.clip, &model)
         .with_context(|| format!("loading clip {}", a.clip.display()))?;
@@ -160,6 +166,9 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
 }
 
 pub fn report(a: ReportArgs) -> Result<()> {
+    let inputs = [a.input.as_path(), a.clip.as_path(), a.model.as_path()];
+    super::check_output(&a.output, &inputs)?;
+    super::check_output(&a.output.with_extension("png"), &inputs)?;
     let model = load_model(&a.model)?;
     let clip = Clip::load(&a.clip, &model)
         .with_context(|| format!("loading clip {}", a.clip.display()))?;

@@ -136,6 +136,9 @@ fn generate(a: DemoArgs) -> Result<()> {
 
 fn from_videos(a: FromVideosArgs) -> Result<()> {
     let start = std::time::Instant::now();
+    let mut inputs = vec![a.model.as_path(), a.dir.as_path()];
+    inputs.extend(a.phone_map.as_deref());
+    super::check_output(&a.output, &inputs)?;
     let model = load_model(&a.model)?;
     let options = a.tracking.options(None)?;
     let map = match &a.phone_map {

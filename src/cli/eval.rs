@@ -42,6 +42,12 @@ pub struct EvalArgs {
 }
 
 pub fn run(a: EvalArgs) -> Result<()> {
+    if let Some(out) = &a.output {
+        let mut inputs = vec![a.model.as_path(), a.codebook.as_path(), a.heldout.as_path()];
+        inputs.extend(a.validation.as_deref());
+        inputs.extend(a.weights.as_deref());
+        super::check_output(out, &inputs)?;
+    }
     let model = load_model(&a.model)?;
     let cb = Codebook::load(&a.codebook)
         .with_context(|| format!("loading codebook {}", a.codebook.display()))?;

@@ -21,6 +21,7 @@ pub struct FramesArgs {
 }
 
 pub fn run(a: FramesArgs) -> Result<()> {
+    super::check_output(&a.output, &[&a.input])?;
     let (bar, progress) = progress_bar();
     let written = video::export_frames(&a.input, a.count, &a.output, progress)
         .with_context(|| format!("exporting frames of {}", a.input.display()))?;

@@ -195,6 +195,13 @@ impl RendererArg {
     }
 }
 
+/// Refuses `output` before any work when it is one of `inputs` (links resolved), a folder
+/// holding one, or an existing device or FIFO (issue 39): a command never runs to then write
+/// over its own input or `/dev/null`.
+fn check_output(output: &std::path::Path, inputs: &[&std::path::Path]) -> Result<()> {
+    Ok(facespace::atomic::check_destination(output, inputs)?)
+}
+
 /// Loads a model, naming it in the error.
 fn load_model(path: &std::path::Path) -> Result<FaceModel> {
     use anyhow::Context;

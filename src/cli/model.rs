@@ -121,6 +121,7 @@ pub fn run(command: ModelCommand) -> Result<()> {
 }
 
 fn suggest(a: SuggestArgs) -> Result<()> {
+    super::check_output(&a.output, &[&a.model, &a.input])?;
     let model = load_model(&a.model)?;
     let options = a.tracking.options(None)?;
     let (bar, progress) = progress_bar();
@@ -147,9 +148,14 @@ fn suggest(a: SuggestArgs) -> Result<()> {
 }
 
 fn build(a: BuildArgs) -> Result<()> {
+    let mut inputs = vec![a.images.as_path()];
+    inputs.extend(a.landmarks.as_deref());
+    inputs.extend(a.triangles.as_deref());
+    inputs.extend(a.region.as_deref().map(std::path::Path::new));
+    super::check_output(&a.output, &inputs)?;
     let triangles = match &a.triangles {
         Some(path) => {
-            let text = std::fs::read_to_string(path)
+            let text = facespace::manifest::read_regular_string(path)
                 .with_context(|| format!("reading {}", path.display()))?;
             Some(
                 serde_json::from_str::<Vec<Triangle>>(&text)
@@ -162,7 +168,7 @@ fn build(a: BuildArgs) -> Result<()> {
         None => None,
         Some("lower-face") => Some(Region::LowerFace),
         Some(path) => {
-            let text = std::fs::read_to_string(path)
+            let text = facespace::manifest::read_regular_string(std::path::Path::new(path))
                 .with_context(|| format!("reading region file {path}"))?;
             Some(Region::Landmarks(
                 serde_json::from_str(&text).with_context(|| {
@@ -298,6 +304,9 @@ fn human_bytes(n: u64) -> String {
 }
 
 fn reconstruct(a: ReconstructArgs) -> Result<()> {
+    let mut inputs = vec![a.model.as_path(), a.image.as_path()];
+    inputs.extend(a.landmarks.as_deref());
+    super::check_output(&a.output, &inputs)?;
     let model = load_model(&a.model)?;
     let image = video::read_frame(&a.image)?;
     let pts = a

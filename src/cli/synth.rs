@@ -161,6 +161,21 @@ pub fn run(a: SynthArgs) -> Result<()> {
         .model
         .clone()
         .unwrap_or_else(|| PathBuf::from(super::DEMO_MODEL));
+    let mut inputs = vec![model_path.as_path(), a.codebook.as_path()];
+    for p in [
+        &a.labels,
+        &a.transcript,
+        &a.phone_map,
+        &a.weights,
+        &a.background,
+        &a.track_model,
+        &a.real,
+        &a.audio,
+    ] {
+        inputs.extend(p.as_deref());
+    }
+    inputs.extend(a.dicts.iter().map(|d| d.as_path()));
+    super::check_output(&a.output, &inputs)?;
     let model = load_model(&model_path)?;
     let cb = Codebook::load(&a.codebook)
         .with_context(|| format!("loading codebook {}", a.codebook.display()))?;
@@ -172,22 +187,30 @@ pub fn run(a: SynthArgs) -> Result<()> {
             super::shown(&model_path)
         ),
     })?;
-    // Speech from text: the engine's WAV lives in this folder until the MP4s have it.
-    let spoken = tempfile::tempdir().context("a temporary folder for the speech")?;
-    let speech = match &a.say {
-        Some(text) => {
+    // Speech from text: the engine's text and WAV live in a locked staging folder beside the
+    // output until the MP4s have them — removed when done, and by the next run if this one
+    // is killed (never left in /tmp).
+    let spoken = match &a.say {
+        Some(_) => Some(
+            facespace::atomic::StagingDir::new(facespace::atomic::parent_of(&a.output))
+                .context("a staging folder for the speech")?,
+        ),
+        None => None,
+    };
+    let speech = match (&a.say, &spoken) {
+        (Some(text), Some(spoken)) => {
             let wav = spoken.path().join("speech.wav");
             let engine = facespace::tts::speak(text, &wav).context("--say")?;
             println!("speech by {} → aligned", engine.name());
             Some(wav)
         }
-        None => a.audio.clone(),
+        _ => a.audio.clone(),
     };
     let words = match (&a.say, &a.text, &a.transcript) {
         (Some(t), ..) => Some(t.clone()),
         (None, Some(t), _) if a.audio.is_some() => Some(t.clone()),
         (None, None, Some(p)) => Some(
-            std::fs::read_to_string(p)
+            facespace::manifest::read_regular_string(p)
                 .with_context(|| format!("reading the transcript {}", p.display()))?,
         ),
         _ => None,
@@ -254,6 +277,10 @@ pub fn run(a: SynthArgs) -> Result<()> {
         Mode::Graph => Box::new(Graph::default()),
     };
     let frames = synth::frame_count(&target, fps);
+    // Sound far longer than the phones is refused now, before any tracking or rendering.
+    if let Some(sound) = &speech {
+        output::check_sound(sound, frames as f64 / fps)?;
+    }
     let tracker = match &a.track_model {
         Some(p) => Some(load_model(p)?),
         None => None,

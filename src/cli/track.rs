@@ -24,6 +24,9 @@ pub struct TrackArgs {
 }
 
 pub fn run(a: TrackArgs) -> Result<()> {
+    let mut inputs = vec![a.input.as_path(), a.model.as_path()];
+    inputs.extend(a.tracking.init.as_deref());
+    super::check_output(&a.output, &inputs)?;
     let model = load_model(&a.model)?;
     let options = a.tracking.options(None)?;
     let source = video::Source::open(&a.input)?;

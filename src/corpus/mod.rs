@@ -44,6 +44,14 @@ pub enum CorpusError {
         /// What is wrong.
         source: FacespaceError,
     },
+    /// A `corpus.json` that is damaged or records nonsense.
+    #[error("{path}: {reason}")]
+    Manifest {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong, naming the field.
+        reason: String,
+    },
     /// No sentences in the folder.
     #[error("{dir}: no .npy trajectories with label files")]
     Empty {
@@ -128,11 +136,35 @@ pub fn write_manifest(dir: &Path, fps: f64) -> Result<(), (PathBuf, std::io::Err
     crate::atomic::write_file(&path, json.to_string().as_bytes()).map_err(|e| (path, e))
 }
 
-/// The frame rate `dir/corpus.json` records, if the folder has one.
-pub fn recorded_fps(dir: &Path) -> Option<f64> {
-    let text = std::fs::read_to_string(dir.join(MANIFEST)).ok()?;
-    let value: serde_json::Value = serde_json::from_str(&text).ok()?;
-    value["fps"].as_f64().filter(|f| f.is_finite() && *f > 0.0)
+/// The frame rate `dir/corpus.json` records; `None` only when the folder has no such file.
+/// A `corpus.json` that is not a regular file, not JSON, or whose `fps` is missing, not a
+/// number or out of range is an error naming the file and the field (a manifest that lies is
+/// never taken for an absent one).
+pub fn recorded_fps(dir: &Path) -> Result<Option<f64>, CorpusError> {
+    let path = dir.join(MANIFEST);
+    match std::fs::symlink_metadata(&path) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        _ => {}
+    }
+    let invalid = |reason: String| CorpusError::Manifest {
+        path: path.clone(),
+        reason,
+    };
+    let text = crate::manifest::read_regular_string(&path)
+        .map_err(|source| CorpusError::Io { path: path.clone(), source })?;
+    let value: serde_json::Value =
+        serde_json::from_str(&text).map_err(|e| invalid(format!("not JSON ({e})")))?;
+    let fps = match value.get("fps") {
+        Some(serde_json::Value::Number(n)) => n.as_f64().unwrap_or(f64::NAN),
+        Some(other) => {
+            let shown: String = other.to_string().chars().take(40).collect();
+            return Err(invalid(format!("field \"fps\" is {shown}, not a number")));
+        }
+        None => return Err(invalid("no field \"fps\" (the corpus's frame rate)".into())),
+    };
+    crate::facespace::check_fps(fps)
+        .map(Some)
+        .map_err(|e| invalid(format!("field \"fps\": {e}")))
 }
 
 /// One sentence: face-space frames and the phones spoken over them.

@@ -24,7 +24,7 @@ fn align_transcript(
         path: video.to_owned(),
         reason,
     };
-    let text = std::fs::read_to_string(transcript).map_err(|source| CorpusError::Io {
+    let text = crate::manifest::read_regular_string(transcript).map_err(|source| CorpusError::Io {
         path: transcript.to_owned(),
         source,
     })?;

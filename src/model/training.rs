@@ -79,12 +79,11 @@ pub fn load_marked(
                     pts: stem.with_extension("pts"),
                 })?;
             let landmarks = shape::read_landmarks(&pts)?;
-            let image = image::open(image_path)
-                .map_err(|source| ModelError::Image {
+            let image =
+                crate::video::read_image(image_path).map_err(|source| ModelError::Image {
                     path: image_path.clone(),
                     source,
-                })?
-                .to_rgb8();
+                })?;
             check_inside(&landmarks, &image, &pts, image_path)?;
             Ok::<_, ModelError>((
                 pts,

@@ -36,6 +36,25 @@ pub(super) fn read_text(path: &Path) -> Result<String, PhonemeError> {
     })
 }
 
+/// Most segments a timing file may hold: an hour ([`crate::synth::MAX_DURATION`]) at
+/// [`MAX_PHONES_PER_SECOND`]. Parsers stop there, so an absurd file costs bounded memory.
+pub const MAX_SEGMENTS: usize = 3600 * MAX_PHONES_PER_SECOND;
+
+/// Most segments a second of labels may hold on average: fast speech has about 15 phones a
+/// second, and a frame lasts 40 ms; more is phones far shorter than a frame, not speech.
+pub const MAX_PHONES_PER_SECOND: usize = 30;
+
+/// The error for a file past [`MAX_SEGMENTS`], at `line`.
+pub(super) fn too_many(path: &Path, line: usize) -> PhonemeError {
+    PhonemeError::Parse {
+        path: path.into(),
+        line,
+        reason: format!(
+            "more than {MAX_SEGMENTS} segments (an hour at {MAX_PHONES_PER_SECOND} a second): not a phone timing file of one utterance"
+        ),
+    }
+}
+
 /// Labels with their source line, before normalisation and validation.
 pub(super) struct RawInterval {
     pub(super) start: f64,
@@ -58,6 +77,9 @@ pub(super) fn finish(
     };
     if raw.is_empty() {
         return Err(PhonemeError::Empty { path: path.into() });
+    }
+    if let Some(r) = raw.get(MAX_SEGMENTS) {
+        return Err(too_many(path, r.line));
     }
     let mut out: Vec<Segment> = Vec::with_capacity(raw.len());
     for r in raw {
@@ -99,20 +121,26 @@ pub(super) fn finish(
                 path: path.into(),
                 line: r.line,
                 // A label is quoted whole only when short: a 3 MB "label" is not echoed.
-                label: if r.label.chars().count() > 40 {
-                    format!(
-                        "{}… ({} bytes)",
-                        r.label.chars().take(40).collect::<String>(),
-                        r.label.len()
-                    )
-                } else {
-                    r.label.clone()
-                },
+                label: crate::options::clipped(&r.label, 40),
             })?;
         out.push(Segment {
             start: r.start,
             end: r.end,
             phone,
+        });
+    }
+    // Phones far shorter than a frame: a file that would cost minutes and gigabytes
+    // downstream for a few seconds of speech.
+    let span = out.last().map_or(0.0, |l| l.end) - out[0].start;
+    let allowed = (MAX_PHONES_PER_SECOND as f64 * span).ceil() as usize + 10;
+    if out.len() > allowed {
+        return Err(PhonemeError::Parse {
+            path: path.into(),
+            line: 1,
+            reason: format!(
+                "{} segments in {span:.3} s: more than {MAX_PHONES_PER_SECOND} a second (speech has about 15; these are far shorter than a video frame)",
+                out.len()
+            ),
         });
     }
     Ok(out)
@@ -151,6 +179,9 @@ pub fn parse_htk(text: &str, path: &Path, map: &PhoneMap) -> Result<Vec<Segment>
         }
         if line == "///" {
             break; // only the first alternative of a multi-level file
+        }
+        if raw.len() >= MAX_SEGMENTS {
+            return Err(too_many(path, i + 1));
         }
         let err = |reason: String| PhonemeError::Parse {
             path: path.into(),
@@ -202,6 +233,9 @@ pub fn parse_tsv(text: &str, path: &Path, map: &PhoneMap) -> Result<Vec<Segment>
         let start = fields.first().map(|s| s.trim().parse::<f64>());
         if i == 0 && raw.is_empty() && !matches!(start, Some(Ok(_))) {
             continue; // a header
+        }
+        if raw.len() >= MAX_SEGMENTS {
+            return Err(too_many(path, i + 1));
         }
         if fields.len() < 2 {
             return Err(err(format!("expected `start end label`, found {line:?}")));

@@ -241,7 +241,7 @@ pub enum PhonemeError {
         path: PathBuf,
     },
     /// Words the dictionary lacks.
-    #[error("words not in the pronouncing dictionary: {}", .0.join(", "))]
+    #[error("words not in the pronouncing dictionary: {}", crate::options::clipped_list(.0))]
     OutOfDictionary(Vec<String>),
     /// Text without words.
     #[error("no words in the text")]

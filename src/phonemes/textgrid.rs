@@ -2,7 +2,10 @@
 
 use std::path::Path;
 
-use super::labels::{RawInterval, finish, read_text};
+use super::labels::{MAX_SEGMENTS, RawInterval, finish, read_text, too_many};
+
+/// Most tiers a TextGrid may declare.
+const MAX_TIERS: usize = 1000;
 use super::{PhoneMap, PhonemeError, Segment};
 
 /// Praat TextGrid, long or short text form (UTF-8 or UTF-16). The tier is `tier` if given,
@@ -24,88 +27,109 @@ enum Token {
     Flag,
 }
 
-fn tokenise(text: &str, path: &Path) -> Result<Vec<(Token, usize)>, PhonemeError> {
-    let mut tokens = Vec::new();
-    let mut chars = text.chars().peekable();
-    let mut line = 1;
-    while let Some(c) = chars.next() {
-        match c {
-            '\n' => line += 1,
-            '"' => {
-                let start_line = line;
-                let mut s = String::new();
-                loop {
-                    match chars.next() {
-                        Some('"') if chars.peek() == Some(&'"') => {
-                            chars.next();
-                            s.push('"');
-                        }
-                        Some('"') => break,
-                        Some(ch) => {
-                            if ch == '\n' {
-                                line += 1;
-                            }
-                            s.push(ch);
-                        }
-                        None => {
-                            return Err(PhonemeError::Parse {
-                                path: path.into(),
-                                line: start_line,
-                                reason: "unterminated string".into(),
-                            });
-                        }
-                    }
-                }
-                tokens.push((Token::Str(s), start_line));
-            }
-            '[' => {
-                for ch in chars.by_ref() {
-                    if ch == ']' {
-                        break;
-                    }
-                }
-            }
-            '<' => {
-                for ch in chars.by_ref() {
-                    if ch == '>' {
-                        break;
-                    }
-                }
-                tokens.push((Token::Flag, line));
-            }
-            '!' => {
-                // a comment to the end of the line
-                while chars.peek().is_some_and(|&ch| ch != '\n') {
-                    chars.next();
-                }
-            }
-            c if c.is_ascii_digit() || c == '-' || c == '.' || c == '+' => {
-                let mut s = String::from(c);
-                while chars
-                    .peek()
-                    .is_some_and(|ch| ch.is_ascii_alphanumeric() || matches!(ch, '.' | '-' | '+'))
-                {
-                    s.push(chars.next().unwrap_or_default());
-                }
-                let v = s.parse::<f64>().map_err(|_| PhonemeError::Parse {
-                    path: path.into(),
-                    line,
-                    reason: format!("bad number {s:?}"),
-                })?;
-                tokens.push((Token::Num(v), line));
-            }
-            c if c.is_alphabetic() => {
-                while chars
-                    .peek()
-                    .is_some_and(|ch| ch.is_alphanumeric() || *ch == '_' || *ch == '?')
-                {
-                    chars.next();
-                }
-            }
-            _ => {}
+/// The tokens of a TextGrid's text, produced as the parser asks for them (never all at once:
+/// an absurd file costs the memory of one token, not of millions).
+struct Tokens<'a> {
+    chars: std::iter::Peekable<std::str::Chars<'a>>,
+    line: usize,
+    path: &'a Path,
+}
+
+impl<'a> Tokens<'a> {
+    fn new(text: &'a str, path: &'a Path) -> Self {
+        Tokens {
+            chars: text.chars().peekable(),
+            line: 1,
+            path,
         }
     }
-    Ok(tokens)
+}
+
+impl Iterator for Tokens<'_> {
+    type Item = Result<(Token, usize), PhonemeError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        let (chars, path) = (&mut self.chars, self.path);
+        while let Some(c) = chars.next() {
+            let line = self.line;
+            match c {
+                '\n' => self.line += 1,
+                '"' => {
+                    let mut s = String::new();
+                    loop {
+                        match chars.next() {
+                            Some('"') if chars.peek() == Some(&'"') => {
+                                chars.next();
+                                s.push('"');
+                            }
+                            Some('"') => break,
+                            Some(ch) => {
+                                if ch == '\n' {
+                                    self.line += 1;
+                                }
+                                s.push(ch);
+                            }
+                            None => {
+                                return Some(Err(PhonemeError::Parse {
+                                    path: path.into(),
+                                    line,
+                                    reason: "unterminated string".into(),
+                                }));
+                            }
+                        }
+                    }
+                    return Some(Ok((Token::Str(s), line)));
+                }
+                '[' => {
+                    for ch in chars.by_ref() {
+                        if ch == ']' {
+                            break;
+                        }
+                    }
+                }
+                '<' => {
+                    for ch in chars.by_ref() {
+                        if ch == '>' {
+                            break;
+                        }
+                    }
+                    return Some(Ok((Token::Flag, line)));
+                }
+                '!' => {
+                    // a comment to the end of the line
+                    while chars.peek().is_some_and(|&ch| ch != '\n') {
+                        chars.next();
+                    }
+                }
+                c if c.is_ascii_digit() || c == '-' || c == '.' || c == '+' => {
+                    let mut s = String::from(c);
+                    while chars.peek().is_some_and(|ch| {
+                        ch.is_ascii_alphanumeric() || matches!(ch, '.' | '-' | '+')
+                    }) {
+                        s.push(chars.next().unwrap_or_default());
+                    }
+                    return Some(match s.parse::<f64>() {
+                        Ok(v) => Ok((Token::Num(v), line)),
+                        Err(_) => Err(PhonemeError::Parse {
+                            path: path.into(),
+                            line,
+                            reason: format!("bad number {s:?}"),
+                        }),
+                    });
+                }
+                c if c.is_alphabetic() => {
+                    while chars
+                        .peek()
+                        .is_some_and(|ch| ch.is_alphanumeric() || *ch == '_' || *ch == '?')
+                    {
+                        chars.next();
+                    }
+                }
+                _ => {}
+            }
+        }
+        None
+    }
 }
 
 /// Parses TextGrid text (long or short form); `path` names the source in errors.
@@ -115,15 +139,14 @@ pub fn parse_textgrid(
     tier: Option<&str>,
     map: &PhoneMap,
 ) -> Result<Vec<Segment>, PhonemeError> {
-    let tokens = tokenise(text, path)?;
-    let mut it = tokens.into_iter().peekable();
+    let mut it = Tokens::new(text, path);
     let mut last_line = 1;
     let mut next = |what: &str| -> Result<(Token, usize), PhonemeError> {
         let t = it.next().ok_or_else(|| PhonemeError::Parse {
             path: path.into(),
             line: last_line,
             reason: format!("file ends where {what} was expected"),
-        })?;
+        })??;
         last_line = t.1;
         Ok(t)
     };
@@ -178,24 +201,35 @@ pub fn parse_textgrid(
         (Token::Flag, _) => {}
         (t, l) => return Err(err(l, format!("expected <exists>, found {t:?}"))),
     }
-    let (n_tiers, _) = number!("the tier count");
+    let (n_tiers, l) = number!("the tier count");
+    if !(0.0..=MAX_TIERS as f64).contains(&n_tiers) {
+        return Err(err(l, format!("{n_tiers} tiers (at most {MAX_TIERS} are read)")));
+    }
     let mut names = Vec::new();
+    let mut found = None;
     for _ in 0..n_tiers as usize {
         let (kind, _) = string!("the tier class");
         let (name, _) = string!("the tier name");
         number!("tier xmin");
         number!("tier xmax");
-        let (n, _) = number!("the interval count");
-        let wanted = match tier {
-            Some(t) => name == t,
-            None => matches!(name.to_ascii_lowercase().as_str(), "phones" | "phonemes"),
-        };
+        let (n, l) = number!("the interval count");
+        if !(0.0..=MAX_SEGMENTS as f64).contains(&n) {
+            return Err(too_many(path, l));
+        }
+        let wanted = found.is_none()
+            && match tier {
+                Some(t) => name == t,
+                None => matches!(name.to_ascii_lowercase().as_str(), "phones" | "phonemes"),
+            };
         let mut raw = Vec::new();
         for _ in 0..n as usize {
             if kind == "IntervalTier" {
                 let (start, line) = number!("interval xmin");
                 let (end, _) = number!("interval xmax");
                 let (label, _) = string!("interval text");
+                if !wanted {
+                    continue;
+                }
                 raw.push(RawInterval {
                     start,
                     end,
@@ -214,9 +248,22 @@ pub fn parse_textgrid(
                     format!("tier {name:?} is a {kind}, not an IntervalTier"),
                 ));
             }
-            return finish(path, raw, map);
+            found = Some(raw);
         }
         names.push(name);
+    }
+    // The counts the file declares must be what it holds: a tier declaring 10 intervals
+    // followed by 10⁵ more is damaged, not to be read as its first 10.
+    if let Some(extra) = it.next() {
+        return Err(err(
+            extra.map_or(last_line, |(_, line)| line),
+            format!(
+                "more content after the {n_tiers} tiers the file declares (an interval or tier count that is too small)"
+            ),
+        ));
+    }
+    if let Some(raw) = found {
+        return finish(path, raw, map);
     }
     let wanted = tier.map_or_else(
         || "\"phones\" or \"phonemes\"".to_owned(),

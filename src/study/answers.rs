@@ -186,7 +186,8 @@ impl AnswerLog {
             )));
         }
         if note.is_some() {
-            let text = std::fs::read_to_string(&path).map_err(io)?;
+            let mut text = String::new();
+            std::io::Read::read_to_string(&mut file, &mut text).map_err(io)?;
             let keep = text.rfind('\n').map_or(0, |i| i + 1);
             file.set_len(keep as u64).map_err(io)?;
             file.sync_all().map_err(io)?;

@@ -92,7 +92,7 @@ impl StudyServer {
                     let why = String::from_utf8_lossy(&reply.body).into_owned();
                     on_event(Event::Refused(request.path.clone(), why));
                 }
-                reply
+                reply.into()
             },
             stop,
             |notice| (on_event.borrow_mut())(Event::Notice(notice)),

@@ -42,6 +42,17 @@ pub enum OutputError {
     /// The phone timings could not be written.
     #[error(transparent)]
     Labels(#[from] crate::phonemes::PhonemeError),
+    /// Sound far longer than the video it would go under (labels of 3 s over an hour's
+    /// recording), or sound that cannot be read.
+    #[error(
+        "{path}: {reason}; the sound must be the utterance's own (labels of the whole recording, or the recording cut to them)"
+    )]
+    Sound {
+        /// The sound file.
+        path: PathBuf,
+        /// What is wrong.
+        reason: String,
+    },
     /// A file could not be written.
     #[error("{path}: {source}")]
     Io {
@@ -50,6 +61,30 @@ pub enum OutputError {
         /// The cause.
         source: std::io::Error,
     },
+}
+
+/// Seconds the sound may outlast the video before it is refused: 5 s and a fifth of the
+/// video (trailing silence after the last labelled phone), never an hour under 3 s.
+pub fn max_sound_seconds(video_seconds: f64) -> f64 {
+    video_seconds * 1.2 + 5.0
+}
+
+/// Refuses sound that lasts longer than [`max_sound_seconds`] of a video of `video_seconds`,
+/// from its header where it tells and otherwise without holding its samples (bounded memory).
+pub fn check_sound(path: &Path, video_seconds: f64) -> Result<(), OutputError> {
+    let max = max_sound_seconds(video_seconds);
+    let reason = |e: crate::audio::AudioError| match e {
+        crate::audio::AudioError::TooLong { seconds, .. } => format!(
+            "the sound lasts at least {seconds:.1} s, the video {video_seconds:.1} s (at most {max:.1} s of sound is taken)"
+        ),
+        e => e.to_string(),
+    };
+    crate::audio::duration(path, max)
+        .map(|_| ())
+        .map_err(|e| OutputError::Sound {
+            path: path.into(),
+            reason: reason(e),
+        })
 }
 
 /// Options of [`write()`].
@@ -167,6 +202,9 @@ pub fn write(
     let ab = variants.len() == 2;
     let size = background.size();
     let fps = utterance.synthesis.frames.fps();
+    if let Some(sound) = options.audio {
+        check_sound(sound, utterance.synthesis.frames.len() as f64 / fps)?;
+    }
     let mut sinks = Vec::with_capacity(variants.len());
     for (name, frames) in &variants {
         let vdir = if ab {

@@ -152,12 +152,22 @@ pub fn frame_files(dir: &Path) -> Result<Vec<PathBuf>, VideoError> {
 
 /// Reads one image file as RGB.
 pub fn read_frame(path: &Path) -> Result<RgbImage, VideoError> {
-    Ok(image::open(path)
-        .map_err(|source| VideoError::Image {
-            path: path.into(),
-            source,
-        })?
-        .to_rgb8())
+    read_image(path).map_err(|source| VideoError::Image {
+        path: path.into(),
+        source,
+    })
+}
+
+/// Reads one image file as RGB, opened as a regular file only ([`crate::manifest::open_regular`]:
+/// a FIFO would block, a device never end); the format from the extension, else the content.
+pub fn read_image(path: &Path) -> Result<RgbImage, image::ImageError> {
+    let file = crate::manifest::open_regular(path).map_err(image::ImageError::IoError)?;
+    let mut reader = image::ImageReader::new(std::io::BufReader::new(file));
+    match image::ImageFormat::from_path(path) {
+        Ok(format) => reader.set_format(format),
+        Err(_) => reader = reader.with_guessed_format().map_err(image::ImageError::IoError)?,
+    }
+    Ok(reader.decode()?.to_rgb8())
 }
 
 /// Writes one PNG atomically.

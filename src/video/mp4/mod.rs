@@ -89,6 +89,12 @@ pub enum Mp4Error {
 
 type Mp4File = mp4::Mp4Reader<BufReader<File>>;
 
+/// Checks an MP4/M4A's box structure (sizes, fixed fields, table counts, timescales) without
+/// parsing it further: what every reader of the file, `mp4` or symphonia, relies on.
+pub fn check_structure(file: &mut File) -> Result<(), Mp4Error> {
+    boxes::check(file)
+}
+
 fn open(path: &Path) -> Result<Mp4File, Mp4Error> {
     let mut file = crate::manifest::open_regular(path)?;
     boxes::check(&mut file)?;
