@@ -154,6 +154,9 @@ fn read_at(path: &Path, rate: Option<u32>, max_seconds: f64) -> Result<Audio, Au
 
 /// Largest sample rate taken (768 kHz, the highest any audio interface records at).
 const MAX_RATE: u32 = 768_000;
+/// Smallest sample rate taken: 4 kHz carries the speech band up to 2 kHz; below it a header
+/// is damaged (a 128 Hz "recording" of 3 s of data reads as six minutes to upsample).
+const MIN_RATE: u32 = 4_000;
 
 /// The header checks run before symphonia sees a file, which panics on some declared values
 /// (issue 39: a WAV at 0 Hz, an MP4 `mdhd` timescale of 0, an `hdlr` box of size 0). A RIFF
@@ -189,7 +192,8 @@ fn read_up_to(file: &mut std::fs::File, buf: &mut [u8]) -> std::io::Result<usize
 }
 
 /// A WAV's chunks up to its `fmt ` chunk: each must fit the file, and the format must have
-/// 1–64 channels, a rate of 1 Hz–[`MAX_RATE`], a non-zero block size and 1–64 bits a sample.
+/// 1–64 channels, a rate of [`MIN_RATE`]–[`MAX_RATE`], a non-zero block size and 1–64 bits a
+/// sample.
 fn check_wav(file: &mut std::fs::File) -> Result<(), String> {
     use std::io::{Seek, SeekFrom};
     let len = file.metadata().map_err(|e| e.to_string())?.len();
@@ -214,8 +218,10 @@ fn check_wav(file: &mut std::fs::File) -> Result<(), String> {
             if !(1..=64).contains(&channels) {
                 return Err(format!("{channels} channels (1 to 64 are read)"));
             }
-            if !(1..=MAX_RATE).contains(&rate) {
-                return Err(format!("a sample rate of {rate} Hz (1 to {MAX_RATE} are read)"));
+            if !(MIN_RATE..=MAX_RATE).contains(&rate) {
+                return Err(format!(
+                    "a sample rate of {rate} Hz ({MIN_RATE} to {MAX_RATE} are read)"
+                ));
             }
             if block == 0 || !(1..=64).contains(&bits) {
                 return Err(format!(
@@ -302,6 +308,12 @@ fn decode_native(
     if rate == 0 {
         return Err(AudioError::NoAudio {
             path: path.to_owned(),
+        });
+    }
+    if !(MIN_RATE..=MAX_RATE).contains(&rate) {
+        return Err(AudioError::Malformed {
+            path: path.to_owned(),
+            why: format!("a sample rate of {rate} Hz ({MIN_RATE} to {MAX_RATE} are read)"),
         });
     }
     let too_long = |frames: u64| AudioError::TooLong {

@@ -229,6 +229,10 @@ pub const MIN_FPS: f64 = 0.01;
 /// Frame rates are at most this many per second.
 pub const MAX_FPS: f64 = 1000.0;
 
+/// Longest sequence (seconds) synthesised, rendered or heard beside one: an hour; a damaged
+/// label file cannot ask for years of frames.
+pub const MAX_DURATION: f64 = 3600.0;
+
 /// Checks a frame rate: finite, in [[`MIN_FPS`], [`MAX_FPS`]].
 pub fn check_fps(fps: f64) -> Result<f64, InvalidOption> {
     options::in_range("frame rate", fps, MIN_FPS, MAX_FPS)

@@ -19,6 +19,21 @@ fn staging(dir: &Path) -> Vec<String> {
         .collect()
 }
 
+/// Runs the binary with `args` (and `TMPDIR`, when given) and kills it (-9) after `at`.
+fn killed_after(args: &[&str], tmpdir: Option<&Path>, at: std::time::Duration) {
+    let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_facespace"));
+    cmd.args(args)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null());
+    if let Some(t) = tmpdir {
+        cmd.env("TMPDIR", t);
+    }
+    let mut child = cmd.spawn().unwrap();
+    std::thread::sleep(at);
+    let _ = child.kill();
+    let _ = child.wait();
+}
+
 /// Runs `args` to completion once (timing it), then 20 times killed at spread-out moments;
 /// after each kill, `check` must accept the destination (the complete previous version).
 fn killed_runs(args: &[&str], out: &Path, check: impl Fn(&Path)) {
@@ -31,15 +46,7 @@ fn killed_runs(args: &[&str], out: &Path, check: impl Fn(&Path)) {
     let mut rng = common::Rng::new(17);
     for k in 0..20 {
         let at = full.mul_f64(rng.range(0.05, 1.1));
-        let mut child = std::process::Command::new(bin)
-            .args(args)
-            .stdout(std::process::Stdio::null())
-            .stderr(std::process::Stdio::null())
-            .spawn()
-            .unwrap();
-        std::thread::sleep(at);
-        let _ = child.kill();
-        let _ = child.wait();
+        killed_after(args, None, at);
         assert!(out.exists(), "kill {k} at {at:?}: the destination is gone");
         check(out);
     }
@@ -529,16 +536,7 @@ fn killed_say_leaves_nothing_in_the_temporary_folder() {
     let mut rng = common::Rng::new(39);
     for k in 0..8 {
         let at = full.mul_f64(rng.range(0.05, 0.95));
-        let mut child = std::process::Command::new(bin)
-            .args(args)
-            .env("TMPDIR", tmp.path())
-            .stdout(std::process::Stdio::null())
-            .stderr(std::process::Stdio::null())
-            .spawn()
-            .unwrap();
-        std::thread::sleep(at);
-        let _ = child.kill();
-        let _ = child.wait();
+        killed_after(&args, Some(tmp.path()), at);
         empty(&format!("kill {k} at {at:?}"));
     }
     run();

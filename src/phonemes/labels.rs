@@ -36,7 +36,7 @@ pub(super) fn read_text(path: &Path) -> Result<String, PhonemeError> {
     })
 }
 
-/// Most segments a timing file may hold: an hour ([`crate::synth::MAX_DURATION`]) at
+/// Most segments a timing file may hold: an hour ([`crate::facespace::MAX_DURATION`]) at
 /// [`MAX_PHONES_PER_SECOND`]. Parsers stop there, so an absurd file costs bounded memory.
 pub const MAX_SEGMENTS: usize = 3600 * MAX_PHONES_PER_SECOND;
 

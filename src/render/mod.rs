@@ -240,7 +240,7 @@ pub enum Background {
     /// The frames of a video, one per rendered frame.
     Video(Box<Source>),
     /// Frames held in memory, played forwards then backwards
-    /// ([`crate::synth::ping_pong`]) for as long as there are frames to render.
+    /// ([`ping_pong`]) for as long as there are frames to render.
     Loop {
         /// The frames (at least one).
         frames: Vec<RgbImage>,
@@ -302,7 +302,7 @@ impl Background {
                 .collect::<Result<_, _>>()?,
             Background::Loop { frames, next } => {
                 let out = (*next..*next + n)
-                    .map(|t| frames[crate::synth::ping_pong(t, frames.len())].clone())
+                    .map(|t| frames[ping_pong(t, frames.len())].clone())
                     .collect();
                 *next += n;
                 out
@@ -370,4 +370,15 @@ pub fn stream<E: Send + From<RenderError>>(
         consume,
         progress,
     )
+}
+
+/// Index of frame `t` in a sequence of `n` played forwards, then backwards, and so on
+/// (`0, 1, …, n−1, n−2, …, 1, 0, 1, …`), so a loop of background frames never jumps.
+pub fn ping_pong(t: usize, n: usize) -> usize {
+    if n <= 1 {
+        return 0;
+    }
+    let period = 2 * n - 2;
+    let i = t % period;
+    if i < n { i } else { period - i }
 }

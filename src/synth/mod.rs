@@ -144,9 +144,7 @@ pub fn validate_target(target: &[Segment]) -> Result<(), SynthError> {
     Ok(())
 }
 
-/// Longest utterance synthesised (seconds): an hour; a damaged label file cannot ask for
-/// years of frames.
-pub const MAX_DURATION: f64 = 3600.0;
+pub use crate::facespace::MAX_DURATION;
 
 /// Checks the target and the frame rate together: the frame count they imply is bounded.
 pub fn validate_request(target: &[Segment], fps: f64) -> Result<(), SynthError> {
@@ -262,16 +260,7 @@ impl Pose {
     }
 }
 
-/// Index of frame `t` in a sequence of `n` played forwards, then backwards, and so on
-/// (`0, 1, …, n−1, n−2, …, 1, 0, 1, …`), so a loop never jumps.
-pub fn ping_pong(t: usize, n: usize) -> usize {
-    if n <= 1 {
-        return 0;
-    }
-    let period = 2 * n - 2;
-    let i = t % period;
-    if i < n { i } else { period - i }
-}
+pub use crate::render::ping_pong;
 
 /// What to synthesise: the phones with their timings, the frame rate, the smoothing and where
 /// the pose comes from.

@@ -221,7 +221,7 @@ pub(crate) fn audio_track(audio: &Path) -> Result<mp4::AudioTrack, VideoError> {
     if let Ok(Some(track)) = mp4::AudioTrack::read(audio) {
         return Ok(track);
     }
-    let sound = crate::audio::read_native(audio, crate::synth::MAX_DURATION).map_err(|e| {
+    let sound = crate::audio::read_native(audio, crate::facespace::MAX_DURATION).map_err(|e| {
         VideoError::Audio {
             path: audio.into(),
             reason: e.to_string(),
