@@ -122,6 +122,7 @@ pub mod render;
 pub mod rng;
 pub mod shape;
 pub mod study;
+pub mod suggest;
 pub mod synth;
 pub mod trajectory;
 pub mod tts;

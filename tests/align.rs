@@ -2,7 +2,7 @@
 //! own, three GRID clips (recorded speech) against their reference labels, the TextGrid, the
 //! resampler against an analytic sine, a transcript-only corpus, and every bad input.
 
-mod common;
+use crate::common;
 
 use std::path::PathBuf;
 use std::sync::OnceLock;

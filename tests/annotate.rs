@@ -1,6 +1,6 @@
 //! The landmark page (issue 15): the server's API and refusals, and the page itself driven by
 //! a headless Chromium (skipped, saying so, where none is installed; `.ci/run` installs it).
-mod common;
+use crate::common;
 
 use std::path::Path;
 use std::sync::Arc;
@@ -403,7 +403,7 @@ fn stalled_bodies_and_connection_floods_do_not_stall_anyone() {
     server.join().expect("the server did not panic");
 }
 
-/// The 10-minute soak of issue 27 (`cargo test --release --test annotate soak -- --ignored`;
+/// The 10-minute soak of issue 27 (`cargo test --release --test integration annotate::soak -- --ignored`;
 /// `FACESPACE_SOAK_SECONDS` shortens it): 3 000 idle connections, re-opened as the server
 /// drops them, and a stalled body, while a client asks every 100 ms; every answer under 1 s,
 /// the server's memory under 500 MB, no panic. Figures: RELIABILITY.md.

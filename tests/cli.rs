@@ -1,5 +1,5 @@
 //! End to end through the `facespace` binary.
-mod common;
+use crate::common;
 
 use common::{facespace, text};
 use std::path::Path;
@@ -684,4 +684,57 @@ fn every_subcommand_has_an_example() {
         missing.is_empty(),
         "flags without a description: {missing:#?}"
     );
+}
+
+/// Issue 37, item 4: a background video is tracked only as far as the utterance needs it —
+/// its first frames under `--pose replay`, its first frame under `--pose hold` — so a long
+/// video costs no more than its shown part, and one of someone else fails as soon as those
+/// frames are lost. Shown here with a frame folder whose later frames do not decode: reading
+/// the whole background would fail on them.
+#[test]
+fn a_background_is_tracked_only_as_far_as_it_is_shown() {
+    let tmp = tempfile::tempdir().unwrap();
+    let bg = tmp.path().join("bg");
+    std::fs::create_dir(&bg).unwrap();
+    let clip = common::root().join("tests/data/clip");
+    for i in 0..50 {
+        std::fs::copy(clip.join(format!("{:05}.jpg", 1000 + i)), bg.join(format!("{i:05}.jpg")))
+            .unwrap();
+    }
+    for i in 50..200 {
+        std::fs::write(bg.join(format!("{i:05}.jpg")), b"not a JPEG").unwrap();
+    }
+    let (_, _, cb) = common::demo_corpus_codebook();
+    let cb_dir = tmp.path().join("cb");
+    cb.save(&cb_dir).unwrap();
+    let model = common::root().join("models/demo/model");
+    for (pose, words) in [("replay", "hello world"), ("hold", "hello world, how are you today? it is a fine morning for a walk")] {
+        let out = tmp.path().join(pose);
+        let o = facespace(&[
+            "synth",
+            "--model",
+            model.to_str().unwrap(),
+            "--codebook",
+            cb_dir.to_str().unwrap(),
+            "--text",
+            words,
+            "--background",
+            bg.to_str().unwrap(),
+            "--pose",
+            pose,
+            "--renderer",
+            "cpu",
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        let t = text(&o);
+        assert!(o.status.success(), "--pose {pose}: {t}");
+        let frames = std::fs::read_dir(out.join("frames")).unwrap().count();
+        assert!(frames > 1, "{frames} frames");
+        if pose == "replay" {
+            assert!(frames <= 50, "{frames} frames: the sentence must fit the decodable part");
+        } else {
+            assert!(frames > 50, "{frames} frames: held past the decodable part");
+        }
+    }
 }

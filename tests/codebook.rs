@@ -1,5 +1,5 @@
 //! Codebook: S and M against hand computations, save/load, corpus loading errors.
-mod common;
+use crate::common;
 
 use std::path::Path;
 

@@ -1,6 +1,6 @@
 //! Video through face-space: encode → clip folder → decode, on synthetic frames with exact
 //! ground truth and on the real clip; the file format's checks; the CLI.
-mod common;
+use crate::common;
 
 use common::Params;
 use facespace::codec::{self, Clip, CodecError, EncodeOptions};

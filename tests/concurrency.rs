@@ -1,7 +1,7 @@
 //! Issue 27, F10: a reader loading a codebook while another process-like writer replaces it
 //! again and again always gets one whole version (it retries a folder swapped under it),
 //! never the consistency error of a torn read.
-mod common;
+use crate::common;
 
 use facespace::codebook::Codebook;
 

@@ -1,5 +1,5 @@
 //! The generated demo corpus: determinism, split, labels, and S on it.
-mod common;
+use crate::common;
 
 use facespace::corpus::demo::{
     self as corpus, CorpusOptions, HELD_OUT, SENTENCES, Split, VALIDATION,

@@ -1,7 +1,7 @@
 //! Issue 26, item 2: a phone whose whole viseme class is missing from the codebook is
 //! borrowed from the nearest class present (by mouth shape), with a warning naming both —
 //! by blend (the default) as by unit selection; `--strict` refuses instead.
-mod common;
+use crate::common;
 
 use facespace::corpus::demo::Split;
 use facespace::phonemes::Phone;

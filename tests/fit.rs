@@ -1,5 +1,5 @@
 //! AAM search on synthetic renders with exact ground truth and on real held-out frames.
-mod common;
+use crate::common;
 
 use common::{Params, Rng};
 use facespace::fit::{FitError, FitOptions, Fitter};

@@ -4,7 +4,7 @@
 //! llvmpipe needs no install; Vulkan needs a driver such as lavapipe). A backend without an
 //! adapter is skipped and says why.
 #![cfg(feature = "gpu")]
-mod common;
+use crate::common;
 
 use facespace::facespace::Frames;
 use facespace::model::{FaceModel, load_training_set};

@@ -3,7 +3,7 @@
 //! recording; synthesis from a per-sentence re-centred codebook is re-lit to the take it is
 //! drawn over.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

@@ -4,7 +4,7 @@
 //! (Reproducers tested elsewhere: user files kept — `cli.rs`; kills — `kill.rs`; MP4 box
 //! sizes — `video.rs`; codebook layout overflow and `/dev/zero` — `codebook.rs`; negative
 //! variances and placement — `model.rs`; every reader mutated — `fuzz.rs`.)
-mod common;
+use crate::common;
 
 use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};

@@ -1,7 +1,7 @@
 //! Issue 17: `kill -9` at random moments never leaves a destination missing, half-written or
 //! mixed, and the next run leaves no staging of ours behind. Two writing commands (a model
 //! build and an encode), 20 kills each at times spread over their run.
-mod common;
+use crate::common;
 
 use std::path::Path;
 use std::time::Instant;

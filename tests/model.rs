@@ -1,5 +1,5 @@
 //! FaceModel: build, save/load, project ∘ reconstruct, and every bad-input path.
-mod common;
+use crate::common;
 
 use std::path::Path;
 

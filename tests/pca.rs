@@ -1,5 +1,5 @@
 //! PCA against analytic references: data of known rank, snapshot vs covariance method.
-mod common;
+use crate::common;
 
 use common::Rng;
 use facespace::pca::{Components, PcaError, PcaModel};

@@ -1,7 +1,7 @@
 //! Synthesis on real footage (issue 12): the pose is the background's, never blended; a
 //! lower-face region model draws the mouth and leaves the rest of the frame as recorded; the
 //! seam is anchored to the background's face; no background is learned into the face.
-mod common;
+use crate::common;
 
 use facespace::codebook::{Codebook, SimilarityOptions};
 use facespace::codec::{self, EncodeOptions};

@@ -1,5 +1,5 @@
 //! Shape: `.pts` I/O, similarity transforms, generalised Procrustes, the shape model.
-mod common;
+use crate::common;
 
 use std::path::Path;
 

@@ -4,7 +4,7 @@
 //! Offset convention: frame k of the video shows time k / fps; audio sample n is time
 //! n / rate after the edit list has dropped the encoder's priming; both tracks start at 0.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

@@ -1,6 +1,6 @@
 //! The subjective-study kit (issue 16): its statistics against scipy, the answer log's
 //! refusals and crash safety, and the whole study in a headless browser.
-mod common;
+use crate::common;
 
 use facespace::study::stats;
 use serde_json::Value;

@@ -1,6 +1,6 @@
 //! Blend synthesis on the demo corpus, evaluated honestly: λ chosen on the validation split,
 //! every system scored on the test split with the same smoothing (DESIGN §9).
-mod common;
+use crate::common;
 
 use facespace::corpus::demo::Split;
 use facespace::eval::systems::{LAMBDA_GRID, choose_smoothing};

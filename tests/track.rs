@@ -1,5 +1,5 @@
 //! Tracking a real clip end to end, against dlib's landmarks of the same frames.
-mod common;
+use crate::common;
 
 use common::{facespace, text};
 
@@ -142,7 +142,7 @@ fn grid_search_finds_unseen_faces() {
     assert!(errors.iter().all(|&e| e < 0.12), "{errors:.3?}");
 }
 
-/// Issue 15's bootstrap loop: `model::suggest` exports the worst-explained frames, best first
+/// Issue 15's bootstrap loop: `suggest::suggest` exports the worst-explained frames, best first
 /// (the first is the clip's highest score), spread apart, each with its fitted landmarks.
 #[test]
 fn suggest_exports_the_worst_explained_frames_spread_out() {
@@ -156,7 +156,7 @@ fn suggest_exports_the_worst_explained_frames_spread_out() {
         ..Default::default()
     };
     let chosen =
-        facespace::model::suggest(&model, &clip, 3, &out, &options, facespace::no_progress)
+        facespace::suggest::suggest(&model, &clip, 3, &out, &options, facespace::no_progress)
             .unwrap();
     assert_eq!(chosen.len(), 3);
     assert!(chosen.windows(2).all(|w| w[0].score >= w[1].score));

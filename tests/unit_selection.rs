@@ -1,6 +1,6 @@
 //! Unit selection and the dynamic-phoneme graph (issue 13): a sentence of the codebook comes
 //! back as itself; bad input is a clear error.
-mod common;
+use crate::common;
 
 use facespace::codebook::{Codebook, SimilarityOptions};
 use facespace::corpus::demo::{self as generator, CorpusOptions, Split};

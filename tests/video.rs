@@ -1,6 +1,6 @@
 //! Frame sources and sinks: MP4 (H.264) read and written without a system ffmpeg, Y4M, frame
 //! folders; audio carried through; bad input.
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

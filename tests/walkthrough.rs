@@ -3,7 +3,7 @@
 //! committed clips. Each `cargo run --release --` runs this build's binary; the other lines
 //! (`cp`, `mkdir`) run in `sh`, in a folder holding links to the repository's `tests/` and
 //! `models/`, so `out/` is the test's own.
-mod common;
+use crate::common;
 
 use std::path::Path;
 use std::process::{Command, Stdio};

@@ -1,5 +1,5 @@
 //! Warps: identity, agreement with scikit-image on a real face, Delaunay against scipy.
-mod common;
+use crate::common;
 
 use std::collections::BTreeSet;
 

@@ -126,7 +126,7 @@ fn suggest(a: SuggestArgs) -> Result<()> {
     let options = a.tracking.options(None)?;
     let (bar, progress) = progress_bar();
     let chosen =
-        facespace::model::suggest(&model, &a.input, a.count, &a.output, &options, progress)
+        facespace::suggest::suggest(&model, &a.input, a.count, &a.output, &options, progress)
             .map_err(|e| {
                 super::tracking_context("suggesting frames of", &a.input, super::TRACKING_REMEDY)(
                     e.into(),

@@ -4,7 +4,6 @@
 //! shape-normalised texture. Persistence (`io`) and training sets (`training`) are submodules.
 
 mod io;
-mod suggest;
 mod training;
 
 use std::path::PathBuf;
@@ -13,7 +12,6 @@ use image::RgbImage;
 use thiserror::Error;
 
 pub use io::MODEL_VERSION;
-pub use suggest::{Suggestion, suggest};
 pub use training::{TrainingExample, load_marked, load_training_set};
 
 use crate::Progress;

@@ -212,7 +212,9 @@ impl Backdrop {
 
     /// A video, tracked with `tracker`: replayed frame by frame (looping forwards and
     /// backwards past its end) or held at its first frame. `frames` is the number of output
-    /// frames to cover.
+    /// frames to cover. Only the frames shown are tracked — the first `frames`, or the first
+    /// one when held — so a long video costs no more than its part under the utterance, and
+    /// a background of someone else fails as soon as those frames are lost.
     pub fn video(
         tracker: &FaceModel,
         path: &Path,
@@ -221,7 +223,11 @@ impl Backdrop {
         options: &EncodeOptions,
         progress: impl FnMut(Progress),
     ) -> Result<Backdrop, BackdropError> {
-        let source = Source::open(path)?;
+        let needed = match mode {
+            PoseMode::Hold => 1,
+            PoseMode::Replay => frames.max(1),
+        };
+        let source = Source::open(path)?.limit(needed);
         let fps = source.info().fps;
         let dims = tracker.layout().dims();
         let (mut landmarks, mut values) = (Vec::new(), Vec::<f32>::new());

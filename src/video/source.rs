@@ -29,6 +29,8 @@ pub struct Source {
     kind: SourceKind,
     /// Frames handed out so far.
     read: usize,
+    /// Frames handed out at most ([`Source::limit`]).
+    limit: Option<usize>,
 }
 
 enum SourceKind {
@@ -93,6 +95,7 @@ impl Source {
             info,
             kind,
             read: 0,
+            limit: None,
         })
     }
 
@@ -143,6 +146,14 @@ impl Source {
         }
     }
 
+    /// The same source ending after its first `n` frames: a caller that needs a few frames of
+    /// a long video (a background under a 3 s sentence) never decodes the rest.
+    pub fn limit(mut self, n: usize) -> Self {
+        self.limit = Some(n);
+        self.info.frames = Some(self.info.frames.map_or(n, |f| f.min(n)));
+        self
+    }
+
     /// Frames handed out so far.
     pub fn frames_read(&self) -> usize {
         self.read
@@ -168,6 +179,9 @@ impl Source {
             let path = path.to_path_buf();
             move |source| VideoError::Y4m { path, source }
         };
+        if self.limit.is_some_and(|n| self.read >= n) {
+            return Ok(None);
+        }
         let frame = match &mut self.kind {
             SourceKind::Frames(files, first) => match first.take() {
                 Some(f) => Some(f),

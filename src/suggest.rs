@@ -1,4 +1,5 @@
-//! The bootstrap loop (issue 15): after a first model from a few hand-marked frames, the
+//! The bootstrap loop (issue 15; its own module, not `model`'s, since it tracks a video
+//! through `codec` and a model must not depend on the tracker built on it): after a first model from a few hand-marked frames, the
 //! frames of the talker's video it explains worst — the highest fit residual, or appearance
 //! outside the span of its training frames — spread over time, exported with the fitted
 //! landmarks as a starting point to correct and add to the training set.
