@@ -1,10 +1,11 @@
 //! Issue 17: `kill -9` at random moments never leaves a destination missing, half-written or
-//! mixed, and the next run leaves no staging of ours behind. Two writing commands (a model
-//! build and an encode), 20 kills each at times spread over their run.
+//! mixed, and the next run leaves no staging of ours behind. Every writing command, 10 kills
+//! each: 3 over its work and 7 over its write, which a watched first run locates (issue 37:
+//! 20 blind kills each took three minutes).
 use crate::common;
 
 use std::path::Path;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 /// Entries in `dir` that are our staging.
 fn staging(dir: &Path) -> Vec<String> {
@@ -34,25 +35,61 @@ fn killed_after(args: &[&str], tmpdir: Option<&Path>, at: std::time::Duration) {
     let _ = child.wait();
 }
 
-/// Runs `args` to completion once (timing it), then 20 times killed at spread-out moments;
-/// after each kill, `check` must accept the destination (the complete previous version).
-fn killed_runs(args: &[&str], out: &Path, check: impl Fn(&Path)) {
-    let bin = env!("CARGO_BIN_EXE_facespace");
+/// Runs `args` to completion, watching the folder `out` is written in: how long the run took
+/// and when its staging (the write) first appeared there, if it was seen.
+fn watched_run(args: &[&str], out: &Path) -> (Duration, Option<Duration>) {
+    let parent = out.parent().unwrap();
     let start = Instant::now();
-    let o = std::process::Command::new(bin).args(args).output().unwrap();
-    assert!(o.status.success(), "{}", common::text(&o));
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_facespace"))
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut staged = None;
+    while child.try_wait().unwrap().is_none() {
+        if staged.is_none() && !staging(parent).is_empty() {
+            staged = Some(start.elapsed());
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
     let full = start.elapsed();
+    let o = child.wait_with_output().unwrap();
+    assert!(o.status.success(), "{}", common::text(&o));
+    (full, staged)
+}
+
+/// Kill moments for a run of `full` whose write starts at `staged`: 3 spread over the work
+/// before the write, 7 over the write itself and just past the end (where a kill can leave
+/// a half-written file), each at a seeded random point of its own stretch, so every part of
+/// the run is hit without 20 blind tries.
+fn kill_moments(full: Duration, staged: Option<Duration>, rng: &mut common::Rng) -> Vec<Duration> {
+    let (lo, end) = (full.mul_f64(0.05), full.mul_f64(1.05));
+    let write = staged.unwrap_or(lo).clamp(lo, end);
+    let spread = |from: Duration, to: Duration, n: usize, rng: &mut common::Rng| {
+        (0..n)
+            .map(|k| from + (to.saturating_sub(from)).mul_f64((k as f64 + rng.range(0.0, 1.0)) / n as f64))
+            .collect::<Vec<_>>()
+    };
+    let mut moments = spread(lo, write, 3, rng);
+    moments.extend(spread(write, end, 7, rng));
+    moments
+}
+
+/// Runs `args` to completion once (timing it and seeing when it writes), then 10 times
+/// killed at the moments [`kill_moments`] places; after each kill, `check` must accept the
+/// destination (the complete previous version).
+fn killed_runs(args: &[&str], out: &Path, check: impl Fn(&Path)) {
+    let (full, staged) = watched_run(args, out);
     check(out);
     let mut rng = common::Rng::new(17);
-    for k in 0..20 {
-        let at = full.mul_f64(rng.range(0.05, 1.1));
+    for (k, at) in kill_moments(full, staged, &mut rng).into_iter().enumerate() {
         killed_after(args, None, at);
         assert!(out.exists(), "kill {k} at {at:?}: the destination is gone");
         check(out);
     }
     // The next complete run cleans what the killed ones left.
-    let o = std::process::Command::new(bin).args(args).output().unwrap();
-    assert!(o.status.success(), "{}", common::text(&o));
+    watched_run(args, out);
     check(out);
     let left = staging(out.parent().unwrap());
     assert!(left.is_empty(), "staging left behind: {left:?}");
@@ -396,8 +433,10 @@ fn killed_exports_reports_and_the_demo_leave_whole_outputs() {
             &p("cb"),
             "--validation",
             &p("corpus/validation"),
+            "--population",
+            "8",
             "--generations",
-            "6",
+            "2",
             "-o",
             &p("w.json"),
         ],
