@@ -738,3 +738,58 @@ fn a_background_is_tracked_only_as_far_as_it_is_shown() {
         }
     }
 }
+
+/// Issue 37, item 4: a background whose first frames the model does not explain (someone
+/// else's face) fails on them — after 10 frames, naming the remedy — not after tracking every
+/// frame the utterance needs. Here the first frame is the talker, the next 20 a stranger
+/// (sized like the talker's frames) and the rest the talker again: judged on the whole 8 s
+/// the stranger would pass as 20 lost frames of 200.
+#[test]
+fn a_background_lost_on_its_first_frames_fails_at_once() {
+    let tmp = tempfile::tempdir().unwrap();
+    let bg = tmp.path().join("bg");
+    std::fs::create_dir(&bg).unwrap();
+    let clip = common::root().join("tests/data/clip");
+    let first = image::open(clip.join("01000.jpg")).unwrap().to_rgb8();
+    let stranger = image::imageops::resize(
+        &image::open(common::faces_dir().join("lenna.png")).unwrap().to_rgb8(),
+        first.width(),
+        first.height(),
+        image::imageops::FilterType::Triangle,
+    );
+    for i in 0..240 {
+        let path = bg.join(format!("{i:05}.png"));
+        if (1..=20).contains(&i) {
+            stranger.save(&path).unwrap();
+        } else {
+            std::fs::copy(clip.join(format!("{:05}.jpg", 1000 + i % 50)), path.with_extension("jpg"))
+                .unwrap();
+        }
+    }
+    let (_, _, cb) = common::demo_corpus_codebook();
+    let cb_dir = tmp.path().join("cb");
+    cb.save(&cb_dir).unwrap();
+    let model = common::root().join("models/demo/model");
+    let out = tmp.path().join("out");
+    let words = "hello world, how are you today? it is a fine morning for a long walk by the river and the sea with my old friends";
+    let o = facespace(&[
+        "synth",
+        "--model",
+        model.to_str().unwrap(),
+        "--codebook",
+        cb_dir.to_str().unwrap(),
+        "--text",
+        words,
+        "--background",
+        bg.to_str().unwrap(),
+        "--renderer",
+        "cpu",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let t = text(&o);
+    assert_eq!(o.status.code(), Some(1), "{t}");
+    assert!(t.contains("lost on") && t.contains("of 10 frames"), "{t}");
+    assert!(t.contains("--track-model"), "{t}");
+    assert!(!out.exists());
+}

@@ -262,6 +262,7 @@ impl TrackingArgs {
             },
             bits,
             allow_lost: self.allow_lost,
+            early_verdict: None,
         })
     }
 }

@@ -171,6 +171,10 @@ pub struct EncodeOptions {
     /// Keep going when the first frame has no face the model explains or most frames are
     /// lost (otherwise [`CodecError::NoFace`] / [`CodecError::FaceLost`]).
     pub allow_lost: bool,
+    /// Judge the face lost already when most of the first this-many frames are (a background
+    /// of someone else fails in a second, not after every frame's re-initialising search);
+    /// `None` judges the whole video only.
+    pub early_verdict: Option<usize>,
 }
 
 impl Default for EncodeOptions {
@@ -182,6 +186,7 @@ impl Default for EncodeOptions {
             fit: FitOptions::default(),
             bits: None,
             allow_lost: false,
+            early_verdict: None,
         }
     }
 }
@@ -256,6 +261,7 @@ pub fn track(
         };
         let mut tracker = Tracker::new(fitter, start, options.reinit_error)?;
         let mut tracking = Vec::with_capacity(total);
+        let mut lost_so_far = 0;
         for frame in std::iter::once(Ok(first)).chain(frames) {
             let frame = frame?;
             let t = tracker.track(&frame)?;
@@ -276,6 +282,25 @@ pub fn track(
                 reinitialised: t.reinitialised,
                 lost,
             });
+            // Once most of the known frame count is lost the verdict below is certain: say it
+            // now rather than after the rest (a background of someone else fails fast).
+            lost_so_far += usize::from(lost);
+            let judged = match options.early_verdict {
+                Some(n) if tracking.len() == n => Some(n),
+                _ if total > 0 => Some(total),
+                _ => None,
+            };
+            if let Some(frames) = judged
+                && 2 * lost_so_far > frames
+                && !options.allow_lost
+            {
+                return Err(CodecError::FaceLost {
+                    path: path.clone(),
+                    lost: lost_so_far,
+                    frames: tracking.len(),
+                    threshold: options.reinit_error,
+                });
+            }
             on_frame(frame, &t)?;
             progress(Progress {
                 stage: "tracking",

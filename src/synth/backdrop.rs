@@ -17,6 +17,11 @@ use crate::render::Background;
 use crate::shape::Landmarks;
 use crate::video::{Source, VideoError};
 
+/// A background video is judged lost when most of its first this-many frames are (0.4 s at
+/// 25 fps): each lost frame costs a re-initialising search, so a model of someone else over a
+/// long background would otherwise search for seconds before the verdict.
+pub const EARLY_VERDICT_FRAMES: usize = 10;
+
 /// What can go wrong preparing a backdrop.
 #[derive(Debug, Error)]
 #[non_exhaustive]
@@ -230,6 +235,11 @@ impl Backdrop {
         let source = Source::open(path)?.limit(needed);
         let fps = source.info().fps;
         let dims = tracker.layout().dims();
+        // A background of someone else is judged on its first frames, not after them all.
+        let options = &EncodeOptions {
+            early_verdict: Some(EARLY_VERDICT_FRAMES),
+            ..options.clone()
+        };
         let (mut landmarks, mut values) = (Vec::new(), Vec::<f32>::new());
         let tracking = codec::track(tracker, source, options, progress, |image, t| {
             let start = values.len();
