@@ -42,7 +42,9 @@ struct Owned {
 pub enum DestinationError {
     /// A device, FIFO or socket: renaming a file over it would replace it (as root,
     /// `/dev/null` itself).
-    #[error("refusing to write over {path}: it exists and is not a regular file or folder (a device or FIFO)")]
+    #[error(
+        "refusing to write over {path}: it exists and is not a regular file or folder (a device or FIFO)"
+    )]
     NotRegular {
         /// The destination.
         path: PathBuf,
@@ -56,7 +58,9 @@ pub enum DestinationError {
         input: PathBuf,
     },
     /// An input lies inside the destination folder, which the result replaces whole.
-    #[error("refusing to replace {path}: the input {input} lies inside that folder; give another output")]
+    #[error(
+        "refusing to replace {path}: the input {input} lies inside that folder; give another output"
+    )]
     HoldsInput {
         /// The destination folder.
         path: PathBuf,

@@ -213,7 +213,10 @@ fn check_wav(file: &mut std::fs::File) -> Result<(), String> {
             let mut fmt = [0u8; 16];
             read_up_to(file, &mut fmt).map_err(|e| e.to_string())?;
             let u16_at = |i: usize| u16::from_le_bytes([fmt[i], fmt[i + 1]]);
-            let (channels, rate) = (u16_at(2), u32::from_le_bytes(fmt[4..8].try_into().expect("4")));
+            let (channels, rate) = (
+                u16_at(2),
+                u32::from_le_bytes(fmt[4..8].try_into().expect("4")),
+            );
             let (block, bits) = (u16_at(12), u16_at(14));
             if !(1..=64).contains(&channels) {
                 return Err(format!("{channels} channels (1 to 64 are read)"));

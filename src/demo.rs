@@ -234,7 +234,8 @@ fn grid_into(
         Some(t) => t.clone(),
         None => {
             let path = clip.with_extension("txt");
-            crate::manifest::read_regular_string(&path).map_err(|source| DemoError::Words { path, source })?
+            crate::manifest::read_regular_string(&path)
+                .map_err(|source| DemoError::Words { path, source })?
         }
     };
     // Speech in: the recording's own sound, aligned with its words, times the face.

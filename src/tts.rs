@@ -45,7 +45,9 @@ pub enum TtsError {
     #[error("no words to say")]
     NoWords,
     /// More words than one utterance takes.
-    #[error("{words} words: at most {MAX_WORDS} (about 13 minutes of speech) are spoken at once; split the text")]
+    #[error(
+        "{words} words: at most {MAX_WORDS} (about 13 minutes of speech) are spoken at once; split the text"
+    )]
     TooLong {
         /// How many were given.
         words: usize,

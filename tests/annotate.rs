@@ -830,7 +830,14 @@ fn a_body_without_points_never_unmarks() {
     let pts = dir.path().join("01000.pts");
     let before = std::fs::read(&pts).unwrap();
     let (url, stop) = start(dir.path());
-    for body in ["{}", "[]", "{\"x\":1}", "\"points\"", "null", "{\"Points\": null}"] {
+    for body in [
+        "{}",
+        "[]",
+        "{\"x\":1}",
+        "\"points\"",
+        "null",
+        "{\"Points\": null}",
+    ] {
         let (code, reply) = common::http(&url, "POST", "/api/points/01000.jpg", body);
         assert_eq!(code, 400, "{body}: {reply}");
         assert!(reply.contains("points"), "{body}: {reply}");
@@ -872,6 +879,9 @@ fn a_refit_flood_does_not_stall_the_page() {
     eprintln!("slowest of 20 answers during 40 refits: {worst:?}; refit answers {codes:?}");
     assert!(worst < std::time::Duration::from_secs(1), "{worst:?}");
     assert!(codes.iter().all(|c| *c == 200 || *c == 503), "{codes:?}");
-    assert!(codes.iter().filter(|c| **c == 200).count() >= 2, "{codes:?}");
+    assert!(
+        codes.iter().filter(|c| **c == 200).count() >= 2,
+        "{codes:?}"
+    );
     stop.store(true, Ordering::Relaxed);
 }

@@ -686,6 +686,39 @@ fn every_subcommand_has_an_example() {
     );
 }
 
+/// `synth` with the demo model and a demo-corpus codebook (saved in `dir` once) over the
+/// background `bg`, `--pose pose`, to `out`.
+fn synth_over_background(
+    dir: &Path,
+    bg: &Path,
+    words: &str,
+    pose: &str,
+    out: &Path,
+) -> std::process::Output {
+    let cb_dir = dir.join("cb");
+    if !cb_dir.exists() {
+        common::demo_corpus_codebook().2.save(&cb_dir).unwrap();
+    }
+    let model = common::root().join("models/demo/model");
+    facespace(&[
+        "synth",
+        "--model",
+        model.to_str().unwrap(),
+        "--codebook",
+        cb_dir.to_str().unwrap(),
+        "--text",
+        words,
+        "--background",
+        bg.to_str().unwrap(),
+        "--pose",
+        pose,
+        "--renderer",
+        "cpu",
+        "-o",
+        out.to_str().unwrap(),
+    ])
+}
+
 /// Issue 37, item 4: a background video is tracked only as far as the utterance needs it —
 /// its first frames under `--pose replay`, its first frame under `--pose hold` — so a long
 /// video costs no more than its shown part, and one of someone else fails as soon as those
@@ -698,41 +731,28 @@ fn a_background_is_tracked_only_as_far_as_it_is_shown() {
     std::fs::create_dir(&bg).unwrap();
     let clip = common::root().join("tests/data/clip");
     for i in 0..50 {
-        std::fs::copy(clip.join(format!("{:05}.jpg", 1000 + i)), bg.join(format!("{i:05}.jpg")))
-            .unwrap();
+        std::fs::copy(
+            clip.join(format!("{:05}.jpg", 1000 + i)),
+            bg.join(format!("{i:05}.jpg")),
+        )
+        .unwrap();
     }
     for i in 50..200 {
         std::fs::write(bg.join(format!("{i:05}.jpg")), b"not a JPEG").unwrap();
     }
-    let (_, _, cb) = common::demo_corpus_codebook();
-    let cb_dir = tmp.path().join("cb");
-    cb.save(&cb_dir).unwrap();
-    let model = common::root().join("models/demo/model");
-    for (pose, words) in [("replay", "hello world"), ("hold", "hello world, how are you today? it is a fine morning for a walk")] {
+    let hold_words = "hello world, how are you today? it is a fine morning for a walk";
+    for (pose, words) in [("replay", "hello world"), ("hold", hold_words)] {
         let out = tmp.path().join(pose);
-        let o = facespace(&[
-            "synth",
-            "--model",
-            model.to_str().unwrap(),
-            "--codebook",
-            cb_dir.to_str().unwrap(),
-            "--text",
-            words,
-            "--background",
-            bg.to_str().unwrap(),
-            "--pose",
-            pose,
-            "--renderer",
-            "cpu",
-            "-o",
-            out.to_str().unwrap(),
-        ]);
+        let o = synth_over_background(tmp.path(), &bg, words, pose, &out);
         let t = text(&o);
         assert!(o.status.success(), "--pose {pose}: {t}");
         let frames = std::fs::read_dir(out.join("frames")).unwrap().count();
         assert!(frames > 1, "{frames} frames");
         if pose == "replay" {
-            assert!(frames <= 50, "{frames} frames: the sentence must fit the decodable part");
+            assert!(
+                frames <= 50,
+                "{frames} frames: the sentence must fit the decodable part"
+            );
         } else {
             assert!(frames > 50, "{frames} frames: held past the decodable part");
         }
@@ -752,7 +772,9 @@ fn a_background_lost_on_its_first_frames_fails_at_once() {
     let clip = common::root().join("tests/data/clip");
     let first = image::open(clip.join("01000.jpg")).unwrap().to_rgb8();
     let stranger = image::imageops::resize(
-        &image::open(common::faces_dir().join("lenna.png")).unwrap().to_rgb8(),
+        &image::open(common::faces_dir().join("lenna.png"))
+            .unwrap()
+            .to_rgb8(),
         first.width(),
         first.height(),
         image::imageops::FilterType::Triangle,
@@ -762,31 +784,16 @@ fn a_background_lost_on_its_first_frames_fails_at_once() {
         if (1..=20).contains(&i) {
             stranger.save(&path).unwrap();
         } else {
-            std::fs::copy(clip.join(format!("{:05}.jpg", 1000 + i % 50)), path.with_extension("jpg"))
-                .unwrap();
+            std::fs::copy(
+                clip.join(format!("{:05}.jpg", 1000 + i % 50)),
+                path.with_extension("jpg"),
+            )
+            .unwrap();
         }
     }
-    let (_, _, cb) = common::demo_corpus_codebook();
-    let cb_dir = tmp.path().join("cb");
-    cb.save(&cb_dir).unwrap();
-    let model = common::root().join("models/demo/model");
     let out = tmp.path().join("out");
     let words = "hello world, how are you today? it is a fine morning for a long walk by the river and the sea with my old friends";
-    let o = facespace(&[
-        "synth",
-        "--model",
-        model.to_str().unwrap(),
-        "--codebook",
-        cb_dir.to_str().unwrap(),
-        "--text",
-        words,
-        "--background",
-        bg.to_str().unwrap(),
-        "--renderer",
-        "cpu",
-        "-o",
-        out.to_str().unwrap(),
-    ]);
+    let o = synth_over_background(tmp.path(), &bg, words, "replay", &out);
     let t = text(&o);
     assert_eq!(o.status.code(), Some(1), "{t}");
     assert!(t.contains("lost on") && t.contains("of 10 frames"), "{t}");

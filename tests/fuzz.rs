@@ -599,9 +599,21 @@ fn found_cases_are_errors() {
             let _ = tx.send(if audio {
                 // Each reader alone must refuse it.
                 let readers: [&dyn Fn(&Path) -> Result<(), String>; 3] = [
-                    &|p| facespace::audio::read(p, 16_000, 600.0).map(|_| ()).map_err(err),
-                    &|p| facespace::audio::read_native(p, 600.0).map(|_| ()).map_err(err),
-                    &|p| facespace::audio::duration(p, 600.0).map(|_| ()).map_err(err),
+                    &|p| {
+                        facespace::audio::read(p, 16_000, 600.0)
+                            .map(|_| ())
+                            .map_err(err)
+                    },
+                    &|p| {
+                        facespace::audio::read_native(p, 600.0)
+                            .map(|_| ())
+                            .map_err(err)
+                    },
+                    &|p| {
+                        facespace::audio::duration(p, 600.0)
+                            .map(|_| ())
+                            .map_err(err)
+                    },
                 ];
                 match readers.iter().map(|r| r(&p)).find(|r| r.is_ok()) {
                     Some(ok) => ok,

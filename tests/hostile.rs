@@ -560,19 +560,36 @@ fn outputs_never_replace_their_inputs_or_devices() {
     let bg = d.join("bg.mp4");
     std::fs::copy(common::root().join("models/demo/background.mp4"), &bg).unwrap();
     let kept = |p: &Path, from: &Path| {
-        assert_eq!(std::fs::read(p).unwrap(), std::fs::read(from).unwrap(), "{p:?} changed");
+        assert_eq!(
+            std::fs::read(p).unwrap(),
+            std::fs::read(from).unwrap(),
+            "{p:?} changed"
+        );
     };
-    refused(&["align", s(&wav), "--text", GRID_WORDS, "-o", s(&wav)], &["also an input"]);
+    refused(
+        &["align", s(&wav), "--text", GRID_WORDS, "-o", s(&wav)],
+        &["also an input"],
+    );
     kept(&wav, &grid("bbbf9a.wav"));
     refused(
-        &["align", s(&wav), "--transcript", s(&transcript), "-o", s(&transcript)],
+        &[
+            "align",
+            s(&wav),
+            "--transcript",
+            s(&transcript),
+            "-o",
+            s(&transcript),
+        ],
         &["also an input"],
     );
     assert_eq!(std::fs::read_to_string(&transcript).unwrap(), GRID_WORDS);
     // The same file through a link is the same input.
     let link = d.join("link.wav");
     std::os::unix::fs::symlink(&wav, &link).unwrap();
-    refused(&["align", s(&wav), "--text", GRID_WORDS, "-o", s(&link)], &["also an input"]);
+    refused(
+        &["align", s(&wav), "--text", GRID_WORDS, "-o", s(&link)],
+        &["also an input"],
+    );
     kept(&wav, &grid("bbbf9a.wav"));
     refused(
         &["decode", s(&f.clip), "--background", s(&bg), "-o", s(&bg)],
@@ -593,11 +610,24 @@ fn outputs_never_replace_their_inputs_or_devices() {
     );
     assert!(std::fs::symlink_metadata(&dev_null).unwrap().is_symlink());
     let cases: Vec<(&str, Vec<String>)> = vec![
-        ("a.lab", vec!["align".into(), s(&wav).into(), "--text".into(), GRID_WORDS.into()]),
+        (
+            "a.lab",
+            vec![
+                "align".into(),
+                s(&wav).into(),
+                "--text".into(),
+                GRID_WORDS.into(),
+            ],
+        ),
         ("b.mp4", vec!["decode".into(), s(&f.clip).into()]),
         (
             "c.npy",
-            vec!["track".into(), s(&frames).into(), "--init".into(), s(&init).into()],
+            vec![
+                "track".into(),
+                s(&frames).into(),
+                "--init".into(),
+                s(&init).into(),
+            ],
         ),
         (
             "d.json",
@@ -623,7 +653,10 @@ fn outputs_never_replace_their_inputs_or_devices() {
                 "1".into(),
             ],
         ),
-        ("f.png", vec!["codebook".into(), "similarity".into(), s(&f.cb).into()]),
+        (
+            "f.png",
+            vec!["codebook".into(), "similarity".into(), s(&f.cb).into()],
+        ),
         (
             "g.png",
             vec![
@@ -634,7 +667,10 @@ fn outputs_never_replace_their_inputs_or_devices() {
                 s(&image).into(),
             ],
         ),
-        ("h.json", vec!["codec-report".into(), s(&frames).into(), s(&f.clip).into()]),
+        (
+            "h.json",
+            vec!["codec-report".into(), s(&frames).into(), s(&f.clip).into()],
+        ),
     ];
     for (name, mut args) in cases {
         let fifo = d.join(name);
@@ -675,11 +711,32 @@ fn audio_headers_that_crashed_the_decoder_are_refused() {
     let grid_cb = common::root().join("models/grid/codebook");
     for bad in broken_audio(d) {
         let out = d.join("out");
-        refused(&["align", s(&bad), "--text", GRID_WORDS, "-o", s(&d.join("a.lab"))], &[s(&bad)]);
         refused(
             &[
-                "synth", "--model", s(&grid_model), "--codebook", s(&grid_cb), "--audio", s(&bad),
-                "--text", GRID_WORDS, "--renderer", "cpu", "-o", s(&out),
+                "align",
+                s(&bad),
+                "--text",
+                GRID_WORDS,
+                "-o",
+                s(&d.join("a.lab")),
+            ],
+            &[s(&bad)],
+        );
+        refused(
+            &[
+                "synth",
+                "--model",
+                s(&grid_model),
+                "--codebook",
+                s(&grid_cb),
+                "--audio",
+                s(&bad),
+                "--text",
+                GRID_WORDS,
+                "--renderer",
+                "cpu",
+                "-o",
+                s(&out),
             ],
             &[s(&bad)],
         );
@@ -693,8 +750,11 @@ fn audio_headers_that_crashed_the_decoder_are_refused() {
         let _ = std::fs::remove_dir_all(&rec);
         std::fs::create_dir_all(rec.join("x")).unwrap();
         for f in ["01000.jpg", "01001.jpg", "01002.jpg"] {
-            std::fs::copy(common::root().join("tests/data/clip").join(f), rec.join("x").join(f))
-                .unwrap();
+            std::fs::copy(
+                common::root().join("tests/data/clip").join(f),
+                rec.join("x").join(f),
+            )
+            .unwrap();
         }
         std::fs::write(rec.join("x.txt"), GRID_WORDS).unwrap();
         let ext = bad.extension().unwrap().to_str().unwrap();
@@ -718,19 +778,40 @@ fn fifos_and_devices_as_inputs_are_refused() {
     let training = common::root().join("models/demo/training");
     for input in [fifo.as_path(), zero] {
         refused(
-            &["align", s(&wav), "--transcript", s(input), "-o", s(&d.join("a.lab"))],
+            &[
+                "align",
+                s(&wav),
+                "--transcript",
+                s(input),
+                "-o",
+                s(&d.join("a.lab")),
+            ],
             &["transcript", "not a regular file"],
         );
         for flag in ["--region", "--triangles"] {
             refused(
-                &["model", "build", "--images", s(&training), flag, s(input), "-o", s(&d.join("m"))],
+                &[
+                    "model",
+                    "build",
+                    "--images",
+                    s(&training),
+                    flag,
+                    s(input),
+                    "-o",
+                    s(&d.join("m")),
+                ],
                 &["not a regular file"],
             );
         }
         refused(
             &[
-                "model", "reconstruct", s(&common::root().join("models/demo/model")), "--image",
-                s(input), "-o", s(&d.join("r.png")),
+                "model",
+                "reconstruct",
+                s(&common::root().join("models/demo/model")),
+                "--image",
+                s(input),
+                "-o",
+                s(&d.join("r.png")),
             ],
             &["not a regular file"],
         );
@@ -739,7 +820,10 @@ fn fifos_and_devices_as_inputs_are_refused() {
     let clip = d.join("x.mp4");
     std::fs::copy(grid("bbbf9a.mp4"), &clip).unwrap();
     mkfifo(&d.join("x.txt"));
-    refused(&["demo", "--clip", s(&clip), "-o", s(&d.join("demo"))], &["x.txt"]);
+    refused(
+        &["demo", "--clip", s(&clip), "-o", s(&d.join("demo"))],
+        &["x.txt"],
+    );
     // codebook build: corpus.json as a link to /dev/zero, and as a FIFO.
     for planted in [None, Some(())] {
         let corpus = d.join(format!("corpus-{}", planted.is_some()));
@@ -751,8 +835,14 @@ fn fifos_and_devices_as_inputs_are_refused() {
         }
         refused(
             &[
-                "codebook", "build", "--model", s(&common::root().join("models/demo/model")),
-                "--corpus", s(&corpus), "-o", s(&d.join("cb2")),
+                "codebook",
+                "build",
+                "--model",
+                s(&common::root().join("models/demo/model")),
+                "--corpus",
+                s(&corpus),
+                "-o",
+                s(&d.join("cb2")),
             ],
             &["corpus.json", "not a regular file"],
         );
@@ -782,10 +872,28 @@ fn corpus_json_lies_are_errors() {
         copy_files(&d.join("corpus/train"), &corpus);
         std::fs::write(corpus.join("corpus.json"), lie).unwrap();
         refused(
-            &["codebook", "build", "--model", s(&model), "--corpus", s(&corpus), "-o", s(&d.join("cb2"))],
+            &[
+                "codebook",
+                "build",
+                "--model",
+                s(&model),
+                "--corpus",
+                s(&corpus),
+                "-o",
+                s(&d.join("cb2")),
+            ],
             &["corpus.json"],
         );
-        let (_, text) = run(&["codebook", "build", "--model", s(&model), "--corpus", s(&corpus), "-o", s(&d.join("cb2"))]);
+        let (_, text) = run(&[
+            "codebook",
+            "build",
+            "--model",
+            s(&model),
+            "--corpus",
+            s(&corpus),
+            "-o",
+            s(&d.join("cb2")),
+        ]);
         assert!(text.contains("fps") || lie == &"not JSON", "{lie}: {text}");
     }
     // A folder under that name.
@@ -794,7 +902,16 @@ fn corpus_json_lies_are_errors() {
     let _ = std::fs::remove_file(corpus.join("corpus.json"));
     std::fs::create_dir(corpus.join("corpus.json")).unwrap();
     refused(
-        &["codebook", "build", "--model", s(&model), "--corpus", s(&corpus), "-o", s(&d.join("cb2"))],
+        &[
+            "codebook",
+            "build",
+            "--model",
+            s(&model),
+            "--corpus",
+            s(&corpus),
+            "-o",
+            s(&d.join("cb2")),
+        ],
         &["corpus.json"],
     );
 }
@@ -808,7 +925,15 @@ fn absurd_inputs_are_refused_quickly() {
     let d = f.dir.path();
     let out = d.join("syn");
     let synth = |extra: &[&str], words: &[&str]| {
-        let mut args = vec!["synth", "--codebook", s(&f.cb), "--renderer", "cpu", "-o", s(&out)];
+        let mut args = vec![
+            "synth",
+            "--codebook",
+            s(&f.cb),
+            "--renderer",
+            "cpu",
+            "-o",
+            s(&out),
+        ];
         args.extend_from_slice(extra);
         let clock = Instant::now();
         refused(&args, words);
@@ -834,7 +959,11 @@ fn absurd_inputs_are_refused_quickly() {
             long_tg.push_str(&format!("        intervals [{}]:\n            xmin = {a}\n            xmax = {b}\n            text = \"ah\"\n", i + 1));
         }
     }
-    for (name, text) in [("many.lab", &lab), ("many.tsv", &tsv), ("many.TextGrid", &tg)] {
+    for (name, text) in [
+        ("many.lab", &lab),
+        ("many.tsv", &tsv),
+        ("many.TextGrid", &tg),
+    ] {
         let p = d.join(name);
         std::fs::write(&p, text).unwrap();
         synth(&["--labels", s(&p)], &[name, "segments"]);
@@ -863,7 +992,10 @@ fn absurd_inputs_are_refused_quickly() {
     wav.extend_from_slice(&(samples as u32).to_le_bytes());
     wav.extend((0..samples).map(|i| 128u8.wrapping_add(((i / 10) % 20) as u8)));
     std::fs::write(&long, &wav).unwrap();
-    synth(&["--labels", s(&f.lab), "--audio", s(&long)], &["long.wav", "the sound lasts"]);
+    synth(
+        &["--labels", s(&f.lab), "--audio", s(&long)],
+        &["long.wav", "the sound lasts"],
+    );
     // 10 000 words to speak: refused from the text, whether or not an engine is installed.
     let words = vec!["hello"; 10_000].join(" ");
     synth(&["--say", &words], &["10000 words", "at most 2000"]);
@@ -878,7 +1010,14 @@ fn errors_do_not_echo_megabytes() {
     let words = d.join("words.txt");
     std::fs::write(&words, format!("bin {} again", "q".repeat(1 << 20))).unwrap();
     refused(
-        &["align", s(&grid("bbbf9a.wav")), "--transcript", s(&words), "-o", s(&d.join("a.lab"))],
+        &[
+            "align",
+            s(&grid("bbbf9a.wav")),
+            "--transcript",
+            s(&words),
+            "-o",
+            s(&d.join("a.lab")),
+        ],
         &["not in the pronouncing dictionary", "bytes)"],
     );
     let cb = d.join("cb-photometric");

@@ -68,7 +68,10 @@ fn kill_moments(full: Duration, staged: Option<Duration>, rng: &mut common::Rng)
     let write = staged.unwrap_or(lo).clamp(lo, end);
     let spread = |from: Duration, to: Duration, n: usize, rng: &mut common::Rng| {
         (0..n)
-            .map(|k| from + (to.saturating_sub(from)).mul_f64((k as f64 + rng.range(0.0, 1.0)) / n as f64))
+            .map(|k| {
+                from + (to.saturating_sub(from))
+                    .mul_f64((k as f64 + rng.range(0.0, 1.0)) / n as f64)
+            })
             .collect::<Vec<_>>()
     };
     let mut moments = spread(lo, write, 3, rng);
@@ -532,7 +535,9 @@ fn killed_exports_reports_and_the_demo_leave_whole_outputs() {
 #[test]
 fn killed_say_leaves_nothing_in_the_temporary_folder() {
     if facespace::tts::available().is_none() {
-        eprintln!("skipped: no text-to-speech engine (apt-get install festival festvox-us-slt-hts)");
+        eprintln!(
+            "skipped: no text-to-speech engine (apt-get install festival festvox-us-slt-hts)"
+        );
         return;
     }
     let tmp = tempfile::tempdir().unwrap();
@@ -568,8 +573,15 @@ fn killed_say_leaves_nothing_in_the_temporary_folder() {
     run();
     let full = start.elapsed();
     let empty = |when: &str| {
-        let left: Vec<_> = std::fs::read_dir(tmp.path()).unwrap().flatten().map(|e| e.path()).collect();
-        assert!(left.is_empty(), "{when}: left in the temporary folder: {left:?}");
+        let left: Vec<_> = std::fs::read_dir(tmp.path())
+            .unwrap()
+            .flatten()
+            .map(|e| e.path())
+            .collect();
+        assert!(
+            left.is_empty(),
+            "{when}: left in the temporary folder: {left:?}"
+        );
     };
     empty("after a complete run");
     let mut rng = common::Rng::new(39);

@@ -340,8 +340,8 @@ impl Annotator {
                 "the body must be {\"points\": [[x, y], …]} or {\"points\": null}".into(),
             ));
         };
-        let points: Option<Vec<[f64; 2]>> = serde_json::from_value(points.clone())
-            .map_err(|e| (400, format!("points: {e}")))?;
+        let points: Option<Vec<[f64; 2]>> =
+            serde_json::from_value(points.clone()).map_err(|e| (400, format!("points: {e}")))?;
         let Some(points) = points else {
             return Ok(None);
         };

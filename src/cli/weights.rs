@@ -43,7 +43,11 @@ pub struct TrainWeightsArgs {
 }
 
 pub fn run(a: TrainWeightsArgs) -> Result<()> {
-    let mut inputs = vec![a.model.as_path(), a.codebook.as_path(), a.validation.as_path()];
+    let mut inputs = vec![
+        a.model.as_path(),
+        a.codebook.as_path(),
+        a.validation.as_path(),
+    ];
     inputs.extend(a.constants.as_deref());
     super::check_output(&a.output, &inputs)?;
     super::check_output(&a.output.with_extension("png"), &inputs)?;

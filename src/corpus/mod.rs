@@ -150,8 +150,10 @@ pub fn recorded_fps(dir: &Path) -> Result<Option<f64>, CorpusError> {
         path: path.clone(),
         reason,
     };
-    let text = crate::manifest::read_regular_string(&path)
-        .map_err(|source| CorpusError::Io { path: path.clone(), source })?;
+    let text = crate::manifest::read_regular_string(&path).map_err(|source| CorpusError::Io {
+        path: path.clone(),
+        source,
+    })?;
     let value: serde_json::Value =
         serde_json::from_str(&text).map_err(|e| invalid(format!("not JSON ({e})")))?;
     let fps = match value.get("fps") {

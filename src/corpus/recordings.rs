@@ -24,10 +24,11 @@ fn align_transcript(
         path: video.to_owned(),
         reason,
     };
-    let text = crate::manifest::read_regular_string(transcript).map_err(|source| CorpusError::Io {
-        path: transcript.to_owned(),
-        source,
-    })?;
+    let text =
+        crate::manifest::read_regular_string(transcript).map_err(|source| CorpusError::Io {
+            path: transcript.to_owned(),
+            source,
+        })?;
     // The recording's own sound: its audio track, or for a frame folder (or a silent video)
     // a `NAME.wav` / `NAME.m4a` beside it.
     let beside = ["wav", "m4a"]

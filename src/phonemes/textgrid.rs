@@ -203,7 +203,10 @@ pub fn parse_textgrid(
     }
     let (n_tiers, l) = number!("the tier count");
     if !(0.0..=MAX_TIERS as f64).contains(&n_tiers) {
-        return Err(err(l, format!("{n_tiers} tiers (at most {MAX_TIERS} are read)")));
+        return Err(err(
+            l,
+            format!("{n_tiers} tiers (at most {MAX_TIERS} are read)"),
+        ));
     }
     let mut names = Vec::new();
     let mut found = None;

@@ -165,7 +165,11 @@ pub fn read_image(path: &Path) -> Result<RgbImage, image::ImageError> {
     let mut reader = image::ImageReader::new(std::io::BufReader::new(file));
     match image::ImageFormat::from_path(path) {
         Ok(format) => reader.set_format(format),
-        Err(_) => reader = reader.with_guessed_format().map_err(image::ImageError::IoError)?,
+        Err(_) => {
+            reader = reader
+                .with_guessed_format()
+                .map_err(image::ImageError::IoError)?
+        }
     }
     Ok(reader.decode()?.to_rgb8())
 }
