@@ -1,5 +1,6 @@
 //! The generated demo corpus: determinism, split, labels, and S on it.
 use crate::common;
+use std::path::{Path, PathBuf};
 
 use facespace::corpus::demo::{
     self as corpus, CorpusOptions, HELD_OUT, SENTENCES, Split, VALIDATION,
@@ -442,5 +443,107 @@ fn appearance_recentring_removes_per_sentence_offsets_only() {
                 "pose and shape untouched"
             );
         }
+    }
+}
+
+/// Issue 37, item 6: a corpus made as shards (`--shard K/N`, one task of a job array each)
+/// and joined with `corpus merge` equals, file for file, the corpus of one run over all the
+/// recordings (GRID s1's three committed clips, recorded; two shards of one and two clips).
+#[test]
+fn shards_merged_equal_one_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let rec = dir.path().join("recordings");
+    std::fs::create_dir(&rec).unwrap();
+    for name in ["bbbf9a", "bbbs7a", "bbwtzp"] {
+        for ext in ["mp4", "lab"] {
+            let from = common::root().join(format!("tests/data/grid/{name}.{ext}"));
+            std::fs::copy(from, rec.join(format!("{name}.{ext}"))).unwrap();
+        }
+    }
+    let model = common::root().join("models/grid/model");
+    let run = |extra: &[&str], out: &Path| {
+        let mut args = vec![
+            "corpus",
+            "from-videos",
+            "--model",
+            model.to_str().unwrap(),
+            rec.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let o = common::facespace(&args);
+        assert!(o.status.success(), "{}", common::text(&o));
+    };
+    let one = dir.path().join("one");
+    run(&[], &one);
+    let parts: Vec<PathBuf> = (0..2)
+        .map(|k| dir.path().join(format!("part{k}")))
+        .collect();
+    for (k, part) in parts.iter().enumerate() {
+        run(&["--shard", &format!("{k}/2")], part);
+    }
+    let npys = |d: &Path| {
+        std::fs::read_dir(d)
+            .unwrap()
+            .filter(|e| {
+                e.as_ref()
+                    .unwrap()
+                    .path()
+                    .extension()
+                    .is_some_and(|x| x == "npy")
+            })
+            .count()
+    };
+    assert_eq!(
+        (npys(&parts[0]), npys(&parts[1])),
+        (2, 1),
+        "round-robin by name"
+    );
+    let merged = dir.path().join("merged");
+    let mut args = vec!["corpus", "merge"];
+    args.extend(parts.iter().map(|p| p.to_str().unwrap()));
+    args.extend(["-o", merged.to_str().unwrap()]);
+    let o = common::facespace(&args);
+    assert!(o.status.success(), "{}", common::text(&o));
+    let listing = |d: &Path| {
+        let mut names: Vec<String> = std::fs::read_dir(d)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        names
+    };
+    assert_eq!(listing(&one), listing(&merged));
+    assert!(listing(&one).len() >= 8, "{:?}", listing(&one));
+    for name in listing(&one) {
+        assert_eq!(
+            std::fs::read(one.join(&name)).unwrap(),
+            std::fs::read(merged.join(&name)).unwrap(),
+            "{name} differs"
+        );
+    }
+    // Parts that overlap, or of another frame rate, are refused.
+    let o = common::facespace(&[
+        "corpus",
+        "merge",
+        parts[0].to_str().unwrap(),
+        parts[0].to_str().unwrap(),
+        "-o",
+        dir.path().join("x").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(common::text(&o).contains("overlap"), "{}", common::text(&o));
+    for bad in ["2/2", "1/0", "x/2"] {
+        let o = common::facespace(&[
+            "corpus",
+            "from-videos",
+            rec.to_str().unwrap(),
+            "--shard",
+            bad,
+            "-o",
+            dir.path().join("y").to_str().unwrap(),
+        ]);
+        assert_eq!(o.status.code(), Some(2), "{bad}: {}", common::text(&o));
     }
 }

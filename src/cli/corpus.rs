@@ -1,5 +1,6 @@
 //! `facespace corpus demo`: the generated demo corpus (see `facespace::corpus::demo`);
-//! `facespace corpus from-videos`: a corpus from recordings with phone labels.
+//! `facespace corpus from-videos`: a corpus from recordings with phone labels (whole, or one
+//! `--shard` of it); `facespace corpus merge`: the shards joined.
 
 use std::path::{Path, PathBuf};
 
@@ -23,6 +24,22 @@ pub enum CorpusCommand {
         after_help = "Example: facespace corpus from-videos --model models/grid/model clips/ -o out/grid/train"
     )]
     FromVideos(FromVideosArgs),
+    /// Join corpus folders made with `from-videos --shard K/N` (one per task of a job array)
+    /// into the corpus one run over all the recordings writes, file for file.
+    #[command(
+        after_help = "Example: facespace corpus merge out/parts/0 out/parts/1 out/parts/2 -o out/grid/train"
+    )]
+    Merge(MergeArgs),
+}
+
+#[derive(Args)]
+pub struct MergeArgs {
+    /// The shards' corpus folders.
+    #[arg(required = true)]
+    parts: Vec<PathBuf>,
+    /// Output corpus folder.
+    #[arg(short, long)]
+    output: PathBuf,
 }
 
 #[derive(Args)]
@@ -48,6 +65,10 @@ pub struct FromVideosArgs {
     /// sound, which can outlast the last frame).
     #[arg(long, default_value_t = facespace::corpus::DEFAULT_TOLERANCE)]
     tolerance: f64,
+    /// Make only part K of N (0 ≤ K < N) of the corpus: the recordings whose place in name
+    /// order is K modulo N — one task of a job array (`corpus merge` joins the parts).
+    #[arg(long, default_value = "0/1")]
+    shard: facespace::corpus::Shard,
     /// Output corpus folder.
     #[arg(short, long)]
     output: PathBuf,
@@ -78,6 +99,7 @@ pub fn run(command: CorpusCommand) -> Result<()> {
     match command {
         CorpusCommand::Demo(a) => generate(a),
         CorpusCommand::FromVideos(a) => from_videos(a),
+        CorpusCommand::Merge(a) => merge(a),
     }
 }
 
@@ -134,6 +156,19 @@ fn generate(a: DemoArgs) -> Result<()> {
     Ok(())
 }
 
+fn merge(a: MergeArgs) -> Result<()> {
+    let inputs: Vec<&Path> = a.parts.iter().map(PathBuf::as_path).collect();
+    super::check_output(&a.output, &inputs)?;
+    let (fps, files) = facespace::corpus::merge(&a.parts, &a.output)
+        .with_context(|| format!("merging {} corpus parts", a.parts.len()))?;
+    println!(
+        "{files} files of {} parts at {fps} fps → {}",
+        a.parts.len(),
+        a.output.display()
+    );
+    Ok(())
+}
+
 fn from_videos(a: FromVideosArgs) -> Result<()> {
     let start = std::time::Instant::now();
     let mut inputs = vec![a.model.as_path(), a.dir.as_path()];
@@ -161,6 +196,7 @@ fn from_videos(a: FromVideosArgs) -> Result<()> {
         &map,
         a.max_failed,
         a.tolerance,
+        a.shard,
         progress,
     )
     .with_context(|| format!("making a corpus of {}", a.dir.display()))?;

@@ -6,7 +6,9 @@
 pub mod demo;
 mod recordings;
 
-pub use recordings::{DEFAULT_MAX_FAILED, Recorded, RecordedCorpus, Skipped, from_recordings};
+pub use recordings::{
+    DEFAULT_MAX_FAILED, Recorded, RecordedCorpus, Shard, Skipped, from_recordings, merge,
+};
 
 use std::path::{Path, PathBuf};
 

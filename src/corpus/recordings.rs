@@ -139,6 +139,46 @@ pub struct RecordedCorpus {
     pub skipped: Vec<Skipped>,
 }
 
+/// One part of a corpus made on many machines: the recordings whose place in name order is
+/// `index` modulo `count` (a job array hands each task its index; [`merge`] joins the parts
+/// into the folder one run over everything writes, file for file).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Shard {
+    /// This part, from 0.
+    pub index: usize,
+    /// How many parts.
+    pub count: usize,
+}
+
+impl Default for Shard {
+    /// The whole corpus.
+    fn default() -> Self {
+        Shard { index: 0, count: 1 }
+    }
+}
+
+impl std::str::FromStr for Shard {
+    type Err = String;
+
+    /// `K/N` with 0 ≤ K < N (e.g. `$SLURM_ARRAY_TASK_ID/8`).
+    fn from_str(s: &str) -> Result<Self, String> {
+        let bad = || {
+            format!(
+                "{s:?}: expected K/N with 0 ≤ K < N (the task's index from 0, and the task count)"
+            )
+        };
+        let (k, n) = s.split_once('/').ok_or_else(bad)?;
+        let (index, count) = (
+            k.trim().parse::<usize>().map_err(|_| bad())?,
+            n.trim().parse::<usize>().map_err(|_| bad())?,
+        );
+        if count == 0 || index >= count || count > 100_000 {
+            return Err(bad());
+        }
+        Ok(Shard { index, count })
+    }
+}
+
 /// Share of recordings that may fail before the whole corpus is refused (`--max-failed`).
 pub const DEFAULT_MAX_FAILED: f64 = 0.10;
 
@@ -149,6 +189,8 @@ pub const DEFAULT_MAX_FAILED: f64 = 0.10;
 /// has one). A recording that cannot be used (damaged
 /// frames, a face lost, labels that do not fit) is left out and named in the result, unless
 /// more than `max_failed` of them fail: then nothing is written and every failure is named.
+/// With a `shard` other than the whole, only that part of the recordings is made (the share
+/// that may fail counts within it).
 #[allow(clippy::too_many_arguments)]
 pub fn from_recordings(
     model: &FaceModel,
@@ -159,9 +201,18 @@ pub fn from_recordings(
     map: &PhoneMap,
     max_failed: f64,
     tolerance: f64,
+    shard: Shard,
     progress: impl FnMut(Progress) + Send,
 ) -> Result<RecordedCorpus, CorpusError> {
-    let found = recordings(dir)?;
+    let found: Vec<_> = recordings(dir)?
+        .into_iter()
+        .enumerate()
+        .filter(|(i, _)| i % shard.count == shard.index)
+        .map(|(_, f)| f)
+        .collect();
+    if found.is_empty() {
+        return Err(CorpusError::Empty { dir: dir.into() });
+    }
     // The aligner is loaded once, and only when some recording has just a transcript.
     let aligner = if found.iter().any(|f| matches!(f.2, Timings::Transcript(_))) {
         Some(
@@ -304,4 +355,77 @@ pub fn from_recordings(
         sentences: written,
         skipped,
     })
+}
+
+/// Joins corpus folders made as [`Shard`]s of one folder of recordings into `out`: every
+/// file of every part (their `corpus.json` must agree on the frame rate, and no name may come
+/// twice), written atomically like a corpus of one run — so the result equals, file for
+/// file, the corpus one run over all the recordings writes. Returns the frame rate and how
+/// many files were joined.
+pub fn merge(parts: &[PathBuf], out: &Path) -> Result<(f64, usize), CorpusError> {
+    let mut fps: Option<(f64, &Path)> = None;
+    let mut files: std::collections::BTreeMap<String, PathBuf> = Default::default();
+    for part in parts {
+        let io = |source| CorpusError::Io {
+            path: part.clone(),
+            source,
+        };
+        let recorded = super::recorded_fps(part)?.ok_or_else(|| CorpusError::Manifest {
+            path: part.join(super::MANIFEST),
+            reason: "missing: every part must be a corpus folder written by `corpus from-videos`"
+                .into(),
+        })?;
+        match fps {
+            Some((f, first)) if (f - recorded).abs() > 1e-9 => {
+                return Err(CorpusError::Manifest {
+                    path: part.join(super::MANIFEST),
+                    reason: format!(
+                        "field \"fps\": {recorded}, but {} records {f}: the parts are of different corpora",
+                        first.display()
+                    ),
+                });
+            }
+            Some(_) => {}
+            None => fps = Some((recorded, part)),
+        }
+        for e in std::fs::read_dir(part).map_err(io)? {
+            let e = e.map_err(io)?;
+            let name = e.file_name().to_string_lossy().into_owned();
+            if name.starts_with('.') || name == super::MANIFEST {
+                continue;
+            }
+            if !e.file_type().map_err(io)?.is_file() {
+                return Err(io(std::io::Error::other(format!(
+                    "{name} is not a regular file: not a corpus part"
+                ))));
+            }
+            if let Some(other) = files.insert(name.clone(), e.path()) {
+                return Err(io(std::io::Error::other(format!(
+                    "{name} is also in {}: the parts overlap",
+                    other.parent().unwrap_or(Path::new("")).display()
+                ))));
+            }
+        }
+    }
+    let Some((fps, _)) = fps else {
+        return Err(CorpusError::Empty { dir: out.into() });
+    };
+    atomic::replace_dir(
+        out,
+        "corpus",
+        |staged| -> Result<(), CorpusError> {
+            super::write_manifest(staged, fps)
+                .map_err(|(path, source)| CorpusError::Io { path, source })?;
+            for (name, from) in &files {
+                let to = staged.join(name);
+                std::fs::copy(from, &to).map_err(|source| CorpusError::Io { path: to, source })?;
+            }
+            Ok(())
+        },
+        |source| CorpusError::Io {
+            path: out.into(),
+            source,
+        },
+    )?;
+    Ok((fps, files.len()))
 }
