@@ -308,48 +308,38 @@ pub fn from_recordings(
         });
     }
     let mut written = Vec::with_capacity(encoded.len());
-    atomic::replace_dir(
-        out,
-        "corpus",
-        |staged| -> Result<(), CorpusError> {
-            super::write_manifest(staged, fps)
-                .map_err(|(path, source)| CorpusError::Io { path, source })?;
-            for (name, video, labels, segments, clip) in &encoded {
-                crate::npy::write(&staged.join(format!("{name}.npy")), clip.frames.values())?;
-                match labels {
-                    Timings::Labels(labels) => {
-                        let ext = labels.extension().unwrap_or_default().to_string_lossy();
-                        let copy = staged.join(format!("{name}.{ext}"));
-                        std::fs::copy(labels, &copy).map_err(|source| CorpusError::Io {
-                            path: copy.clone(),
-                            source,
-                        })?;
-                    }
-                    Timings::Transcript(_) => {
-                        phonemes::write_labels(&staged.join(format!("{name}.lab")), segments)?;
-                    }
+    write_corpus(out, fps, |staged| {
+        for (name, video, labels, segments, clip) in &encoded {
+            crate::npy::write(&staged.join(format!("{name}.npy")), clip.frames.values())?;
+            match labels {
+                Timings::Labels(labels) => {
+                    let ext = labels.extension().unwrap_or_default().to_string_lossy();
+                    let copy = staged.join(format!("{name}.{ext}"));
+                    std::fs::copy(labels, &copy).map_err(|source| CorpusError::Io {
+                        path: copy.clone(),
+                        source,
+                    })?;
                 }
-                let audio = video.is_file()
-                    && video::extract_audio(video, &staged.join(format!("{name}.m4a"))).map_err(
-                        |e| CorpusError::Encode {
-                            path: video.to_path_buf(),
-                            source: Box::new(codec::CodecError::Video(e)),
-                        },
-                    )?;
-                written.push(Recorded {
-                    name: name.to_string(),
-                    frames: clip.frames.len(),
-                    tracking: TrackingSummary::of(&clip.tracking),
-                    audio,
-                });
+                Timings::Transcript(_) => {
+                    phonemes::write_labels(&staged.join(format!("{name}.lab")), segments)?;
+                }
             }
-            Ok(())
-        },
-        |source| CorpusError::Io {
-            path: out.into(),
-            source,
-        },
-    )?;
+            let audio = video.is_file()
+                && video::extract_audio(video, &staged.join(format!("{name}.m4a"))).map_err(
+                    |e| CorpusError::Encode {
+                        path: video.to_path_buf(),
+                        source: Box::new(codec::CodecError::Video(e)),
+                    },
+                )?;
+            written.push(Recorded {
+                name: name.to_string(),
+                frames: clip.frames.len(),
+                tracking: TrackingSummary::of(&clip.tracking),
+                audio,
+            });
+        }
+        Ok(())
+    })?;
     Ok(RecordedCorpus {
         fps,
         sentences: written,
@@ -410,22 +400,34 @@ pub fn merge(parts: &[PathBuf], out: &Path) -> Result<(f64, usize), CorpusError>
     let Some((fps, _)) = fps else {
         return Err(CorpusError::Empty { dir: out.into() });
     };
+    write_corpus(out, fps, |staged| {
+        for (name, from) in &files {
+            let to = staged.join(name);
+            std::fs::copy(from, &to).map_err(|source| CorpusError::Io { path: to, source })?;
+        }
+        Ok(())
+    })?;
+    Ok((fps, files.len()))
+}
+
+/// Writes the corpus folder `out` atomically ([`atomic::replace_dir`]): its `corpus.json`
+/// recording `fps`, and what `fill` puts beside it.
+fn write_corpus(
+    out: &Path,
+    fps: f64,
+    fill: impl FnOnce(&Path) -> Result<(), CorpusError>,
+) -> Result<(), CorpusError> {
     atomic::replace_dir(
         out,
         "corpus",
-        |staged| -> Result<(), CorpusError> {
+        |staged| {
             super::write_manifest(staged, fps)
                 .map_err(|(path, source)| CorpusError::Io { path, source })?;
-            for (name, from) in &files {
-                let to = staged.join(name);
-                std::fs::copy(from, &to).map_err(|source| CorpusError::Io { path: to, source })?;
-            }
-            Ok(())
+            fill(staged)
         },
         |source| CorpusError::Io {
             path: out.into(),
             source,
         },
-    )?;
-    Ok((fps, files.len()))
+    )
 }
