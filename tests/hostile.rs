@@ -705,8 +705,8 @@ fn broken_audio(dir: &Path) -> Vec<PathBuf> {
 /// corpus from-videos (NAME.wav beside frames) and demo --clip.
 #[test]
 fn audio_headers_that_crashed_the_decoder_are_refused() {
-    let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
+    let f = fixture();
+    let d = f.dir.path();
     let grid_model = common::root().join("models/grid/model");
     let grid_cb = common::root().join("models/grid/codebook");
     for bad in broken_audio(d) {
@@ -760,8 +760,26 @@ fn audio_headers_that_crashed_the_decoder_are_refused() {
         let ext = bad.extension().unwrap().to_str().unwrap();
         let ext = if ext == "wav" { "wav" } else { "m4a" };
         std::fs::copy(&bad, rec.join(format!("x.{ext}"))).unwrap();
-        let (code, text) = run(&["corpus", "from-videos", s(&rec), "-o", s(&d.join("corpus"))]);
+        let (code, text) = run(&[
+            "corpus",
+            "from-videos",
+            s(&rec),
+            "-o",
+            s(&d.join("corpus2")),
+        ]);
         assert_eq!(code, Some(1), "{text}");
+        // decode: the clip's own sound.
+        let c = d.join("sound.fsp");
+        let _ = std::fs::remove_dir_all(&c);
+        edited(&f.clip, &c, "meta.json", |m| {
+            m["audio"] = "audio.m4a".into()
+        });
+        std::fs::copy(&bad, c.join("audio.m4a")).unwrap();
+        let decoded = d.join("decoded.mp4");
+        let (code, text) = run(&["decode", s(&c), "-o", s(&decoded)]);
+        assert_eq!(code, Some(1), "{text}");
+        assert!(text.contains("audio.m4a"), "{text}");
+        assert!(!decoded.exists());
     }
 }
 
