@@ -315,15 +315,13 @@ fn main() {
                         .clone()
                         .map(|k| f.column(k).iter().sum::<f32>() / n)
                         .collect();
-                    let mut v = f.values_mut();
-                    for mut row in v.rows_mut() {
+                    for mut row in f.values_mut().rows_mut() {
                         for (j, k) in range.clone().enumerate() {
                             if j >= keep {
                                 row[k] = means[j];
                             }
                         }
                     }
-                    drop(v);
                     let r = render(&model, &f, &backdrop);
                     let alpha = feather_alpha(&model, DEFAULT_FEATHER);
                     report(

@@ -294,14 +294,14 @@ fn words_missing_from_the_dictionary_are_all_named_and_a_dict_file_adds_them() {
     let dir = tempfile::tempdir().unwrap();
     let dict = dir.path().join("extra.dict");
     std::fs::write(&dict, "blurg B L UW\nzorp AH G EH N\n").unwrap();
-    let with = Aligner::load_default(&[dict.clone()]).unwrap();
+    let with = Aligner::load_default(std::slice::from_ref(&dict)).unwrap();
     let r = with
         .align(&a.samples, a.rate, "bin blurg by f nine zorp")
         .unwrap();
     assert_eq!(r.words[1].word, "blurg");
     // A bad line is named with its file and line.
     std::fs::write(&dict, "ok OW K EY\nbad QQ X\n").unwrap();
-    let e = Aligner::load_default(&[dict.clone()])
+    let e = Aligner::load_default(std::slice::from_ref(&dict))
         .err()
         .unwrap()
         .to_string();

@@ -27,6 +27,8 @@ const CASE_LIMIT: Duration = Duration::from_secs(5);
 const MEMORY_LIMIT: u64 = 1 << 30;
 
 type Reader = Arc<dyn Fn(&Path) -> Result<(), String> + Send + Sync>;
+/// One audio reader, as `found_cases_are_errors` runs them.
+type ReadAudio = dyn Fn(&Path) -> Result<(), String>;
 
 /// A reader and the files it is fuzzed on: the seed folder's files are copied into each case's
 /// folder and one of `mutable` is mutated.
@@ -598,7 +600,7 @@ fn found_cases_are_errors() {
         std::thread::spawn(move || {
             let _ = tx.send(if audio {
                 // Each reader alone must refuse it.
-                let readers: [&dyn Fn(&Path) -> Result<(), String>; 3] = [
+                let readers: [&ReadAudio; 3] = [
                     &|p| {
                         facespace::audio::read(p, 16_000, 600.0)
                             .map(|_| ())

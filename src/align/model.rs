@@ -456,7 +456,8 @@ pub(crate) fn read_s3(bytes: &[u8]) -> Result<(Vec<u32>, Vec<f32>), String> {
                 // Every word after the byte-order magic, shape and count included.
                 let mut sum = 0u32;
                 for c in bytes[data_start..r.at].chunks_exact(4) {
-                    sum = (sum << 20 | sum >> 12)
+                    sum = sum
+                        .rotate_left(20)
                         .wrapping_add(u32::from_le_bytes(c.try_into().unwrap()));
                 }
                 let stored = r.u32()?;
@@ -590,7 +591,7 @@ impl Mdef {
             r.at += len + 1;
         }
         let names_len = r.at - names_start;
-        r.take((names_len + 3) / 4 * 4 - names_len)?;
+        r.take(names_len.div_ceil(4) * 4 - names_len)?;
         let mut tree = Vec::with_capacity(n_tree);
         for _ in 0..n_tree {
             let b = r.take(8)?;
@@ -603,6 +604,8 @@ impl Mdef {
         let mut phones = Vec::with_capacity(n_phone);
         let mut ci_filler = vec![false; n_ci];
         let mut bases = Vec::with_capacity(n_phone);
+        #[allow(clippy::needless_range_loop)]
+        // `pid` names the phone in errors and indexes two tables
         for pid in 0..n_phone {
             let b = r.take(12)?;
             let ssid = i32::from_le_bytes(b[0..4].try_into().unwrap());

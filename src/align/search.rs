@@ -456,9 +456,9 @@ pub(super) fn viterbi(
         let threshold = best - BEAM;
         for h in 0..n {
             let mut any = false;
-            for s in 0..STATES {
-                if next[h][s] < threshold {
-                    next[h][s] = ninf;
+            for v in next[h].iter_mut() {
+                if *v < threshold {
+                    *v = ninf;
                 } else {
                     any = true;
                 }

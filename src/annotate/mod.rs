@@ -293,7 +293,12 @@ impl Annotator {
         // left the image, would only replace the person's points with worse ones.
         let threshold = crate::fit::DEFAULT_REINIT_ERROR;
         let inside = first_outside(&fit.landmarks, image).is_none();
-        if !(fit.error <= threshold) || !inside {
+        // NaN counts as unexplained.
+        let explained = matches!(
+            fit.error.partial_cmp(&threshold),
+            Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
+        );
+        if !explained || !inside {
             return Err((
                 422,
                 format!(

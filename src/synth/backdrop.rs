@@ -188,7 +188,12 @@ impl Backdrop {
         let start = fitter.search_start(&image)?;
         let fit = fitter.fit(&image, &start)?;
         let threshold = crate::fit::DEFAULT_REINIT_ERROR;
-        if !(fit.error <= threshold) {
+        // NaN counts as no face.
+        let explained = matches!(
+            fit.error.partial_cmp(&threshold),
+            Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
+        );
+        if !explained {
             return Err(CodecError::NoFace {
                 path: path.into(),
                 error: fit.error,
@@ -203,7 +208,7 @@ impl Backdrop {
         let mut row = vec![0f32; tracker.layout().dims()];
         tracker
             .project_into(&image, &fit.landmarks, &mut row)
-            .map_err(|e| FitError::Model(e.into()))?;
+            .map_err(FitError::Model)?;
         let tracked = crate::facespace::Frames::from_rows(tracker.layout(), 1.0, row)
             .map_err(CodecError::from)?;
         Ok(Backdrop {
