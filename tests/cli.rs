@@ -128,16 +128,9 @@ fn fgnet_demo_writes_its_outputs() {
     let frames = facespace::video::Source::open(&tmp.path().join("smoothed/video.mp4"))
         .unwrap()
         .count();
-    let pngs = std::fs::read_dir(tmp.path().join("smoothed/frames"))
+    let pngs = facespace::video::files_with_extension(&tmp.path().join("smoothed/frames"), "png")
         .unwrap()
-        .filter(|e| {
-            e.as_ref()
-                .unwrap()
-                .path()
-                .extension()
-                .is_some_and(|x| x == "png")
-        })
-        .count();
+        .len();
     assert!(
         frames > 25 && frames == pngs,
         "{frames} MP4 frames, {pngs} PNGs"

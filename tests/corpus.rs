@@ -484,16 +484,9 @@ fn shards_merged_equal_one_run() {
         run(&["--shard", &format!("{k}/2")], part);
     }
     let npys = |d: &Path| {
-        std::fs::read_dir(d)
+        facespace::video::files_with_extension(d, "npy")
             .unwrap()
-            .filter(|e| {
-                e.as_ref()
-                    .unwrap()
-                    .path()
-                    .extension()
-                    .is_some_and(|x| x == "npy")
-            })
-            .count()
+            .len()
     };
     assert_eq!(
         (npys(&parts[0]), npys(&parts[1])),

@@ -348,16 +348,9 @@ fn killed_exports_reports_and_the_demo_leave_whole_outputs() {
         ],
         &dir.path().join("frames"),
         |f| {
-            let n = std::fs::read_dir(f)
+            let n = facespace::video::files_with_extension(f, "png")
                 .unwrap()
-                .filter(|e| {
-                    e.as_ref()
-                        .unwrap()
-                        .path()
-                        .extension()
-                        .is_some_and(|x| x == "png")
-                })
-                .count();
+                .len();
             assert_eq!(n, 6);
         },
     );
@@ -398,16 +391,9 @@ fn killed_exports_reports_and_the_demo_leave_whole_outputs() {
         ],
         &dir.path().join("suggest"),
         |f| {
-            let n = std::fs::read_dir(f)
+            let n = facespace::video::files_with_extension(f, "pts")
                 .unwrap()
-                .filter(|e| {
-                    e.as_ref()
-                        .unwrap()
-                        .path()
-                        .extension()
-                        .is_some_and(|x| x == "pts")
-                })
-                .count();
+                .len();
             assert_eq!(n, 3);
         },
     );
