@@ -24,23 +24,21 @@ use crate::corpus::demo::{self as generator, CorpusOptions, GenerateError, Split
 use crate::mesh::Region;
 use crate::model::{BuildOptions, FaceModel, ModelError, load_training_set};
 use crate::phonemes::{self, PhonemeError};
-use crate::render::{DEFAULT_FEATHER, RenderError, RendererChoice, choose_renderer};
+use crate::render::{DEFAULT_FEATHER, Edge, RenderError, RendererChoice, choose_renderer};
 use crate::synth::backdrop::{Backdrop, BackdropError, PoseMode};
 use crate::synth::blend::Blend;
 use crate::synth::output::{self, OutputError, OutputOptions, Report};
 use crate::synth::unit::UnitSelection;
-use crate::synth::{DEFAULT_SMOOTHING, Request, Smoothing, SynthError, synthesise};
+use crate::synth::{GENERATED_SMOOTHING, Request, Smoothing, SynthError, synthesise};
 
 /// The FGNet demo utterance; it must not be one of the corpus sentences.
 pub const DEMO_TEXT: &str = "A brave pilot found the hidden map.";
 
-/// Smoothing weight λ for GRID s1: the value `facespace eval --validation` chose on his 73
-/// validation sentences (lowest mean DTW of blend N = 3; BENCHMARKS.md).
-pub const GRID_SMOOTHING: f64 = 3e-5;
+/// Smoothing weight λ for GRID s1: the default, chosen on his validation split.
+pub const GRID_SMOOTHING: f64 = crate::synth::DEFAULT_SMOOTHING;
 
-/// Examples blended per phone for GRID s1: N = 5 had the best mouth r_pca (eq. 16) and
-/// inner-mouth r_h of N = 1/3/5 on his validation sentences (BENCHMARKS.md).
-pub const GRID_TOP_N: usize = 5;
+/// Examples blended per phone for GRID s1: the default, chosen on his validation split.
+pub const GRID_TOP_N: usize = crate::synth::blend::DEFAULT_TOP_N;
 
 fn committed(path: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(path)
@@ -252,7 +250,12 @@ fn grid_into(
         pose: backdrop.pose.clone(),
         ..Request::new(target, fps, Smoothing::Ab(GRID_SMOOTHING))
     };
-    let chosen = choose_renderer(options.renderer, &model, Some(DEFAULT_FEATHER))?;
+    // Over his own take only the lips and jaw are drawn: the eyes stay the video's.
+    let chosen = choose_renderer(
+        options.renderer,
+        &model,
+        Edge::Articulators(DEFAULT_FEATHER),
+    )?;
     let renderer = chosen.renderer.as_ref();
     let words = words.trim();
     let output_options = OutputOptions {
@@ -361,7 +364,7 @@ fn fgnet_into(
     let (backdrop, fps) = replayed_backdrop(&model, &background, &target)?;
     let request = Request {
         pose: backdrop.pose.clone(),
-        ..Request::new(target, fps, Smoothing::Ab(DEFAULT_SMOOTHING))
+        ..Request::new(target, fps, Smoothing::Ab(GENERATED_SMOOTHING))
     };
     let chosen = choose_renderer(options.renderer, &region, Some(DEFAULT_FEATHER))?;
     let renderer = chosen.renderer.as_ref();

@@ -124,6 +124,7 @@ pub mod shape;
 pub mod study;
 pub mod suggest;
 pub mod synth;
+pub mod talker;
 pub mod trajectory;
 pub mod tts;
 pub mod video;

@@ -107,10 +107,38 @@ fn run(engine: &'static str, command: &mut Command) -> Result<(), TtsError> {
 /// runs (an engine given 10 000 words ran for five minutes before the length was refused).
 pub const MAX_WORDS: usize = 2000;
 
-/// Speaks `text` into the WAV `out` with the best engine installed. The text is handed to
-/// Festival in a file beside `out` (`out` with `.txt`), so a caller that puts `out` in its
-/// own staging folder leaves nothing of the user's words elsewhere if it is killed.
+/// Festival's voice when none is asked for: the CMU ARCTIC "slt" HTS voice (a woman).
+pub const DEFAULT_VOICE: &str = "cmu_us_slt_arctic_hts";
+
+/// Speech that was made: by which engine, in which voice, and why not the voice asked for.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Spoken {
+    /// The engine.
+    pub engine: Engine,
+    /// The voice that spoke (Festival's name; espeak-ng's default voice).
+    pub voice: String,
+    /// When the voice asked for was not installed: what spoke instead, and how to get it.
+    pub note: Option<String>,
+}
+
+/// Speaks `text` into the WAV `out` with the best engine installed, in Festival's slt voice
+/// ([`speak_as`] with no voice).
 pub fn speak(text: &str, out: &Path) -> Result<Engine, TtsError> {
+    speak_as(text, out, None).map(|s| s.engine)
+}
+
+/// Whether `voice` is a plain Festival voice name (letters, digits, `_`): it is spliced into
+/// a Scheme expression, so nothing else is taken.
+fn plain_voice(voice: &str) -> bool {
+    !voice.is_empty() && voice.len() <= 64 && voice.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
+}
+
+/// Speaks `text` into the WAV `out` with the best engine installed: Festival in `voice` (a
+/// Festival voice name such as `kal_diphone`; `None`: [`DEFAULT_VOICE`]), falling back to
+/// the default voice, then Festival's own, with a note saying so; else espeak-ng. The text is
+/// handed to Festival in a file beside `out` (`out` with `.txt`), so a caller that puts `out`
+/// in its own staging folder leaves nothing of the user's words elsewhere if it is killed.
+pub fn speak_as(text: &str, out: &Path, voice: Option<&str>) -> Result<Spoken, TtsError> {
     let words = crate::align::dict::words(text).len();
     if words == 0 {
         return Err(TtsError::NoWords);
@@ -123,23 +151,44 @@ pub fn speak(text: &str, out: &Path) -> Result<Engine, TtsError> {
             let engine = "Festival";
             let input = out.with_extension("txt");
             std::fs::write(&input, text).map_err(|source| TtsError::Io { engine, source })?;
-            let with_voice = run(
-                engine,
-                Command::new("text2wave")
-                    .arg("-eval")
-                    .arg("(voice_cmu_us_slt_arctic_hts)")
-                    .arg(&input)
-                    .arg("-o")
-                    .arg(out),
-            );
-            // Without the HTS voice, Festival's default voice.
-            if with_voice.is_err() {
-                run(
-                    engine,
-                    Command::new("text2wave").arg(&input).arg("-o").arg(out),
-                )?;
+            let asked = voice.unwrap_or(DEFAULT_VOICE);
+            let mut tried = vec![asked];
+            if asked != DEFAULT_VOICE {
+                tried.push(DEFAULT_VOICE);
             }
-            Ok(Engine::Festival)
+            for v in tried.iter().filter(|v| plain_voice(v)) {
+                let ok = run(
+                    engine,
+                    Command::new("text2wave")
+                        .arg("-eval")
+                        .arg(format!("(voice_{v})"))
+                        .arg(&input)
+                        .arg("-o")
+                        .arg(out),
+                );
+                if ok.is_ok() {
+                    let note = (*v != asked).then(|| {
+                        format!("Festival has no voice {asked} here; {v} spoke instead")
+                    });
+                    return Ok(Spoken {
+                        engine: Engine::Festival,
+                        voice: (*v).to_owned(),
+                        note,
+                    });
+                }
+            }
+            // Without either voice, Festival's default voice.
+            run(
+                engine,
+                Command::new("text2wave").arg(&input).arg("-o").arg(out),
+            )?;
+            Ok(Spoken {
+                engine: Engine::Festival,
+                voice: "Festival's default".into(),
+                note: Some(format!(
+                    "Festival has no voice {asked} here; its default voice spoke instead"
+                )),
+            })
         }
         Some(Engine::EspeakNg) => {
             run(
@@ -150,7 +199,11 @@ pub fn speak(text: &str, out: &Path) -> Result<Engine, TtsError> {
                     .arg("--")
                     .arg(text),
             )?;
-            Ok(Engine::EspeakNg)
+            Ok(Spoken {
+                engine: Engine::EspeakNg,
+                voice: "espeak-ng's default".into(),
+                note: voice.map(|v| format!("no Festival here; espeak-ng spoke instead of {v}")),
+            })
         }
         None => Err(TtsError::Missing),
     }

@@ -142,7 +142,8 @@ fn selection_follows_the_context_score() {
         chosen.windows(2).all(|w| w[0].1 >= w[1].1),
         "sorted best first"
     );
-    // C = 1: A and D tie at 1.0 and the earlier (A) comes first.
+    // C = 1: A and D tie at 1.0 with equal durations; the context two phones out (sil … sil,
+    // as in the target, for A; f … s for D) puts A first.
     let names: Vec<&str> = chosen
         .iter()
         .map(|(o, _)| cb.sentences[o.sentence].name.as_str())
@@ -166,9 +167,76 @@ fn selection_follows_the_context_score() {
     };
     assert_eq!(
         cb.sentences[blend::select(&cb, &t2, 2, ph("m"), &c1)[0].0.sentence].name,
-        "A",
-        "C = 1 cannot see f or s"
+        "D",
+        "C = 1 ties A and D; the tie goes to the deeper context (f … s), not to the name"
     );
+}
+
+/// Ties on the context score go to the nearer duration, then the deeper context — never to
+/// the sentence's name: renaming the sentences (which reorders the corpus) changes nothing.
+#[test]
+fn ties_are_broken_by_duration_then_deeper_context_never_by_name() {
+    let stretched = |name: &str, phones: &[&str], bump: f32, m_len: f64| {
+        let mut s = sentence(name, phones, bump);
+        // Lengthen the m (index 2) and shift what follows.
+        let extra = m_len - 0.2;
+        s.segments[2].end += extra;
+        for seg in &mut s.segments[3..] {
+            seg.start += extra;
+            seg.end += extra;
+        }
+        let n = (s.segments.last().unwrap().end * FPS).round() as usize;
+        let row: Vec<f32> = s.frames.values().row(0).to_vec();
+        s.frames = Frames::from_rows(LAYOUT, FPS, row.repeat(n)).unwrap();
+        s
+    };
+    let build = |names: [&str; 3], reverse: bool| {
+        let mut sentences = vec![
+            stretched(names[0], &["sil", "aa", "m", "iy", "sil"], 0.0, 0.4),
+            stretched(names[1], &["sil", "aa", "m", "iy", "sil"], 0.1, 0.12),
+            stretched(names[2], &["f", "aa", "m", "iy", "s"], 0.2, 0.12),
+        ];
+        if reverse {
+            sentences.reverse();
+        }
+        Codebook::build(
+            sentences,
+            FPS,
+            LAYOUT,
+            None,
+            codebook().options.clone(),
+            &mut facespace::no_progress,
+        )
+        .unwrap()
+    };
+    let one = Blend {
+        context: 1,
+        top_n: 1,
+        ..Blend::default()
+    };
+    // A 0.12 s target m: the two short ones tie on C = 1 and on duration; the deeper context
+    // (sil … sil) picks the second sentence. A 0.4 s m picks the long one.
+    let short = vec![
+        Segment { start: 0.0, end: 0.2, phone: ph("sil") },
+        Segment { start: 0.2, end: 0.4, phone: ph("aa") },
+        Segment { start: 0.4, end: 0.52, phone: ph("m") },
+        Segment { start: 0.52, end: 0.72, phone: ph("iy") },
+        Segment { start: 0.72, end: 0.92, phone: ph("sil") },
+    ];
+    let mut long = short.clone();
+    long[2].end = 0.8;
+    long[3] = Segment { start: 0.8, end: 1.0, phone: ph("iy") };
+    long[4] = Segment { start: 1.0, end: 1.2, phone: ph("sil") };
+    let cases = [["a", "b", "c"], ["z", "y", "x"], ["m", "a", "b"]];
+    for (names, reverse) in cases.into_iter().flat_map(|n| [(n, false), (n, true)]) {
+        let cb = build(names, reverse);
+        let pick = |t: &[Segment]| {
+            let o = blend::select(&cb, t, 2, ph("m"), &one)[0].0;
+            cb.sentences[o.sentence].name.clone()
+        };
+        assert_eq!(pick(&short), names[1], "names {names:?}, reversed {reverse}");
+        assert_eq!(pick(&long), names[0], "names {names:?}, reversed {reverse}");
+    }
 }
 
 #[test]

@@ -31,6 +31,7 @@ mod smooth;
 mod speech;
 mod study;
 mod synthesis;
+mod talker;
 mod track;
 mod trajectory;
 mod unit_selection;

@@ -145,6 +145,18 @@ fn the_own_talker_walkthrough_runs_as_written() {
     let correlation = dot(s, r) / (dot(s, s) * dot(r, r)).sqrt();
     assert!(correlation > 0.99, "correlation {correlation}");
 
+    // The same parts as one talker folder, and `say` over its footage: one MP4 of the
+    // sentence's 75 frames in the recordings' framing, with its sound.
+    let say = &outputs[commands
+        .iter()
+        .position(|c| c.contains("-- say "))
+        .unwrap()];
+    assert!(say.contains("75 frames at 25 fps, 360×288, with sound"), "{say}");
+    let said = facespace::video::Source::open(&own.join("say.mp4")).unwrap();
+    assert_eq!((said.info().width, said.info().height), (360, 288));
+    assert_eq!(said.count(), 75);
+    assert!(own.join("talker/talker.json").is_file());
+
     // And the codec round trip.
     assert!(own.join("decoded.mp4").is_file());
 }

@@ -10,8 +10,10 @@ mod demo;
 mod eval;
 mod frames;
 mod model;
+mod say;
 mod study;
 mod synth;
+mod talker;
 mod track;
 mod weights;
 
@@ -119,6 +121,12 @@ enum Command {
     /// aligned from its sound and synthesised from his codebook, with that sound, beside the
     /// real recording — or the FGNet talker over a generated corpus (--talker fgnet).
     Demo(demo::DemoArgs),
+    /// A talker speaks: text (text-to-speech in its voice), a recording with its words, or
+    /// phone labels → one MP4 with sound, the face over the talker's own living footage.
+    Say(say::SayArgs),
+    /// Make talker folders (`talker build`).
+    #[command(subcommand)]
+    Talker(talker::TalkerCommand),
 }
 
 pub fn run() -> Result<()> {
@@ -138,6 +146,8 @@ pub fn run() -> Result<()> {
         Command::Eval(a) => eval::run(a),
         Command::Study(c) => study::run(c),
         Command::Demo(a) => demo::run(a),
+        Command::Say(a) => say::run(a),
+        Command::Talker(c) => talker::run(c),
     }
 }
 
@@ -186,9 +196,9 @@ impl RendererArg {
     fn make<'m>(
         self,
         model: &'m FaceModel,
-        feather: Option<f64>,
+        edge: impl Into<facespace::render::Edge>,
     ) -> Result<Box<dyn facespace::render::Renderer + 'm>> {
-        let chosen = facespace::render::choose_renderer(self.choice(), model, feather)?;
+        let chosen = facespace::render::choose_renderer(self.choice(), model, edge)?;
         if let Some(note) = &chosen.note {
             eprintln!("note: {note}");
         }

@@ -7,7 +7,7 @@ use clap::{Args, ValueEnum};
 use facespace::codebook::Codebook;
 use facespace::codec::EncodeOptions;
 use facespace::phonemes::{self, PhoneMap};
-use facespace::render::{Background, DEFAULT_FEATHER};
+use facespace::render::{Background, DEFAULT_FEATHER, Edge};
 use facespace::synth::Synthesiser;
 use facespace::synth::backdrop::{Backdrop, PoseMode};
 use facespace::synth::blend::Blend;
@@ -101,8 +101,8 @@ pub struct SynthArgs {
     /// Context width C.
     #[arg(long, default_value_t = 1)]
     context: usize,
-    /// Examples blended per phone, N.
-    #[arg(long, default_value_t = 3)]
+    /// Examples blended per phone, N (default: chosen on GRID s1's validation split).
+    #[arg(long, default_value_t = facespace::synth::blend::DEFAULT_TOP_N)]
     top_n: usize,
     /// Blend by the plain weighted average, without restoring the examples' spread (the
     /// motion then shrinks with N).
@@ -111,7 +111,8 @@ pub struct SynthArgs {
     /// Smoothing spline on, off, or both for a blind A/B side-by-side.
     #[arg(long, value_enum, default_value_t = Smooth::On)]
     smooth: Smooth,
-    /// Smoothing weight λ of the cubic smoothing spline.
+    /// Smoothing weight λ of the cubic smoothing spline (default: chosen on GRID s1's
+    /// validation split).
     #[arg(long, default_value_t = DEFAULT_SMOOTHING)]
     smoothing: f64,
     /// Output frame rate (default: the background video's, else the codebook's).
@@ -342,6 +343,11 @@ pub fn run(a: SynthArgs) -> Result<()> {
         b.match_lighting(&model, &cb, &mut utterance);
     }
     let synth_ms = clock.elapsed().as_secs_f64() * 1e3;
+    // Over a real face only the lips and jaw are drawn: the eyes stay the frame's own.
+    let edge = match backdrop {
+        Some(_) => Edge::Articulators(DEFAULT_FEATHER),
+        None => Edge::Feathered(DEFAULT_FEATHER),
+    };
     let background = match backdrop {
         Some(b) => b.background()?,
         None => {
@@ -356,7 +362,7 @@ pub fn run(a: SynthArgs) -> Result<()> {
             Background::plain_for(&model, &utterance.synthesis.frames)
         }
     };
-    let renderer = a.renderer.make(&model, Some(DEFAULT_FEATHER))?;
+    let renderer = a.renderer.make(&model, edge)?;
     let (bar, progress) = progress_bar();
     bar.set_prefix(format!("{} · ", renderer.describe()));
     let report = output::write_folder(

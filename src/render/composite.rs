@@ -29,6 +29,48 @@ pub const ARTICULATION_FADE: f64 = 0.25;
 /// [`ARTICULATION_HOLD`] × their width of the triangles between them, falling by a smoothstep
 /// to 0 over the next [`ARTICULATION_FADE`] × their width.
 pub fn feather_alpha(model: &FaceModel, feather: f64) -> Vec<f32> {
+    faded_alpha(
+        model,
+        feather,
+        model.region.as_ref().and_then(|r| r.articulators()),
+    )
+}
+
+/// How a drawn face meets its canvas.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Edge {
+    /// Every mask pixel drawn whole.
+    Hard,
+    /// Faded in over this many reference-frame pixels inside the rim ([`feather_alpha`]; a
+    /// region model also fades out away from its articulators).
+    Feathered(f64),
+    /// Feathered, and faded out away from the articulators ([`FaceModel::articulators`])
+    /// whatever the model: over the talker's own face only the lips and jaw are drawn, so the
+    /// eyes, their lids and their texture stay the frame's own (issue 33: a whole-face
+    /// codebook over a video otherwise gave open irises inside the video's closed lids).
+    Articulators(f64),
+}
+
+impl From<Option<f64>> for Edge {
+    /// `None`: a hard edge; `Some(f)`: feathered over `f` pixels.
+    fn from(feather: Option<f64>) -> Self {
+        feather.map_or(Edge::Hard, Edge::Feathered)
+    }
+}
+
+impl Edge {
+    /// The alpha per mask pixel of `model`'s reference frame, or `None` for a hard edge.
+    pub fn alpha(self, model: &FaceModel) -> Option<Vec<f32>> {
+        match self {
+            Edge::Hard => None,
+            Edge::Feathered(f) => Some(feather_alpha(model, f)),
+            Edge::Articulators(f) => Some(faded_alpha(model, f, model.articulators())),
+        }
+    }
+}
+
+/// [`feather_alpha`] with the fade away from `articulators` when there are some.
+fn faded_alpha(model: &FaceModel, feather: f64, articulators: Option<Vec<u32>>) -> Vec<f32> {
     let frame = &model.frame;
     let smoothstep = |t: f64| {
         let t = t.clamp(0.0, 1.0);
@@ -45,7 +87,7 @@ pub fn feather_alpha(model: &FaceModel, feather: f64) -> Vec<f32> {
             }
         })
         .collect();
-    let Some(articulators) = model.region.as_ref().and_then(|r| r.articulators()) else {
+    let Some(articulators) = articulators else {
         return rim.into_iter().map(|a| a as f32).collect();
     };
     let xs = articulators

@@ -19,7 +19,7 @@ use image::RgbImage;
 use thiserror::Error;
 use wgpu::util::DeviceExt;
 
-use super::{RenderError, Renderer, feather_alpha};
+use super::{Edge, RenderError, Renderer};
 use crate::facespace::{FaceParams, Frames};
 use crate::model::FaceModel;
 use crate::warp;
@@ -240,10 +240,11 @@ impl std::fmt::Debug for GpuRenderer<'_> {
 const SHADER: &str = include_str!("gpu.wgsl");
 
 impl<'m> GpuRenderer<'m> {
-    /// A renderer of `model`'s faces on `gpu`: a hard edge (`feather` = `None`, as
-    /// [`super::CpuRenderer::new`]) or feathered over `feather` pixels (as
-    /// [`super::CpuRenderer::feathered`]).
-    pub fn new(gpu: &Gpu, model: &'m FaceModel, feather: Option<f64>) -> Result<Self, GpuError> {
+    /// A renderer of `model`'s faces on `gpu`, meeting the canvas as `edge` says (the same
+    /// alpha as [`super::CpuRenderer::with_edge`]).
+    pub fn new(gpu: &Gpu, model: &'m FaceModel, edge: impl Into<Edge>) -> Result<Self, GpuError> {
+        let alpha_values = edge.into().alpha(model);
+        let feather = alpha_values.is_some().then_some(());
         let device = &gpu.device;
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let frame = &model.frame;
@@ -299,10 +300,7 @@ impl<'m> GpuRenderer<'m> {
             source[dst as usize] = src as i32;
         }
         let source_pixel = init("source pixel", bytemuck::cast_slice(&source), storage);
-        let alpha_values = match feather {
-            Some(f) => feather_alpha(model, f),
-            None => vec![1.0; frame.n_pixels()],
-        };
+        let alpha_values = alpha_values.unwrap_or_else(|| vec![1.0; frame.n_pixels()]);
         let alpha = init("alpha", bytemuck::cast_slice(&alpha_values), storage);
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("facespace gpu.wgsl"),

@@ -18,7 +18,7 @@ use image::{Rgb, RgbImage};
 use rayon::prelude::*;
 use thiserror::Error;
 
-pub use composite::{DEFAULT_FEATHER, feather_alpha};
+pub use composite::{DEFAULT_FEATHER, Edge, feather_alpha};
 
 use crate::Progress;
 use crate::facespace::{FaceParams, Frames};
@@ -122,9 +122,14 @@ impl<'m> CpuRenderer<'m> {
     /// A renderer whose faces fade into the canvas over the last `feather` reference-frame
     /// pixels inside the mesh boundary ([`feather_alpha`]), so no seam shows.
     pub fn feathered(model: &'m FaceModel, feather: f64) -> Self {
+        Self::with_edge(model, Edge::Feathered(feather))
+    }
+
+    /// A renderer whose faces meet the canvas as `edge` says.
+    pub fn with_edge(model: &'m FaceModel, edge: Edge) -> Self {
         CpuRenderer {
             model,
-            alpha: Some(feather_alpha(model, feather)),
+            alpha: edge.alpha(model),
         }
     }
 
@@ -180,19 +185,16 @@ pub struct ChosenRenderer<'m> {
     pub note: Option<String>,
 }
 
-/// Makes the renderer `choice` names for `model`'s faces: a hard edge (`feather` = `None`) or
-/// feathered over `feather` pixels. Only [`RendererChoice::Gpu`] can fail for want of a GPU.
+/// Makes the renderer `choice` names for `model`'s faces, meeting the canvas as `edge` says
+/// (`None`: a hard edge; `Some(f)`: feathered over `f` pixels; or an [`Edge`]). Only
+/// [`RendererChoice::Gpu`] can fail for want of a GPU.
 pub fn choose_renderer<'m>(
     choice: RendererChoice,
     model: &'m FaceModel,
-    feather: Option<f64>,
+    edge: impl Into<Edge>,
 ) -> Result<ChosenRenderer<'m>, RenderError> {
-    let cpu = || -> Box<dyn Renderer + 'm> {
-        match feather {
-            Some(f) => Box::new(CpuRenderer::feathered(model, f)),
-            None => Box::new(CpuRenderer::new(model)),
-        }
-    };
+    let feather = edge.into();
+    let cpu = || -> Box<dyn Renderer + 'm> { Box::new(CpuRenderer::with_edge(model, feather)) };
     let chosen = |renderer, note| Ok(ChosenRenderer { renderer, note });
     match choice {
         RendererChoice::Cpu => chosen(cpu(), None),
@@ -247,6 +249,8 @@ pub enum Background {
         /// Rendered frames handed out so far.
         next: usize,
     },
+    /// A talker's living frame: stretches of its footage, decoded as they are shown.
+    Footage(Box<crate::talker::footage::Shown>),
 }
 
 impl Background {
@@ -275,6 +279,7 @@ impl Background {
             Background::Still(image) => image.dimensions(),
             Background::Video(source) => (source.info().width, source.info().height),
             Background::Loop { frames, .. } => frames.first().map_or((0, 0), |f| f.dimensions()),
+            Background::Footage(shown) => shown.size(),
         }
     }
 
@@ -299,6 +304,9 @@ impl Background {
                             needed,
                         })
                 })
+                .collect::<Result<_, _>>()?,
+            Background::Footage(shown) => (0..n)
+                .map(|_| shown.next_frame())
                 .collect::<Result<_, _>>()?,
             Background::Loop { frames, next } => {
                 let out = (*next..*next + n)

@@ -86,6 +86,7 @@ enum Frames {
     Still(RgbImage),
     Video(std::path::PathBuf),
     Loop(Vec<RgbImage>),
+    Footage(crate::talker::footage::Shown),
 }
 
 impl Backdrop {
@@ -99,6 +100,48 @@ impl Backdrop {
                 frames: frames.clone(),
                 next: 0,
             },
+            Frames::Footage(shown) => Background::Footage(Box::new(shown.fresh())),
+        })
+    }
+
+    /// A talker's living frame: the footage frames `plan` shows, with the poses, landmarks
+    /// and face-space points tracked when the talker was built (nothing is tracked now).
+    pub fn footage(
+        footage: &crate::talker::footage::Footage,
+        plan: &crate::talker::footage::Plan,
+    ) -> Result<Backdrop, crate::facespace::FacespaceError> {
+        let layout = footage.tracked.layout();
+        let mut rows = Vec::with_capacity(plan.frames.len() * layout.dims());
+        let mut landmarks = Vec::with_capacity(plan.frames.len());
+        for (&g, mix) in plan.frames.iter().zip(&plan.mix) {
+            // A dissolve's frames are the weighted mean of its two frames' (poses too:
+            // similarities a pixel or two apart, which the mean keeps a similarity).
+            let (other, w) = mix.unwrap_or((g, 0.0));
+            let lerp = |a: f64, b: f64| a + f64::from(w) * (b - a);
+            rows.extend(
+                footage
+                    .tracked
+                    .row(g)
+                    .iter()
+                    .zip(footage.tracked.row(other))
+                    .map(|(&a, &b)| lerp(f64::from(a), f64::from(b)) as f32),
+            );
+            let (a, b) = (&footage.landmarks[g].points, &footage.landmarks[other].points);
+            landmarks.push(crate::shape::Landmarks {
+                points: a
+                    .iter()
+                    .zip(b)
+                    .map(|(p, q)| [lerp(p[0], q[0]), lerp(p[1], q[1])])
+                    .collect(),
+            });
+        }
+        let tracked = crate::facespace::Frames::from_rows(layout, footage.fps, rows)?;
+        Ok(Backdrop {
+            pose: Pose::Replay((0..tracked.len()).map(|t| tracked.params(t).pose).collect()),
+            landmarks,
+            tracked,
+            tracker_hash: footage.model_hash.clone(),
+            frames: Frames::Footage(footage.shown(plan)),
         })
     }
 

@@ -24,6 +24,10 @@ use crate::phonemes::{Phone, Segment};
 
 use super::{Chosen, PhoneReport, SynthError, Synthesis, Synthesiser, stand_in, validate_request};
 
+/// Examples blended per phone by default: N = 5 had the best mouth r_pca (eq. 16) and
+/// inner-mouth r_h of N = 1/3/5 on GRID s1's validation sentences (BENCHMARKS.md).
+pub const DEFAULT_TOP_N: usize = 5;
+
 /// Widest context scored (phones either side).
 pub const MAX_CONTEXT: usize = 20;
 
@@ -89,8 +93,15 @@ pub fn context_score(
         .sum()
 }
 
-/// The N best-scoring occurrences of `phone` for target position `i`, best first (ties: the
-/// earlier occurrence), with their scores.
+/// How much deeper than C the context is read to break ties: C = 1 ties often (every
+/// occurrence between the same two phones scores alike).
+pub const TIE_CONTEXT: usize = 2;
+
+/// The N best-scoring occurrences of `phone` for target position `i`, best first, with their
+/// scores. Ties on the score go to the occurrence whose duration is nearer the target's (by
+/// |ln ratio|: less time-warping), then to the better context score read [`TIE_CONTEXT`]
+/// phones deeper; never to a sentence's name or its place in the corpus, except as the last
+/// resort between occurrences alike in all three.
 pub fn select(
     codebook: &Codebook,
     target: &[Segment],
@@ -98,13 +109,38 @@ pub fn select(
     phone: Phone,
     blend: &Blend,
 ) -> Vec<(Occurrence, f64)> {
-    let mut scored: Vec<(Occurrence, f64)> = codebook.occurrences[phone.index()]
+    let wanted = target[i].duration().max(1e-3);
+    let warp = |o: Occurrence| {
+        let d = codebook.sentences[o.sentence].segments[o.segment].duration();
+        (d.max(1e-3) / wanted).ln().abs()
+    };
+    let deeper = (blend.context + TIE_CONTEXT).min(MAX_CONTEXT);
+    let mut scored: Vec<(Occurrence, f64, f64, f64)> = codebook.occurrences[phone.index()]
         .iter()
-        .map(|&o| (o, context_score(codebook, target, i, o, blend.context)))
+        .map(|&o| {
+            let score = context_score(codebook, target, i, o, blend.context);
+            (o, score, warp(o), f64::NAN)
+        })
         .collect();
-    scored.sort_by(|a, b| b.1.total_cmp(&a.1));
+    let cmp = |a: &(Occurrence, f64, f64, f64), b: &(Occurrence, f64, f64, f64)| {
+        b.1.total_cmp(&a.1).then(a.2.total_cmp(&b.2))
+    };
+    scored.sort_by(cmp);
+    // The deeper context is scored only where the first two keys tie at the cut.
+    if let Some(last) = scored.get(blend.top_n.saturating_sub(1)).copied()
+        && scored.len() > blend.top_n
+    {
+        for s in scored.iter_mut().filter(|s| cmp(s, &last).is_eq()) {
+            s.3 = context_score(codebook, target, i, s.0, deeper);
+        }
+        scored.sort_by(|a, b| {
+            cmp(a, b)
+                .then(b.3.total_cmp(&a.3))
+                .then((a.0.sentence, a.0.segment).cmp(&(b.0.sentence, b.0.segment)))
+        });
+    }
     scored.truncate(blend.top_n);
-    scored
+    scored.into_iter().map(|(o, s, ..)| (o, s)).collect()
 }
 
 impl Synthesiser for Blend {

@@ -25,9 +25,13 @@ use crate::shape::Similarity;
 use smooth::{SmoothError, SmoothingSpline};
 
 /// Default smoothing weight λ of the cubic smoothing spline (seconds³ per parameter unit²):
-/// the value `facespace eval --validation` chooses on the demo corpus's validation split
-/// (lowest DTW; BENCHMARKS.md) — never on the sentences it reports.
-pub const DEFAULT_SMOOTHING: f64 = 3e-6;
+/// the value `facespace eval --validation` chose on GRID s1's 73 validation sentences (lowest
+/// mean DTW of blend N = 3; BENCHMARKS.md) — recorded speech, never the sentences reported.
+pub const DEFAULT_SMOOTHING: f64 = 3e-5;
+
+/// λ chosen on the generated FGNet demo corpus's validation split (BENCHMARKS.md): that
+/// corpus's trajectories are smoother than recorded ones.
+pub const GENERATED_SMOOTHING: f64 = 3e-6;
 
 /// What can go wrong synthesising.
 #[derive(Debug, Error, PartialEq)]

@@ -1,0 +1,223 @@
+//! `say` on GRID s1's test split (issue 33; BENCHMARKS.md "Say"): each test clip's recorded
+//! speech and its words (`align/ID.align`) through the committed talker with its default
+//! settings — the face drawn over his idle footage, only lips and jaw synthesised — scored
+//! against the clip tracked with the talker's model:
+//!
+//! - mouth r_pca by eq. 16 of \[unitsel\] (the mouth PCA fitted on the real test frames) and
+//!   inner-mouth r_h;
+//! - the inner-mouth height's s.d. and the lips' mean frame-to-frame motion (landmarks 48–67
+//!   without the pose), each synthesised over real;
+//! - the sharpness of the mouth as drawn: mean grey gradient magnitude inside the lips'
+//!   bounding box (3 px margin) of the rendered frames over that of the recorded ones.
+//!
+//! Rows: `say` as shipped, and the same phones by blend N = 3, λ = 3e-6 (the old `synth`
+//! defaults) with everything else alike — the same anchoring, re-lighting and footage.
+//!
+//! `cargo run --release --example grid_say -- ../shared/data/grid-s1 [LIMIT]`
+
+use std::path::{Path, PathBuf};
+
+use facespace::codec::{self, EncodeOptions};
+use facespace::eval::mouth::{MouthPc, inner_mouth_height};
+use facespace::eval::{pearson, standard_deviation};
+use facespace::facespace::Frames;
+use facespace::render::{CpuRenderer, DEFAULT_FEATHER, Edge, Renderer};
+use facespace::shape::Similarity;
+use facespace::synth::blend::Blend;
+use facespace::talker::{SayRequest, Speech, Talker};
+use facespace::video::Source;
+use image::RgbImage;
+
+/// A clip's words: `align/ID.align` without `sil` / `sp`.
+fn words(grid: &Path, id: &str) -> String {
+    std::fs::read_to_string(grid.join(format!("align/{id}.align")))
+        .unwrap()
+        .lines()
+        .filter_map(|l| l.split_whitespace().nth(2))
+        .filter(|w| *w != "sil" && *w != "sp")
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// Every frame of `clip` and its tracked face-space points.
+fn tracked(talker: &Talker, clip: &Path) -> (Vec<RgbImage>, Frames) {
+    let model = &talker.model;
+    let source = Source::open(clip).unwrap();
+    let fps = source.info().fps;
+    let (mut images, mut rows) = (Vec::new(), Vec::new());
+    codec::track(model, source, &EncodeOptions::default(), facespace::no_progress, |image, t| {
+        let start = rows.len();
+        rows.resize(start + model.layout().dims(), 0.0);
+        model.project_into(&image, &t.landmarks, &mut rows[start..])?;
+        images.push(image);
+        Ok(())
+    })
+    .unwrap();
+    (images, Frames::from_rows(model.layout(), fps, rows).unwrap())
+}
+
+/// Lip landmarks without the pose, per frame.
+fn lips(talker: &Talker, f: &Frames) -> Vec<Vec<[f64; 2]>> {
+    f.iter()
+        .map(|p| talker.model.shape.instance(&Similarity::IDENTITY, p.shape).points[48..68].to_vec())
+        .collect()
+}
+
+/// Mean frame-to-frame displacement of the lip landmarks.
+fn motion(l: &[Vec<[f64; 2]>]) -> f64 {
+    let steps: Vec<f64> = l
+        .windows(2)
+        .map(|w| {
+            w[0].iter()
+                .zip(&w[1])
+                .map(|(a, b)| (a[0] - b[0]).hypot(a[1] - b[1]))
+                .sum::<f64>()
+                / w[0].len() as f64
+        })
+        .collect();
+    steps.iter().sum::<f64>() / steps.len().max(1) as f64
+}
+
+/// Mean grey gradient magnitude inside the lips' bounding box (3 px margin) of each frame.
+fn sharpness(images: &[RgbImage], landmarks: &[Vec<[f64; 2]>]) -> f64 {
+    let grey = |im: &RgbImage, x: u32, y: u32| {
+        let p = im.get_pixel(x, y).0;
+        0.299 * f64::from(p[0]) + 0.587 * f64::from(p[1]) + 0.114 * f64::from(p[2])
+    };
+    let mut total = 0.0;
+    for (im, l) in images.iter().zip(landmarks) {
+        let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+        for p in &l[48..68] {
+            (x0, x1, y0, y1) = (x0.min(p[0]), x1.max(p[0]), y0.min(p[1]), y1.max(p[1]));
+        }
+        let (x0, y0) = ((x0 - 3.0).max(1.0) as u32, (y0 - 3.0).max(1.0) as u32);
+        let (x1, y1) = (
+            ((x1 + 3.0) as u32).min(im.width() - 2),
+            ((y1 + 3.0) as u32).min(im.height() - 2),
+        );
+        let (mut sum, mut n) = (0.0f64, 0.0f64);
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                let gx = grey(im, x + 1, y) - grey(im, x - 1, y);
+                let gy = grey(im, x, y + 1) - grey(im, x, y - 1);
+                sum += 0.5 * gx.hypot(gy);
+                n += 1.0;
+            }
+        }
+        total += sum / n.max(1.0);
+    }
+    total / images.len().max(1) as f64
+}
+
+struct Sentence {
+    real: Frames,
+    real_images: Vec<RgbImage>,
+    rows: Vec<(Frames, Vec<RgbImage>)>,
+}
+
+fn main() {
+    let mut args = std::env::args().skip(1);
+    let grid = PathBuf::from(args.next().expect("the GRID s1 folder"));
+    let limit: usize = args.next().map_or(usize::MAX, |n| n.parse().unwrap());
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let clock = std::time::Instant::now();
+    let talker = Talker::load(&root.join("models/grid")).unwrap();
+    let ids: Vec<String> = std::fs::read_to_string(grid.join("test.txt"))
+        .unwrap()
+        .lines()
+        .map(|l| l.trim().to_owned())
+        .filter(|l| !l.is_empty())
+        .take(limit)
+        .collect();
+    let old = Blend {
+        top_n: 3,
+        ..Blend::default()
+    };
+    let systems = ["say (talker settings: blend N=5, λ=3e-5)", "old synth defaults (blend N=3, λ=3e-6)"];
+    let renderer = CpuRenderer::with_edge(&talker.model, Edge::Articulators(DEFAULT_FEATHER));
+    let mut sentences = Vec::new();
+    for id in &ids {
+        let clip = grid.join(format!("clips/{id}.mp4"));
+        let (real_images, real) = tracked(&talker, &clip);
+        let staging = tempfile::tempdir().unwrap();
+        let request = SayRequest::new(Speech::Recording {
+            audio: clip.clone(),
+            words: words(&grid, id),
+        });
+        let p = talker.perform(&request, staging.path()).unwrap();
+        let mut rows = Vec::new();
+        for system in 0..systems.len() {
+            let frames = if system == 0 {
+                p.utterance.variants()[0].1.clone()
+            } else {
+                let req = facespace::synth::Request {
+                    pose: p.backdrop.pose.clone(),
+                    ..facespace::synth::Request::new(
+                        p.target.clone(),
+                        real.fps(),
+                        facespace::synth::Smoothing::On(facespace::synth::GENERATED_SMOOTHING),
+                    )
+                };
+                let mut u = facespace::synth::synthesise(&old, &talker.codebook, req).unwrap();
+                p.backdrop.anchor_region(&talker.model, &mut u).unwrap();
+                p.backdrop.match_lighting(&talker.model, &talker.codebook, &mut u);
+                u.variants()[0].1.clone()
+            };
+            let mut images = Vec::new();
+            facespace::render::stream(
+                &renderer as &dyn Renderer,
+                &frames,
+                p.backdrop.background().unwrap(),
+                |im| -> Result<(), facespace::render::RenderError> {
+                    images.push(im);
+                    Ok(())
+                },
+                facespace::no_progress,
+            )
+            .unwrap();
+            rows.push((frames, images));
+        }
+        sentences.push(Sentence {
+            real,
+            real_images,
+            rows,
+        });
+        eprint!(".");
+    }
+    eprintln!();
+    let reals: Vec<&Frames> = sentences.iter().map(|s| &s.real).collect();
+    let pc = MouthPc::fit(&talker.model, &reals).expect("a 68-point model");
+    let points = |f: &Frames| facespace::eval::landmarks(&talker.model, f);
+    println!(
+        "GRID s1 test split (recorded), {} sentences, `say --audio CLIP --text WORDS` over the talker's idle footage:\n",
+        sentences.len()
+    );
+    println!("| system | r_pca eq. 16 | r_h inner | inner s.d. × real | lip motion × real | mouth sharpness × real |");
+    println!("|---|---|---|---|---|---|");
+    for (k, name) in systems.iter().enumerate() {
+        let (mut r_pca, mut r_h, mut sd, mut mo, mut sharp) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        for s in &sentences {
+            let (synth, images) = &s.rows[k];
+            let n = synth.len().min(s.real.len());
+            let (a, b) = (synth.slice(0..n), s.real.slice(0..n));
+            r_pca += pearson(&pc.series(&a), &pc.series(&b));
+            let h = |f: &Frames| points(f).iter().map(|p| inner_mouth_height(p)).collect::<Vec<_>>();
+            let (ha, hb) = (h(&a), h(&b));
+            r_h += pearson(&ha, &hb);
+            sd += standard_deviation(&ha) / standard_deviation(&hb).max(1e-9);
+            mo += motion(&lips(&talker, &a)) / motion(&lips(&talker, &b)).max(1e-9);
+            sharp += sharpness(&images[..n], &points(&a))
+                / sharpness(&s.real_images[..n], &points(&b)).max(1e-9);
+        }
+        let m = sentences.len() as f64;
+        println!(
+            "| {name} | {:.3} | {:.3} | {:.2} | {:.2} | {:.2} |",
+            r_pca / m,
+            r_h / m,
+            sd / m,
+            mo / m,
+            sharp / m
+        );
+    }
+    println!("\n({:.0} s on this machine)", clock.elapsed().as_secs_f64());
+}

@@ -1,0 +1,113 @@
+//! Making a talker folder from its parts: a model, a codebook made with it, and clips of the
+//! talker to track as idle footage. Each step leaves its part whole before the next starts
+//! and `talker.json` is written last, so an interrupted build is not a talker yet, and the
+//! next build keeps the parts already done (a model and codebook in place, footage of the same
+//! clips tracked by the same model) instead of starting over.
+
+use std::path::{Path, PathBuf};
+
+use super::footage::{Footage, FootageError};
+use super::{
+    FORMAT, MANIFEST, Provenance, Settings, TALKER_VERSION, Talker, TalkerError, TalkerManifest,
+    Voice,
+};
+use crate::codebook::Codebook;
+use crate::model::FaceModel;
+use crate::{Progress, atomic};
+
+/// What a talker is made of.
+#[derive(Clone, Debug)]
+pub struct Parts {
+    /// The whole-face model folder.
+    pub model: PathBuf,
+    /// A codebook built with that model.
+    pub codebook: PathBuf,
+    /// Videos of the talker to take idle footage from.
+    pub footage: Vec<PathBuf>,
+}
+
+/// Who the talker is and how it speaks.
+#[derive(Clone, Debug)]
+pub struct Identity {
+    /// A name.
+    pub name: String,
+    /// The synthesis settings.
+    pub settings: Settings,
+    /// The voice for speech from text.
+    pub voice: Option<Voice>,
+    /// The recordings, in words.
+    pub recordings: String,
+}
+
+/// Whether `a` and `b` are the same folder.
+fn same(a: &Path, b: &Path) -> bool {
+    matches!((a.canonicalize(), b.canonicalize()), (Ok(x), Ok(y)) if x == y)
+}
+
+/// Makes (or completes) the talker folder `out` from `parts` (module docs) and loads it.
+pub fn build(
+    identity: &Identity,
+    parts: &Parts,
+    out: &Path,
+    mut progress: impl FnMut(Progress),
+) -> Result<Talker, TalkerError> {
+    let dir = out.to_path_buf();
+    let io = |path: &Path| {
+        let path = path.to_path_buf();
+        move |source| TalkerError::Io { path, source }
+    };
+    std::fs::create_dir_all(out).map_err(io(out))?;
+    let model_error = |source| TalkerError::Model {
+        dir: dir.clone(),
+        source,
+    };
+    let codebook_error = |source| TalkerError::Codebook {
+        dir: dir.clone(),
+        source,
+    };
+    let model = FaceModel::load(&parts.model).map_err(model_error)?;
+    let codebook = Codebook::load(&parts.codebook).map_err(codebook_error)?;
+    codebook.check_model(&model).map_err(codebook_error)?;
+    if !same(&parts.model, &out.join("model")) {
+        model.save(&out.join("model")).map_err(model_error)?;
+    }
+    if !same(&parts.codebook, &out.join("codebook")) {
+        codebook.save(&out.join("codebook")).map_err(codebook_error)?;
+    }
+    let footage_dir = out.join("footage");
+    let done = Footage::load(&footage_dir).ok().filter(|f| {
+        f.model_hash == model.hash()
+            && f.clips.len() == parts.footage.len()
+            && f.clips.iter().zip(&parts.footage).all(|(c, p)| {
+                p.file_name()
+                    .is_some_and(|n| c.file.ends_with(&*n.to_string_lossy()))
+            })
+    });
+    if done.is_none() {
+        Footage::build(&model, &parts.footage, &footage_dir, &mut progress).map_err(
+            |source: FootageError| TalkerError::Footage {
+                dir: dir.clone(),
+                source,
+            },
+        )?;
+    }
+    let manifest = TalkerManifest {
+        format: FORMAT.into(),
+        version: TALKER_VERSION,
+        name: identity.name.clone(),
+        model: "model".into(),
+        codebook: "codebook".into(),
+        footage: "footage".into(),
+        settings: identity.settings.clone(),
+        voice: identity.voice.clone(),
+        provenance: Provenance {
+            recordings: identity.recordings.clone(),
+            made_by: "facespace talker build".into(),
+            facespace: env!("CARGO_PKG_VERSION").into(),
+        },
+    };
+    let path = out.join(MANIFEST);
+    let json = serde_json::to_vec_pretty(&manifest).expect("talker manifest serialises");
+    atomic::write_file(&path, &json).map_err(io(&path))?;
+    Talker::load(out)
+}

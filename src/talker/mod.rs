@@ -1,0 +1,545 @@
+//! A talker: everything needed to make one person speak, in one folder (issue 33).
+//!
+//! `talker.json` names the parts and holds the synthesis settings chosen on validation:
+//!
+//! - `model/`: the whole-face model that tracked the footage and draws the face;
+//! - `codebook/`: the codebook of the talker's sentences in that model's space;
+//! - `footage/`: idle footage, tracked ([`footage`]): the living frame every utterance is
+//!   drawn over, only the lips and jaw replaced.
+//!
+//! [`Talker::say`] is the one pipeline from speech (text, a recording with its words, or phone
+//! labels) to a video with sound: `say`, `synth --talker` and the demo call it.
+
+pub mod build;
+pub mod footage;
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+use crate::codebook::{Codebook, CodebookError};
+use crate::manifest::{self, ManifestError};
+use crate::model::{FaceModel, ModelError};
+use crate::phonemes::{PhoneMap, PhonemeError, Segment};
+use crate::render::{DEFAULT_FEATHER, Edge, RenderError, RendererChoice};
+use crate::synth::backdrop::Backdrop;
+use crate::synth::blend::Blend;
+use crate::synth::graph::Graph;
+use crate::synth::output::{OutputError, OutputOptions};
+use crate::synth::unit::UnitSelection;
+use crate::synth::{Request, Smoothing, SynthError, Synthesiser, Utterance};
+use crate::video::{Sink, VideoError};
+use crate::{Progress, atomic};
+use footage::{Footage, FootageError, Plan};
+
+/// The talker folder format this build writes and reads.
+pub const TALKER_VERSION: u32 = 1;
+const FORMAT: &str = "facespace-talker";
+/// The talker's manifest.
+pub const MANIFEST: &str = "talker.json";
+
+/// How a talker synthesises.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Mode {
+    /// Top-N context blending.
+    Blend,
+    /// Unit selection.
+    Unit,
+    /// The dynamic-phoneme graph.
+    Graph,
+}
+
+/// The synthesis settings a talker carries (chosen on a validation part kept apart from what
+/// is reported).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Settings {
+    /// How to synthesise.
+    pub mode: Mode,
+    /// Examples blended per phone, N.
+    pub top_n: usize,
+    /// Context width C.
+    pub context: usize,
+    /// Smoothing weight λ of the cubic smoothing spline.
+    pub smoothing: f64,
+    /// Where they were chosen, in words.
+    pub chosen_on: String,
+}
+
+impl Settings {
+    /// The synthesiser these settings name.
+    pub fn synthesiser(&self) -> Box<dyn Synthesiser> {
+        match self.mode {
+            Mode::Blend => Box::new(Blend {
+                context: self.context,
+                top_n: self.top_n,
+                preserve_variance: true,
+            }),
+            Mode::Unit => Box::new(UnitSelection::default()),
+            Mode::Graph => Box::new(Graph::default()),
+        }
+    }
+}
+
+/// The text-to-speech voice that suits the talker.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Voice {
+    /// Festival's name for it (`kal_diphone`).
+    pub festival: String,
+    /// The Debian package that installs it, for the hint when it is missing.
+    pub package: String,
+}
+
+/// Where the talker came from.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Provenance {
+    /// The recordings, in words (corpus, split, licence).
+    pub recordings: String,
+    /// How the folder was made.
+    pub made_by: String,
+    /// The facespace version that made it.
+    pub facespace: String,
+}
+
+/// `talker.json`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TalkerManifest {
+    /// Always `facespace-talker`.
+    pub format: String,
+    /// [`TALKER_VERSION`].
+    pub version: u32,
+    /// Who this is.
+    pub name: String,
+    /// The whole-face model folder (a name inside the talker folder).
+    pub model: String,
+    /// The codebook folder.
+    pub codebook: String,
+    /// The footage folder.
+    pub footage: String,
+    /// The synthesis settings.
+    pub settings: Settings,
+    /// The voice for speech from text.
+    pub voice: Option<Voice>,
+    /// Where it came from.
+    pub provenance: Provenance,
+}
+
+/// What can go wrong with a talker.
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum TalkerError {
+    /// `talker.json` is missing, damaged or of another version.
+    #[error("talker {dir}: {source}")]
+    Manifest {
+        /// The talker folder.
+        dir: PathBuf,
+        /// The cause.
+        source: ManifestError,
+    },
+    /// The model part.
+    #[error("talker {dir}: its model: {source}")]
+    Model {
+        /// The talker folder.
+        dir: PathBuf,
+        /// The cause.
+        source: ModelError,
+    },
+    /// The codebook part.
+    #[error("talker {dir}: its codebook: {source}")]
+    Codebook {
+        /// The talker folder.
+        dir: PathBuf,
+        /// The cause.
+        source: CodebookError,
+    },
+    /// The footage part.
+    #[error("talker {dir}: its {source}")]
+    Footage {
+        /// The talker folder.
+        dir: PathBuf,
+        /// The cause.
+        source: FootageError,
+    },
+    /// A part made with another model than the talker's.
+    #[error(
+        "talker {dir}: its {part} was made with another model ({found}) than its model ({expected}); rebuild the talker (`facespace talker build`)"
+    )]
+    Foreign {
+        /// The talker folder.
+        dir: PathBuf,
+        /// Which part.
+        part: &'static str,
+        /// The part's model hash.
+        found: String,
+        /// The model's hash.
+        expected: String,
+    },
+    /// The speech could not be made or read.
+    #[error("{0}")]
+    Speech(String),
+    /// The phones could not be read.
+    #[error(transparent)]
+    Phonemes(#[from] PhonemeError),
+    /// Synthesis failed.
+    #[error(transparent)]
+    Synth(#[from] SynthError),
+    /// Rendering failed.
+    #[error(transparent)]
+    Render(#[from] RenderError),
+    /// Writing failed.
+    #[error(transparent)]
+    Output(#[from] OutputError),
+    /// The video could not be written.
+    #[error(transparent)]
+    Video(#[from] VideoError),
+    /// The living frame's footage could not be read.
+    #[error(transparent)]
+    Backdrop(#[from] crate::synth::backdrop::BackdropError),
+    /// A file could not be written.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+}
+
+/// A talker, loaded (module docs).
+pub struct Talker {
+    /// Its folder.
+    pub dir: PathBuf,
+    /// Its manifest.
+    pub manifest: TalkerManifest,
+    /// The whole-face model.
+    pub model: FaceModel,
+    /// The codebook.
+    pub codebook: Codebook,
+    /// The idle footage.
+    pub footage: Footage,
+}
+
+/// What the face speaks.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Speech {
+    /// Text, spoken by a text-to-speech engine in the talker's voice; the speech is aligned
+    /// and goes under the video.
+    Text(String),
+    /// A recording and its words, aligned to it; the recording goes under the video.
+    Recording {
+        /// The sound (WAV, MP4/M4A).
+        audio: PathBuf,
+        /// Its words.
+        words: String,
+    },
+    /// Phone timings; with a recording to put under the video, or silent.
+    Labels {
+        /// The label file (.lab, .TextGrid, .tsv).
+        labels: PathBuf,
+        /// The TextGrid tier to read.
+        tier: Option<String>,
+        /// Labels of another phone set, mapped to ARPAbet.
+        map: PhoneMap,
+        /// The sound, if any.
+        audio: Option<PathBuf>,
+    },
+}
+
+/// What to say and how.
+#[derive(Clone, Debug)]
+pub struct SayRequest {
+    /// The speech.
+    pub speech: Speech,
+    /// A Festival voice other than the talker's.
+    pub voice: Option<String>,
+    /// Extra pronunciations for the aligner.
+    pub dicts: Vec<PathBuf>,
+    /// Which renderer draws.
+    pub renderer: RendererChoice,
+    /// Which of the best living frames ([`Footage::best_plan`]).
+    pub seed: u64,
+    /// Also write the folder of parts here (trajectory, frames, plot, report).
+    pub parts: Option<PathBuf>,
+}
+
+impl SayRequest {
+    /// `speech`, with everything else as the talker has it.
+    pub fn new(speech: Speech) -> Self {
+        SayRequest {
+            speech,
+            voice: None,
+            dicts: Vec::new(),
+            renderer: RendererChoice::Auto,
+            seed: 0,
+            parts: None,
+        }
+    }
+}
+
+/// An utterance ready to draw: the synthesis fitted to its living frame.
+pub struct Performance {
+    /// The phones spoken.
+    pub target: Vec<Segment>,
+    /// The words, when there were words.
+    pub words: Option<String>,
+    /// The synthesis, anchored to the footage's face and re-lit to it.
+    pub utterance: Utterance,
+    /// Which footage frames are shown.
+    pub plan: Plan,
+    /// The living frame.
+    pub backdrop: Backdrop,
+    /// The speech under the video, if any.
+    pub sound: Option<PathBuf>,
+    /// Notes for the user (a voice that was missing, phones borrowed).
+    pub notes: Vec<String>,
+}
+
+/// What [`Talker::say`] made.
+#[derive(Clone, Debug, Serialize)]
+pub struct SayReport {
+    /// The video written.
+    pub video: PathBuf,
+    /// Frames.
+    pub frames: usize,
+    /// Frames per second.
+    pub fps: f64,
+    /// Frame size.
+    pub size: (u32, u32),
+    /// Whether the video carries sound.
+    pub sound: bool,
+    /// The words, when there were words.
+    pub words: Option<String>,
+    /// Phones spoken.
+    pub phones: usize,
+    /// The synthesiser.
+    pub method: String,
+    /// Output frames where the living frame joins two stretches, and what each join costs
+    /// against the footage's median step.
+    pub joins: Vec<usize>,
+    /// [`Plan::join_costs`].
+    pub join_costs: Vec<f32>,
+    /// [`Plan::median_step`].
+    pub median_step: f32,
+    /// What rendered.
+    pub renderer: String,
+    /// Notes.
+    pub notes: Vec<String>,
+}
+
+impl Talker {
+    /// Loads the talker folder `dir`: the manifest (its version checked), then each part,
+    /// each checked against the model. An error names the part.
+    pub fn load(dir: &Path) -> Result<Talker, TalkerError> {
+        let manifest_error = |source| TalkerError::Manifest {
+            dir: dir.into(),
+            source,
+        };
+        let m: TalkerManifest =
+            manifest::read(&dir.join(MANIFEST), FORMAT, TALKER_VERSION).map_err(manifest_error)?;
+        let part = |name: &str| manifest::member(dir, name).map_err(manifest_error);
+        let model = FaceModel::load(&part(&m.model)?).map_err(|source| TalkerError::Model {
+            dir: dir.into(),
+            source,
+        })?;
+        let codebook =
+            Codebook::load(&part(&m.codebook)?).map_err(|source| TalkerError::Codebook {
+                dir: dir.into(),
+                source,
+            })?;
+        codebook
+            .check_model(&model)
+            .map_err(|source| TalkerError::Codebook {
+                dir: dir.into(),
+                source,
+            })?;
+        let footage = Footage::load(&part(&m.footage)?).map_err(|source| TalkerError::Footage {
+            dir: dir.into(),
+            source,
+        })?;
+        let hash = model.hash();
+        if footage.model_hash != hash {
+            return Err(TalkerError::Foreign {
+                dir: dir.into(),
+                part: "footage",
+                found: footage.model_hash.clone(),
+                expected: hash,
+            });
+        }
+        Ok(Talker {
+            dir: dir.into(),
+            manifest: m,
+            model,
+            codebook,
+            footage,
+        })
+    }
+
+    /// The phones of `speech` and the sound to put under them, made in `staging` when the
+    /// speech is text.
+    fn phones(
+        &self,
+        request: &SayRequest,
+        staging: &Path,
+        notes: &mut Vec<String>,
+    ) -> Result<(Vec<Segment>, Option<String>, Option<PathBuf>), TalkerError> {
+        let align = |sound: &Path, words: &str| {
+            crate::align::Aligner::load_default(&request.dicts)
+                .and_then(|a| a.align_file(sound, words))
+                .map(|a| a.segments())
+                .map_err(|e| TalkerError::Speech(format!("aligning {}: {e}", sound.display())))
+        };
+        Ok(match &request.speech {
+            Speech::Text(text) => {
+                let wav = staging.join("speech.wav");
+                let voice = request
+                    .voice
+                    .as_deref()
+                    .or(self.manifest.voice.as_ref().map(|v| v.festival.as_str()));
+                let spoken = crate::tts::speak_as(text, &wav, voice)
+                    .map_err(|e| TalkerError::Speech(e.to_string()))?;
+                if let Some(note) = spoken.note {
+                    let hint = self
+                        .manifest
+                        .voice
+                        .as_ref()
+                        .filter(|v| Some(v.festival.as_str()) == voice)
+                        .map(|v| format!(" (`apt-get install {}`)", v.package))
+                        .unwrap_or_default();
+                    notes.push(format!("{note}{hint}"));
+                }
+                (align(&wav, text)?, Some(text.clone()), Some(wav))
+            }
+            Speech::Recording { audio, words } => {
+                (align(audio, words)?, Some(words.clone()), Some(audio.clone()))
+            }
+            Speech::Labels {
+                labels,
+                tier,
+                map,
+                audio,
+            } => (
+                crate::phonemes::read_labels(labels, tier.as_deref(), map)?,
+                None,
+                audio.clone(),
+            ),
+        })
+    }
+
+    /// Everything up to the pixels: phones from the speech, the synthesis by the talker's
+    /// settings, the living frame as long as the speech, the synthesis anchored to the
+    /// footage's face (only lips and chin its own) and re-lit to it. Speech from text is made
+    /// in `staging`.
+    pub fn perform(
+        &self,
+        request: &SayRequest,
+        staging: &Path,
+    ) -> Result<Performance, TalkerError> {
+        let mut notes = Vec::new();
+        let (target, words, sound) = self.phones(request, staging, &mut notes)?;
+        let fps = self.footage.fps;
+        crate::synth::validate_request(&target, fps)?;
+        let n = crate::synth::frame_count(&target, fps);
+        if let Some(sound) = &sound {
+            crate::synth::output::check_sound(sound, n as f64 / fps)?;
+        }
+        let plan = self.footage.best_plan(n, request.seed);
+        let backdrop = Backdrop::footage(&self.footage, &plan).map_err(SynthError::from)?;
+        let settings = &self.manifest.settings;
+        let synthesiser = settings.synthesiser();
+        let req = Request {
+            pose: backdrop.pose.clone(),
+            ..Request::new(target.clone(), fps, Smoothing::On(settings.smoothing))
+        };
+        let mut utterance = crate::synth::synthesise(synthesiser.as_ref(), &self.codebook, req)?;
+        backdrop
+            .anchor_region(&self.model, &mut utterance)
+            .map_err(|source| TalkerError::Model {
+                dir: self.dir.clone(),
+                source,
+            })?;
+        backdrop.match_lighting(&self.model, &self.codebook, &mut utterance);
+        notes.extend(utterance.synthesis.warnings.iter().cloned());
+        Ok(Performance {
+            target,
+            words,
+            utterance,
+            plan,
+            backdrop,
+            sound,
+            notes,
+        })
+    }
+
+    /// Says `request` into the MP4 `out` (with its sound, in the footage's framing), written
+    /// atomically; with [`SayRequest::parts`] also the folder of parts. The one pipeline
+    /// behind `say`.
+    pub fn say(
+        &self,
+        request: &SayRequest,
+        out: &Path,
+        mut progress: impl FnMut(Progress),
+    ) -> Result<SayReport, TalkerError> {
+        let io = |path: &Path| {
+            let path = path.to_path_buf();
+            move |source| TalkerError::Io { path, source }
+        };
+        let staging = atomic::StagingDir::new(atomic::parent_of(out)).map_err(io(out))?;
+        let performance = self.perform(request, staging.path())?;
+        let chosen = crate::render::choose_renderer(
+            request.renderer,
+            &self.model,
+            Edge::Articulators(DEFAULT_FEATHER),
+        )?;
+        let renderer = chosen.renderer.as_ref();
+        let mut notes = performance.notes.clone();
+        notes.extend(chosen.note.clone());
+        let frames = performance
+            .utterance
+            .variants()
+            .first()
+            .map(|(_, f)| (*f).clone())
+            .ok_or(SynthError::Empty)?;
+        let size = self.footage.size;
+        let sound = performance.sound.as_deref();
+        let mut sink = Sink::create(out, size.0, size.1, frames.fps(), sound)?;
+        crate::render::stream(
+            renderer,
+            &frames,
+            performance.backdrop.background()?,
+            |image| sink.write(&image).map_err(TalkerError::from),
+            &mut progress,
+        )?;
+        let written = sink.finish()?;
+        if let Some(parts) = &request.parts {
+            crate::synth::output::write_folder(
+                parts,
+                renderer,
+                &performance.utterance,
+                performance.backdrop.background()?,
+                &OutputOptions {
+                    audio: sound,
+                    seed: request.seed,
+                    text: performance.words.as_deref(),
+                    ..OutputOptions::default()
+                },
+                &mut progress,
+            )?;
+        }
+        Ok(SayReport {
+            video: out.into(),
+            frames: written,
+            fps: frames.fps(),
+            size,
+            sound: sound.is_some(),
+            words: performance.words.clone(),
+            phones: performance.target.len(),
+            method: performance.utterance.method.clone(),
+            joins: performance.plan.joins.clone(),
+            join_costs: performance.plan.join_costs.clone(),
+            median_step: performance.plan.median_step,
+            renderer: renderer.describe(),
+            notes,
+        })
+    }
+}

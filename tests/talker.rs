@@ -1,0 +1,430 @@
+//! The talker folder and `say` (issue 33): the committed GRID s1 talker loads, plans a living
+//! frame from its own footage (never backwards, joins that move the picture no more than a
+//! recorded step or so), replaces only the lips and jaw (the eyes are one real frame's pixels),
+//! moves its head as the footage does, and refuses a damaged folder naming the part.
+
+use crate::common;
+
+use std::path::{Path, PathBuf};
+
+use facespace::render::{CpuRenderer, DEFAULT_FEATHER, Edge, Renderer};
+use facespace::talker::footage::{DISSOLVE_FRAMES, Footage, MIN_RUN_SECONDS, Plan};
+use facespace::talker::{SayRequest, Speech, Talker, TalkerError};
+use facespace::video::Source;
+use image::RgbImage;
+
+fn grid_talker_dir() -> PathBuf {
+    common::root().join("models/grid")
+}
+
+/// The committed talker, loaded once per test binary.
+fn talker() -> &'static Talker {
+    static TALKER: std::sync::OnceLock<Talker> = std::sync::OnceLock::new();
+    TALKER.get_or_init(|| Talker::load(&grid_talker_dir()).expect("the GRID talker loads"))
+}
+
+/// Every footage frame, decoded, in footage order.
+fn footage_frames(f: &Footage) -> Vec<RgbImage> {
+    (0..f.clips.len())
+        .flat_map(|c| {
+            Source::open(&f.clip_path(c))
+                .unwrap()
+                .collect::<Result<Vec<_>, _>>()
+                .unwrap()
+        })
+        .collect()
+}
+
+fn grey(p: &image::Rgb<u8>) -> f64 {
+    0.299 * f64::from(p.0[0]) + 0.587 * f64::from(p.0[1]) + 0.114 * f64::from(p.0[2])
+}
+
+/// Mean absolute grey difference of two frames.
+fn difference(a: &RgbImage, b: &RgbImage) -> f64 {
+    a.pixels().zip(b.pixels()).map(|(p, q)| (grey(p) - grey(q)).abs()).sum::<f64>()
+        / f64::from(a.width() * a.height())
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// The footage's median difference between consecutive frames of a clip, at full size.
+fn median_step(f: &Footage, frames: &[RgbImage]) -> f64 {
+    let mut steps = Vec::new();
+    let mut start = 0;
+    for c in &f.clips {
+        for g in start + 1..start + c.frames {
+            steps.push(difference(&frames[g - 1], &frames[g]));
+        }
+        start += c.frames;
+    }
+    median(steps)
+}
+
+/// Checks a plan's structure: `n` frames; each stretch forwards in recorded order and at least
+/// a stretch long (the last may be shorter); each dissolve `DISSOLVE_FRAMES` long with both of
+/// its streams forwards, the entered one continuing into the next stretch.
+fn check_plan(f: &Footage, plan: &Plan, n: usize) {
+    assert_eq!(plan.frames.len(), n);
+    assert_eq!(plan.mix.len(), n);
+    let min_run = (MIN_RUN_SECONDS * f.fps).round() as usize;
+    let same_clip_next = |a: usize, b: usize| {
+        let (ca, fa) = f.locate(a);
+        let (cb, fb) = f.locate(b);
+        ca == cb && fb == fa + 1
+    };
+    let mut run = 1;
+    for t in 1..n {
+        let joined = plan.joins.contains(&t);
+        match (plan.mix[t - 1], plan.mix[t]) {
+            // Within a stretch, or the first frame of a dissolve: the left stretch goes on.
+            (None, _) | (Some(_), Some(_)) => {
+                assert!(
+                    same_clip_next(plan.frames[t - 1], plan.frames[t]),
+                    "frame {t}: {} does not follow {} (joins {:?})",
+                    plan.frames[t],
+                    plan.frames[t - 1],
+                    plan.joins
+                );
+                if let (Some((a, _)), Some((b, _))) = (plan.mix[t - 1], plan.mix[t]) {
+                    assert!(same_clip_next(a, b), "frame {t}: the entered stream jumps");
+                }
+            }
+            // The dissolve ends: the entered stream goes on, alone.
+            (Some((entered, w)), None) => {
+                assert!(w > 0.5, "frame {t}: a dissolve ends at weight {w}");
+                assert!(same_clip_next(entered, plan.frames[t]), "frame {t}: entry jumps");
+            }
+        }
+        if joined {
+            assert!(plan.mix[t].is_some(), "frame {t}: a join without a dissolve");
+            assert!(run >= min_run, "a stretch of {run} frames before frame {t}");
+            run = 0;
+        } else if plan.mix[t].is_none() {
+            run += 1;
+        }
+        if plan.mix[t].is_some() && plan.mix[t - 1].is_none() {
+            assert!(joined, "frame {t}: a dissolve that is not a join");
+            let len = plan.mix[t..].iter().take_while(|m| m.is_some()).count();
+            assert!(len == DISSOLVE_FRAMES || t + len == n, "a dissolve of {len} frames");
+        }
+    }
+}
+
+#[test]
+fn living_frames_play_forwards_and_tour_the_footage() {
+    let f = &talker().footage;
+    for n in [1, 10, 92, 306, 600] {
+        for seed in [0, 1] {
+            let plan = f.best_plan(n, seed);
+            check_plan(f, &plan, n);
+            // Shorter than the footage: no footage frame shown twice.
+            let mut shown: Vec<usize> = plan
+                .frames
+                .iter()
+                .copied()
+                .chain(plan.mix.iter().flatten().map(|m| m.0))
+                .collect();
+            let all = shown.len();
+            shown.sort();
+            shown.dedup();
+            if n <= f.len() / 2 {
+                assert_eq!(shown.len(), all, "{n} frames: a footage frame shown twice");
+            }
+        }
+    }
+    // Longer than the footage: still forwards, stretches still whole.
+    let n = f.len() * 2;
+    check_plan(f, &f.best_plan(n, 0), n);
+}
+
+/// A performance of a committed GRID test recording (not in the codebook), rendered without
+/// encoding: the frames as `say` draws them.
+fn performed(name: &str) -> (facespace::talker::Performance, Vec<RgbImage>) {
+    let talker = talker();
+    let data = common::root().join("tests/data/grid");
+    let words = std::fs::read_to_string(data.join(format!("{name}.txt"))).unwrap();
+    let request = SayRequest::new(Speech::Recording {
+        audio: data.join(format!("{name}.wav")),
+        words,
+    });
+    let staging = tempfile::tempdir().unwrap();
+    let p = talker.perform(&request, staging.path()).unwrap();
+    let renderer = CpuRenderer::with_edge(&talker.model, Edge::Articulators(DEFAULT_FEATHER));
+    let frames = p.utterance.variants()[0].1.clone();
+    let mut images = Vec::new();
+    facespace::render::stream(
+        &renderer as &dyn Renderer,
+        &frames,
+        p.backdrop.background().unwrap(),
+        |image| -> Result<(), facespace::render::RenderError> {
+            images.push(image);
+            Ok(())
+        },
+        facespace::no_progress,
+    )
+    .unwrap();
+    (p, images)
+}
+
+/// Outside joins the eye region (brows and eyes, iBUG 17–26 and 36–47, with a margin) is the
+/// pixels of the one footage frame shown; at joins each frame moves the picture by at most
+/// 1.5 recorded steps; the head moves as much as the footage's.
+#[test]
+fn say_draws_only_the_mouth_over_real_footage() {
+    let talker = talker();
+    let f = &talker.footage;
+    let footage = footage_frames(f);
+    let step = median_step(f, &footage);
+    for name in ["bbbs7a", "bbwtzp"] {
+        let (p, images) = performed(name);
+        assert_eq!(images.len(), p.plan.frames.len());
+        assert_eq!(images[0].dimensions(), f.size, "the talker's own framing");
+        for (t, image) in images.iter().enumerate() {
+            if !p.plan.is_pure(t) {
+                continue;
+            }
+            let g = p.plan.frames[t];
+            let points = &f.landmarks[g].points;
+            let eyes: Vec<_> = points[17..27].iter().chain(&points[36..48]).collect();
+            let (x0, x1) = eyes.iter().fold((f64::MAX, f64::MIN), |(a, b), q| (a.min(q[0]), b.max(q[0])));
+            let (y0, y1) = eyes.iter().fold((f64::MAX, f64::MIN), |(a, b), q| (a.min(q[1]), b.max(q[1])));
+            let mut differing = 0;
+            for y in (y0 - 4.0).max(0.0) as u32..((y1 + 6.0) as u32).min(image.height()) {
+                for x in (x0 - 6.0).max(0.0) as u32..((x1 + 6.0) as u32).min(image.width()) {
+                    differing += usize::from(image.get_pixel(x, y) != footage[g].get_pixel(x, y));
+                }
+            }
+            if differing > 0 {
+                let mut worst = (0, 0, 0i32);
+                for y in (y0 - 4.0).max(0.0) as u32..((y1 + 6.0) as u32).min(image.height()) {
+                    for x in (x0 - 6.0).max(0.0) as u32..((x1 + 6.0) as u32).min(image.width()) {
+                        let d = (0..3)
+                            .map(|c| (i32::from(image.get_pixel(x, y).0[c]) - i32::from(footage[g].get_pixel(x, y).0[c])).abs())
+                            .max()
+                            .unwrap();
+                        if d > worst.2 {
+                            worst = (x, y, d);
+                        }
+                    }
+                }
+                panic!("{name} frame {t}: {differing} eye-region pixels not footage frame {g}'s (worst {worst:?}; box x {x0:.0}–{x1:.0}, y {y0:.0}–{y1:.0})");
+            }
+        }
+        for &j in &p.plan.joins {
+            for t in j..(j + DISSOLVE_FRAMES + 1).min(images.len()) {
+                let d = difference(&images[t - 1], &images[t]);
+                assert!(
+                    d <= 1.5 * step,
+                    "{name}: frame {t} at the join of frame {j} moves {d:.2} grey levels, the footage's median step {step:.2}"
+                );
+            }
+        }
+    }
+}
+
+/// Pose standard deviation (translation and scale, pixels) of a sequence of similarities.
+fn pose_sd(poses: &[facespace::shape::Similarity]) -> [f64; 3] {
+    let sd = |v: Vec<f64>| {
+        let m = v.iter().sum::<f64>() / v.len() as f64;
+        (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / v.len() as f64).sqrt()
+    };
+    let a = poses.iter().map(|p| p.to_array()).collect::<Vec<_>>();
+    [
+        sd(a.iter().map(|p| p[2]).collect()),
+        sd(a.iter().map(|p| p[3]).collect()),
+        sd(a.iter().map(|p| p[0].hypot(p[1])).collect()),
+    ]
+}
+
+/// The head moves as the footage's does: over a long utterance the pose s.d. is within ±30 %
+/// of the footage's own (within its takes, where the footage's motion is).
+#[test]
+fn the_head_moves_as_the_footage_does() {
+    let f = &talker().footage;
+    let mut start = 0;
+    let mut takes = [0.0; 3];
+    for c in &f.clips {
+        let sd = pose_sd(&(start..start + c.frames).map(|g| f.pose(g)).collect::<Vec<_>>());
+        for k in 0..3 {
+            takes[k] += sd[k] / f.clips.len() as f64;
+        }
+        start += c.frames;
+    }
+    let plan = f.best_plan(300, 0);
+    let backdrop = facespace::synth::backdrop::Backdrop::footage(f, &plan).unwrap();
+    let facespace::synth::Pose::Replay(poses) = &backdrop.pose else {
+        panic!("a living frame replays its poses")
+    };
+    let here = pose_sd(poses);
+    for k in 0..3 {
+        let ratio = here[k] / takes[k];
+        assert!(
+            (0.7..=1.3).contains(&ratio),
+            "pose s.d. {k}: {:.3} over 12 s, the footage's takes {:.3} (ratio {ratio:.2})",
+            here[k],
+            takes[k]
+        );
+    }
+}
+
+/// `say` writes one MP4 with sound in the talker's framing, the sound as long as the video
+/// (±1 frame); without a text-to-speech engine it says how to install one, writing nothing.
+#[test]
+fn say_writes_one_video_with_its_sound() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("say.mp4");
+    let o = common::facespace(&[
+        "say",
+        "Please call me tomorrow morning about the shipment.",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    if facespace::tts::available().is_none() {
+        assert!(!o.status.success());
+        assert!(common::text(&o).contains(facespace::tts::INSTALL_LINE), "{}", common::text(&o));
+        assert!(!out.exists());
+        return;
+    }
+    assert!(o.status.success(), "{}", common::text(&o));
+    let source = Source::open(&out).unwrap();
+    let (w, h, fps) = (source.info().width, source.info().height, source.info().fps);
+    assert_eq!((w, h), talker().footage.size);
+    let frames = source.count();
+    let video = frames as f64 / fps;
+    // Decoded, the encoder's priming dropped by the MP4's edit list.
+    let sound = facespace::audio::read(&out, 16_000, 60.0).unwrap().seconds();
+    assert!(
+        (sound - video).abs() <= 1.0 / fps + 1e-6,
+        "sound {sound:.3} s, video {video:.3} s ({frames} frames)"
+    );
+    assert_eq!(
+        std::fs::read_dir(dir.path()).unwrap().count(),
+        1,
+        "one file written, nothing left beside it"
+    );
+}
+
+/// A copy of the talker whose big parts are links and whose footage is a real copy to damage.
+fn damaged_copy(damage: impl FnOnce(&Path)) -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    let t = dir.path();
+    let src = grid_talker_dir();
+    std::os::unix::fs::symlink(src.join("model"), t.join("model")).unwrap();
+    std::os::unix::fs::symlink(src.join("codebook"), t.join("codebook")).unwrap();
+    std::fs::create_dir(t.join("footage")).unwrap();
+    for e in std::fs::read_dir(src.join("footage")).unwrap() {
+        let e = e.unwrap();
+        std::fs::copy(e.path(), t.join("footage").join(e.file_name())).unwrap();
+    }
+    std::fs::copy(src.join("talker.json"), t.join("talker.json")).unwrap();
+    damage(t);
+    dir
+}
+
+/// A damaged talker is refused naming the part, and `say` writes nothing.
+#[test]
+fn a_damaged_talker_is_refused_naming_the_part() {
+    let edit = |path: PathBuf, from: &str, to: &str| {
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(text.contains(from), "{from} in {}", path.display());
+        std::fs::write(&path, text.replacen(from, to, 1)).unwrap();
+    };
+    let truncate = |path: PathBuf| {
+        let len = std::fs::metadata(&path).unwrap().len();
+        let f = std::fs::OpenOptions::new().write(true).open(&path).unwrap();
+        f.set_len(len / 2).unwrap();
+    };
+    type Damage = Box<dyn Fn(&Path)>;
+    let cases: Vec<(&str, Damage, &str)> = vec![
+        (
+            "missing footage array",
+            Box::new(|t| std::fs::remove_file(t.join("footage/distance.npy")).unwrap()),
+            "distance.npy",
+        ),
+        (
+            "truncated footage array",
+            Box::new(move |t| truncate(t.join("footage/tracked.npy"))),
+            "tracked.npy",
+        ),
+        (
+            "missing clip",
+            Box::new(|t| {
+                let clip = std::fs::read_dir(t.join("footage"))
+                    .unwrap()
+                    .map(|e| e.unwrap().path())
+                    .find(|p| p.extension().is_some_and(|x| x == "mp4"))
+                    .unwrap();
+                std::fs::remove_file(clip).unwrap();
+            }),
+            "is missing",
+        ),
+        (
+            "footage of another model",
+            Box::new(move |t| {
+                let path = t.join("footage/footage.json");
+                let text = std::fs::read_to_string(&path).unwrap();
+                let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+                let hash = v["model_hash"].as_str().unwrap().to_owned();
+                edit(path, &hash, "0123456789abcdef");
+            }),
+            "another model",
+        ),
+        (
+            "another version",
+            Box::new(move |t| edit(t.join("talker.json"), "\"version\": 1", "\"version\": 99")),
+            "version",
+        ),
+        (
+            "missing model",
+            Box::new(|t| std::fs::remove_file(t.join("model")).unwrap()),
+            "its model",
+        ),
+    ];
+    for (what, damage, named) in cases {
+        let dir = damaged_copy(|t| damage(t));
+        let err = match Talker::load(dir.path()) {
+            Err(e) => e,
+            Ok(_) => panic!("{what}: loaded"),
+        };
+        let message = err.to_string();
+        assert!(message.contains(named), "{what}: {message}");
+        let out = dir.path().join("out.mp4");
+        let o = common::facespace(&[
+            "say",
+            "--talker",
+            dir.path().to_str().unwrap(),
+            "--labels",
+            common::root().join("tests/data/grid/bbbs7a.lab").to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        assert!(!o.status.success(), "{what}: say succeeded");
+        assert!(common::text(&o).contains(named), "{what}: {}", common::text(&o));
+        assert!(!out.exists(), "{what}: something was written");
+    }
+    assert!(matches!(
+        Talker::load(&common::root().join("models/demo")),
+        Err(TalkerError::Manifest { .. })
+    ));
+}
+
+/// Footage under a second is refused when the talker is built.
+#[test]
+fn footage_under_a_second_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = &talker().model;
+    let clip = common::root().join("tests/data/grid/bbbs7a.mp4");
+    // 20 frames of a GRID clip: 0.8 s.
+    let short = dir.path().join("short.y4m");
+    let mut sink = facespace::video::Sink::create(&short, 360, 288, 25.0, None).unwrap();
+    for frame in Source::open(&clip).unwrap().take(20) {
+        sink.write(&frame.unwrap()).unwrap();
+    }
+    sink.finish().unwrap();
+    let err = Footage::build(model, &[short], &dir.path().join("footage"), facespace::no_progress)
+        .unwrap_err();
+    assert!(err.to_string().contains("at least 1 s"), "{err}");
+}
