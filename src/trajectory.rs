@@ -53,8 +53,10 @@ pub enum TrajectoryError {
     BadDuration(f64),
 }
 
-/// Samples `values` (`times.len() × dims`, row-major) at `times`, with PCHIP tangents.
-#[derive(Clone, Debug, PartialEq)]
+/// Samples `values` (`times.len() × dims`, row-major) at `times`, with PCHIP tangents
+/// (computed when the trajectory is first evaluated: a loaded codebook's sentences are
+/// mostly never evaluated, and computing every tangent was most of its load).
+#[derive(Clone, Debug)]
 pub struct Trajectory {
     /// Sample times, strictly increasing.
     pub times: Vec<f64>,
@@ -62,7 +64,14 @@ pub struct Trajectory {
     pub dims: usize,
     /// `times.len() × dims` values, row-major.
     pub values: Vec<f64>,
-    slopes: Vec<f64>,
+    slopes: std::sync::OnceLock<Vec<f64>>,
+}
+
+impl PartialEq for Trajectory {
+    /// The samples decide (the tangents follow from them).
+    fn eq(&self, other: &Self) -> bool {
+        self.times == other.times && self.dims == other.dims && self.values == other.values
+    }
 }
 
 impl Trajectory {
@@ -94,23 +103,11 @@ impl Trajectory {
                 previous: times[i - 1],
             });
         }
-        let mut slopes = vec![0.0; n * dims];
-        let mut column = vec![0.0; n];
-        let mut d = vec![0.0; n];
-        for k in 0..dims {
-            for i in 0..n {
-                column[i] = values[i * dims + k];
-            }
-            pchip_slopes(&times, &column, &mut d);
-            for i in 0..n {
-                slopes[i * dims + k] = d[i];
-            }
-        }
         Ok(Trajectory {
             times,
             dims,
             values,
-            slopes,
+            slopes: std::sync::OnceLock::new(),
         })
     }
 
@@ -171,11 +168,14 @@ impl Trajectory {
             s3 - s2,
         );
         let (a, b) = (i * dims, (i + 1) * dims);
+        let slopes = self
+            .slopes
+            .get_or_init(|| pchip_slopes_rows(&self.times, &self.values, dims));
         for (k, o) in out.iter_mut().enumerate() {
             *o = h00 * self.values[a + k]
-                + h10 * h * self.slopes[a + k]
+                + h10 * h * slopes[a + k]
                 + h01 * self.values[b + k]
-                + h11 * h * self.slopes[b + k];
+                + h11 * h * slopes[b + k];
         }
     }
 
@@ -278,6 +278,47 @@ pub fn pchip_slopes(x: &[f64], y: &[f64], d: &mut [f64]) {
     }
     d[0] = edge_slope(h(0), h(1), m(0), m(1));
     d[n - 1] = edge_slope(h(n - 2), h(n - 3), m(n - 2), m(n - 3));
+}
+
+/// [`pchip_slopes`] of every column of the row-major `values` (`x.len()` × `dims`) at once,
+/// the same numbers: each secant computed once and the rows walked in memory order (a
+/// codebook's load is mostly this).
+pub fn pchip_slopes_rows(x: &[f64], values: &[f64], dims: usize) -> Vec<f64> {
+    let n = x.len();
+    let mut d = vec![0.0; n * dims];
+    if n < 2 {
+        return d;
+    }
+    let h: Vec<f64> = x.windows(2).map(|w| w[1] - w[0]).collect();
+    let mut m = vec![0.0; (n - 1) * dims];
+    for i in 0..n - 1 {
+        let (row, next) = (&values[i * dims..(i + 1) * dims], &values[(i + 1) * dims..(i + 2) * dims]);
+        for ((mk, a), b) in m[i * dims..(i + 1) * dims].iter_mut().zip(row).zip(next) {
+            *mk = (b - a) / h[i];
+        }
+    }
+    if n == 2 {
+        d[..dims].copy_from_slice(&m[..dims]);
+        d[dims..].copy_from_slice(&m[..dims]);
+        return d;
+    }
+    for i in 1..n - 1 {
+        let (w1, w2) = (2.0 * h[i] + h[i - 1], h[i] + 2.0 * h[i - 1]);
+        for k in 0..dims {
+            let (m0, m1) = (m[(i - 1) * dims + k], m[i * dims + k]);
+            d[i * dims + k] = if m0 == 0.0 || m1 == 0.0 || sign(m0) != sign(m1) {
+                0.0
+            } else {
+                (w1 + w2) / (w1 / m0 + w2 / m1)
+            };
+        }
+    }
+    for k in 0..dims {
+        let m_at = |i: usize| m[i * dims + k];
+        d[k] = edge_slope(h[0], h[1], m_at(0), m_at(1));
+        d[(n - 1) * dims + k] = edge_slope(h[n - 2], h[n - 3], m_at(n - 2), m_at(n - 3));
+    }
+    d
 }
 
 /// −1, 0 or 1 (`f64::signum` gives 1 for +0, which would change the end condition).

@@ -135,3 +135,34 @@ proptest! {
         }
     }
 }
+
+/// The row-major slopes a trajectory is built with are, bit for bit, the per-column PCHIP
+/// slopes (the scipy-checked routine), flat stretches and sign changes included.
+#[test]
+fn row_major_slopes_equal_the_column_routine() {
+    use facespace::trajectory::{pchip_slopes, pchip_slopes_rows};
+    let mut rng = crate::common::Rng::new(7);
+    for (n, dims) in [(1, 3), (2, 4), (3, 1), (4, 5), (40, 7)] {
+        let mut x = vec![0.0];
+        for _ in 1..n {
+            x.push(x[x.len() - 1] + 0.01 + rng.uniform());
+        }
+        // Some values repeat (zero secants), some alternate (sign changes).
+        let values: Vec<f64> = (0..n * dims)
+            .map(|i| match i % 5 {
+                0 => 1.0,
+                1 => if (i / dims) % 2 == 0 { -1.0 } else { 2.0 },
+                _ => rng.uniform() * 4.0 - 2.0,
+            })
+            .collect();
+        let rows = pchip_slopes_rows(&x, &values, dims);
+        let mut d = vec![0.0; n];
+        for k in 0..dims {
+            let column: Vec<f64> = (0..n).map(|i| values[i * dims + k]).collect();
+            pchip_slopes(&x, &column, &mut d);
+            for i in 0..n {
+                assert_eq!(rows[i * dims + k].to_bits(), d[i].to_bits(), "n {n} dim {k} sample {i}");
+            }
+        }
+    }
+}

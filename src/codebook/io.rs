@@ -36,6 +36,10 @@ struct Manifest {
     photometric: crate::corpus::Photometric,
     /// The phone order of S and M's rows and columns.
     phones: Vec<String>,
+    /// [`Codebook::content_hash`] when S and M were saved (absent in older codebooks: S and M
+    /// are then computed again at load and compared).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    content_hash: Option<String>,
     /// (array file, sentence).
     sentences: Vec<(String, SentenceEntry)>,
 }
@@ -65,6 +69,7 @@ impl Codebook {
             options: self.options.clone(),
             photometric: self.photometric,
             phones: PHONES.iter().map(|s| s.to_string()).collect(),
+            content_hash: Some(self.content_hash()),
             sentences: self
                 .sentences
                 .iter()
@@ -101,7 +106,8 @@ impl Codebook {
 
     /// Loads and validates a codebook folder: the manifest's version and phone list, every
     /// sentence array (a plain file of the folder, of the layout's width, finite), and S and
-    /// M against what the sentences give.
+    /// M — kept as stored when the sentences hash to what they were saved with
+    /// ([`Codebook::content_hash`]), else computed again and compared.
     /// (The folder is read whole from one version: retried if it was swapped meanwhile.)
     pub fn load(dir: &Path) -> Result<Self, CodebookError> {
         crate::atomic::read_consistent(dir, || Self::load_once(dir))
@@ -138,7 +144,7 @@ impl Codebook {
         }
         let stored_s: Array2<f64> = manifest::read_array(dir, "similarity.npy", &[Some(N); 2])?;
         let stored_m: Array2<f64> = manifest::read_array(dir, "distance.npy", &[Some(N); 2])?;
-        let mut cb = Codebook::build(
+        let mut cb = Codebook::assemble(
             sentences,
             m.fps,
             m.layout,
@@ -147,18 +153,26 @@ impl Codebook {
             &mut crate::no_progress,
         )?;
         cb.photometric = m.photometric;
-        // The stored matrices are what was computed at build time; keep them (a Python user
-        // may read them), after checking they are what this build computes.
-        let close = |a: &Array2<f64>, b: &Array2<f64>| {
-            a.iter()
-                .zip(b)
-                .all(|(x, y)| (x - y).abs() <= 1e-9 * (1.0 + x.abs()))
-        };
-        if !close(&stored_s, &cb.similarity) || !close(&stored_m, &cb.distance) {
-            return Err(invalid(
-                "similarity.npy or distance.npy differ from the matrices its sentences give".into(),
-            )
-            .into());
+        cb.similarity = stored_s.clone();
+        cb.distance = stored_m.clone();
+        let unchanged = m.content_hash.is_some_and(|h| h == cb.content_hash());
+        if !unchanged {
+            // An older codebook, or sentences changed since S and M were computed: compute
+            // them again and require the stored ones to be what this build computes.
+            cb.similarity = super::similarity::similarity_matrix(&cb);
+            cb.distance = super::similarity::distance_matrix(&cb);
+            let close = |a: &Array2<f64>, b: &Array2<f64>| {
+                a.iter()
+                    .zip(b)
+                    .all(|(x, y)| (x - y).abs() <= 1e-9 * (1.0 + x.abs()))
+            };
+            if !close(&stored_s, &cb.similarity) || !close(&stored_m, &cb.distance) {
+                return Err(invalid(
+                    "similarity.npy or distance.npy differ from the matrices its sentences give"
+                        .into(),
+                )
+                .into());
+            }
         }
         cb.similarity = stored_s;
         cb.distance = stored_m;

@@ -338,26 +338,40 @@ impl Talker {
         let m: TalkerManifest =
             manifest::read(&dir.join(MANIFEST), FORMAT, TALKER_VERSION).map_err(manifest_error)?;
         let part = |name: &str| manifest::member(dir, name).map_err(manifest_error);
-        let model = FaceModel::load(&part(&m.model)?).map_err(|source| TalkerError::Model {
+        let (model_dir, codebook_dir, footage_dir) =
+            (part(&m.model)?, part(&m.codebook)?, part(&m.footage)?);
+        // The three parts load side by side (the model's hash reads every array of it).
+        let (model, codebook, footage) = std::thread::scope(|scope| {
+            let model = scope.spawn(|| {
+                FaceModel::load(&model_dir).map(|model| {
+                    let hash = model.hash();
+                    (model, hash)
+                })
+            });
+            let footage = scope.spawn(|| Footage::load(&footage_dir));
+            let codebook = Codebook::load(&codebook_dir);
+            let model = model.join().unwrap_or_else(|e| std::panic::resume_unwind(e));
+            let footage = footage.join().unwrap_or_else(|e| std::panic::resume_unwind(e));
+            (model, codebook, footage)
+        });
+        let (model, hash) = model.map_err(|source| TalkerError::Model {
             dir: dir.into(),
             source,
         })?;
-        let codebook =
-            Codebook::load(&part(&m.codebook)?).map_err(|source| TalkerError::Codebook {
-                dir: dir.into(),
-                source,
-            })?;
+        let codebook = codebook.map_err(|source| TalkerError::Codebook {
+            dir: dir.into(),
+            source,
+        })?;
         codebook
-            .check_model(&model)
+            .check_model_hash(&hash, model.layout())
             .map_err(|source| TalkerError::Codebook {
                 dir: dir.into(),
                 source,
             })?;
-        let footage = Footage::load(&part(&m.footage)?).map_err(|source| TalkerError::Footage {
+        let footage = footage.map_err(|source| TalkerError::Footage {
             dir: dir.into(),
             source,
         })?;
-        let hash = model.hash();
         if footage.model_hash != hash {
             return Err(TalkerError::Foreign {
                 dir: dir.into(),
