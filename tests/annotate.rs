@@ -885,3 +885,40 @@ fn a_refit_flood_does_not_stall_the_page() {
     );
     stop.store(true, Ordering::Relaxed);
 }
+
+/// Issue 33: `--fit` offers a fit as a frame's start only when the refit would keep it — a
+/// face the model explains, inside the image; a frame with no face (grey) gets no points and
+/// the reason, never a diverged shape hundreds of pixels out.
+#[test]
+fn fit_starts_are_checked_as_refits_are() {
+    let dir = tempfile::tempdir().unwrap();
+    frames(dir.path());
+    image::RgbImage::from_pixel(360, 288, image::Rgb([128, 128, 128]))
+        .save(dir.path().join("grey.png"))
+        .unwrap();
+    // Someone else, at the clip's size.
+    let stranger = image::open(common::faces_dir().join("lenna.png")).unwrap().to_rgb8();
+    image::imageops::resize(&stranger, 360, 288, image::imageops::FilterType::Triangle)
+        .save(dir.path().join("stranger.png"))
+        .unwrap();
+    let (url, stop) = serve(Annotator::bind(dir.path(), demo_model(), true, "127.0.0.1:0", false).unwrap());
+    let (code, body) = common::http(&url, "GET", "/api/points/01001.jpg", "");
+    assert_eq!(code, 200, "{body}");
+    let reply: serde_json::Value = serde_json::from_str(&body).unwrap();
+    assert_eq!(reply["source"], "fit", "{body}");
+    assert_eq!(reply["points"].as_array().unwrap().len(), 68);
+    let (code, body) = common::http(&url, "GET", "/api/points/grey.png", "");
+    assert_eq!(code, 200, "{body}");
+    let reply: serde_json::Value = serde_json::from_str(&body).unwrap();
+    assert!(reply["points"].is_null(), "{body}");
+    assert_eq!(reply["source"], "none", "{body}");
+    let (code, body) = common::http(&url, "GET", "/api/points/stranger.png", "");
+    assert_eq!(code, 200, "{body}");
+    let reply: serde_json::Value = serde_json::from_str(&body).unwrap();
+    assert!(reply["points"].is_null(), "{body}");
+    assert!(
+        reply["rejected"].as_str().is_some_and(|r| r.contains("does not explain")),
+        "{body}"
+    );
+    stop.store(true, Ordering::Relaxed);
+}

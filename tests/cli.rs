@@ -637,6 +637,8 @@ fn every_subcommand_has_an_example() {
         "study serve",
         "study analyse",
         "demo",
+        "say",
+        "talker build",
     ] {
         let mut args: Vec<&str> = c.split(' ').collect();
         args.push("--help");
@@ -792,4 +794,105 @@ fn a_background_lost_on_its_first_frames_fails_at_once() {
     assert!(t.contains("lost on") && t.contains("of 10 frames"), "{t}");
     assert!(t.contains("--track-model"), "{t}");
     assert!(!out.exists());
+}
+
+/// `corpus demo --model M` takes M's own training frames (as its model.json records), and
+/// refuses when they are gone instead of using the demo talker's.
+#[test]
+fn corpus_demo_uses_the_models_own_frames() {
+    let dir = tempfile::tempdir().unwrap();
+    let frames = dir.path().join("frames");
+    std::fs::create_dir(&frames).unwrap();
+    for e in std::fs::read_dir(common::faces_dir()).unwrap() {
+        let e = e.unwrap();
+        std::fs::copy(e.path(), frames.join(e.file_name())).unwrap();
+    }
+    let model = dir.path().join("model");
+    let o = facespace(&[
+        "model", "build", "--images", frames.to_str().unwrap(), "--pixels", "6000", "-o",
+        model.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let out = dir.path().join("corpus");
+    let o = facespace(&["corpus", "demo", "--model", model.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    std::fs::remove_dir_all(&frames).unwrap();
+    let again = dir.path().join("corpus2");
+    let o = facespace(&["corpus", "demo", "--model", model.to_str().unwrap(), "-o", again.to_str().unwrap()]);
+    assert!(!o.status.success());
+    let t = text(&o);
+    assert!(t.contains("give --training") && t.contains("is not here"), "{t}");
+    assert!(!again.exists());
+}
+
+/// `synth --track-model` of another talker than the codebook's says plainly that the result
+/// is a face swap.
+#[test]
+fn a_track_model_of_someone_else_is_called_a_face_swap() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = common::root();
+    let arg = |p: &str| root.join(p).to_string_lossy().into_owned();
+    let out = dir.path().join("swap");
+    let o = facespace(&[
+        "synth",
+        "--model",
+        &arg("models/grid/model"),
+        "--codebook",
+        &arg("models/grid/codebook"),
+        "--labels",
+        &arg("tests/data/grid/bbbs7a.lab"),
+        "--track-model",
+        &arg("models/demo/model"),
+        "--background",
+        &arg("models/demo/background.mp4"),
+        "--renderer",
+        "cpu",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    assert!(t.contains("a face swap"), "{t}");
+    // The codebook's own talker over his own footage is no swap.
+    let o = facespace(&[
+        "synth",
+        "--model",
+        &arg("models/grid/model"),
+        "--codebook",
+        &arg("models/grid/codebook"),
+        "--labels",
+        &arg("tests/data/grid/bbbs7a.lab"),
+        "--track-model",
+        &arg("models/grid/model"),
+        "--background",
+        &arg("tests/data/grid/bbbs7a.mp4"),
+        "--renderer",
+        "cpu",
+        "-o",
+        dir.path().join("own").to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(!text(&o).contains("face swap"), "{}", text(&o));
+}
+
+/// `synth` without `--model` finds the codebook's model by the hash the codebook records
+/// (here GRID's, committed), instead of failing on the demo model.
+#[test]
+fn synth_finds_the_codebooks_model() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = common::root();
+    let out = dir.path().join("found");
+    let o = facespace(&[
+        "synth",
+        "--codebook",
+        root.join("models/grid/codebook").to_str().unwrap(),
+        "--labels",
+        root.join("tests/data/grid/bbbs7a.lab").to_str().unwrap(),
+        "--renderer",
+        "cpu",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(out.join("video.mp4").is_file());
 }

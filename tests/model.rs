@@ -552,3 +552,28 @@ fn skip_unmarked_builds_from_the_marked_frames() {
     let model = facespace::model::FaceModel::load(&out).unwrap();
     assert_eq!(model.source.len(), 6);
 }
+
+/// The default reference-frame size is the faces' own: the median convex-hull area of the
+/// landmarks (analytic: squares of side 100, 120 and 150 px → 14 400), rounded to a thousand
+/// and held within `FACE_PIXELS`.
+#[test]
+fn face_pixels_is_the_median_face_area() {
+    use facespace::model::{FACE_PIXELS, TrainingExample, face_pixels};
+    let square = |side: f64| TrainingExample {
+        name: format!("{side}"),
+        image: image::RgbImage::new(1, 1),
+        landmarks: facespace::shape::Landmarks {
+            points: vec![
+                [10.0, 10.0],
+                [10.0 + side, 10.0],
+                [10.0 + side, 10.0 + side],
+                [10.0, 10.0 + side],
+                [10.0 + side / 2.0, 10.0 + side / 3.0],
+            ],
+        },
+    };
+    assert_eq!(face_pixels(&[square(100.0), square(150.0), square(120.0)]), 14_000);
+    assert_eq!(face_pixels(&[square(10.0)]), *FACE_PIXELS.start());
+    assert_eq!(face_pixels(&[square(1000.0)]), *FACE_PIXELS.end());
+    assert_eq!(face_pixels(&[]), *FACE_PIXELS.start());
+}

@@ -134,11 +134,22 @@ fn region_synthesis_over_a_real_clip_keeps_the_background() {
     assert!(backdrop.anchor_region(&region, &mut utterance).unwrap());
     let frames = utterance.smoothed.as_ref().unwrap();
     assert_eq!(frames.len(), n);
-    // The utterance is longer than the clip: frame 50 is clip frame 48 (ping-pong).
+    // The utterance is longer than the clip: the clip is extended as footage is, never
+    // played backwards — each frame follows the one before, or a dissolve joins stretches.
     assert!(n > images.len());
+    let plan = backdrop.plan.clone().expect("a short background is planned as footage");
+    assert_eq!(poses.len(), n);
+    assert!(!plan.joins.is_empty());
+    for t in 1..n {
+        assert!(
+            plan.frames[t] == plan.frames[t - 1] + 1 || plan.joins.contains(&t) || plan.mix[t - 1].is_some(),
+            "frame {t}: {} after {}",
+            plan.frames[t],
+            plan.frames[t - 1]
+        );
+    }
     for (t, p) in frames.iter().enumerate() {
-        let bg = poses[synth::ping_pong(t, poses.len())];
-        let stored = bg.to_array().map(|v| v as f32 as f64);
+        let stored = poses[t].to_array().map(|v| v as f32 as f64);
         assert_eq!(p.pose.to_array(), stored, "frame {t}: pose");
     }
     let mut out = Vec::new();
@@ -155,7 +166,10 @@ fn region_synthesis_over_a_real_clip_keeps_the_background() {
     .unwrap();
     let mut changed_inside = 0;
     for (t, image) in out.iter().enumerate() {
-        let bg = &images[synth::ping_pong(t, images.len())];
+        if !plan.is_pure(t) {
+            continue;
+        }
+        let bg = &images[plan.frames[t]];
         let l = region.landmarks(frames.params(t)).unwrap().points;
         let near = near_mesh(&region, &l, image.width(), image.height(), 2);
         for ((a, b), near) in image.pixels().zip(bg.pixels()).zip(&near) {

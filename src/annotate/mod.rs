@@ -269,10 +269,17 @@ impl Annotator {
             let fitted = self.image(&name).and_then(|image| {
                 let fitter = self.fitter()?;
                 let start = fitter.search_start(&image).map_err(|e| e.to_string())?;
-                fitter.fit(&image, &start).map_err(|e| e.to_string())
+                let fit = fitter.fit(&image, &start).map_err(|e| e.to_string())?;
+                Ok((untrusted(&fit, &image), fit))
             });
+            // A fit the refit would refuse (unexplained, or off the image) is no start either.
             match fitted {
-                Ok(fit) => Reply::json(json!({"points": fit.landmarks.points, "source": "fit"})),
+                Ok((None, fit)) => {
+                    Reply::json(json!({"points": fit.landmarks.points, "source": "fit"}))
+                }
+                Ok((Some(why), _)) => {
+                    Reply::json(json!({"points": null, "source": "none", "rejected": why}))
+                }
                 Err(_) => none(),
             }
         }))
@@ -289,27 +296,10 @@ impl Annotator {
             .fitter()
             .and_then(|f| f.fit(image, start).map_err(|e| e.to_string()))
             .map_err(|e| (422, format!("the model could not be fitted: {e}")))?;
-        // A fit the model cannot explain (as the tracker judges a lost face), or one that
-        // left the image, would only replace the person's points with worse ones.
-        let threshold = crate::fit::DEFAULT_REINIT_ERROR;
-        let inside = first_outside(&fit.landmarks, image).is_none();
-        // NaN counts as unexplained.
-        let explained = matches!(
-            fit.error.partial_cmp(&threshold),
-            Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
-        );
-        if !explained || !inside {
+        if let Some(why) = untrusted(&fit, image) {
             return Err((
                 422,
-                format!(
-                    "the model does not explain this face (residual {:.1} grey levels, a face it was built for fits under {threshold}{}): points kept; correct them by hand, or start from a model of this talker",
-                    fit.error,
-                    if inside {
-                        ""
-                    } else {
-                        "; the fit left the image"
-                    }
-                ),
+                format!("{why}: points kept; correct them by hand, or start from a model of this talker"),
             ));
         }
         Ok(json!({"points": fit.landmarks.points, "error": fit.error, "source": "fit"}))
@@ -400,6 +390,25 @@ impl Annotator {
             },
         }
     }
+}
+
+/// Why a fit must not replace or start anyone's points: a fit the model cannot explain (as the
+/// tracker judges a lost face; NaN counts as unexplained), or one that left the image (a
+/// diverged search) would only give worse points than none. `None`: it can be offered.
+fn untrusted(fit: &crate::fit::FitResult, image: &image::RgbImage) -> Option<String> {
+    let threshold = crate::fit::DEFAULT_REINIT_ERROR;
+    let inside = first_outside(&fit.landmarks, image).is_none();
+    let explained = matches!(
+        fit.error.partial_cmp(&threshold),
+        Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
+    );
+    (!explained || !inside).then(|| {
+        format!(
+            "the model does not explain this face (residual {:.1} grey levels, a face it was built for fits under {threshold}{})",
+            fit.error,
+            if inside { "" } else { "; the fit left the image" }
+        )
+    })
 }
 
 /// The first point outside the image (its index and the point), if any.

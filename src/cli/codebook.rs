@@ -61,6 +61,10 @@ pub struct BuildArgs {
     gamma: Option<f64>,
     /// Photometric normalisation: `sentence` re-centres each sentence's appearance on the
     /// corpus mean (lighting that drifts between recording sessions stops jumping at joins).
+    /// Not the default: a re-centred codebook draws the corpus's mean lighting unless the
+    /// synthesis is re-lit to a background take tracked with the same model (`say` over a
+    /// talker's footage, `synth --background` with that model), so it suits recordings made
+    /// over several sessions (GRID s1's), not one take or a generated corpus.
     #[arg(long, value_enum, default_value_t = PhotometricArg::None)]
     photometric: PhotometricArg,
     /// Output codebook folder.

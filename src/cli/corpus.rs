@@ -79,9 +79,10 @@ pub struct DemoArgs {
     /// The demo model.
     #[arg(long, default_value = super::DEMO_MODEL_SHOWN, value_parser = super::committed_path)]
     model: PathBuf,
-    /// Its training frames with .pts landmarks (the source of the real face-space points).
-    #[arg(long, default_value = "models/demo/training", value_parser = super::committed_path)]
-    training: PathBuf,
+    /// Its training frames with .pts landmarks (the source of the real face-space points;
+    /// default: the folder the model was built from, as its model.json records).
+    #[arg(long, value_parser = super::committed_path)]
+    training: Option<PathBuf>,
     #[arg(long, default_value_t = CorpusOptions::default().seed)]
     seed: u64,
     /// Also render every frame as PNG under frames/NAME/.
@@ -103,11 +104,44 @@ pub fn run(command: CorpusCommand) -> Result<()> {
     }
 }
 
+/// The folder `model` was built from (its model.json's sources, all in one folder), where it
+/// still exists — relative to the working folder or to the source tree, as the build saw it.
+/// A corpus of one talker's model over another talker's frames is refused (issue 33: it
+/// used the demo talker's frames whatever the model).
+fn own_training(path: &Path, model: &facespace::model::FaceModel) -> Result<PathBuf> {
+    let parents: std::collections::BTreeSet<PathBuf> = model
+        .source
+        .iter()
+        .filter_map(|s| Path::new(s).parent().map(Path::to_path_buf))
+        .collect();
+    let parents: Vec<PathBuf> = parents.into_iter().collect();
+    let [folder] = parents.as_slice() else {
+        anyhow::bail!(
+            "model {}: its training frames are not one folder it records; give --training with the frames it was built from",
+            path.display()
+        );
+    };
+    let found = [folder.clone(), Path::new(env!("CARGO_MANIFEST_DIR")).join(folder)]
+        .into_iter()
+        .find(|p| p.is_dir());
+    found.with_context(|| {
+        format!(
+            "model {} was built from {}, which is not here; give --training with those frames (a corpus over another talker's frames would not be this model's talker)",
+            path.display(),
+            folder.display()
+        )
+    })
+}
+
 fn generate(a: DemoArgs) -> Result<()> {
     let start = std::time::Instant::now();
     let model = load_model(&a.model)?;
-    let frames = load_training_set(&a.training, None)
-        .with_context(|| format!("loading {}", a.training.display()))?;
+    let training = match &a.training {
+        Some(t) => t.clone(),
+        None => own_training(&a.model, &model)?,
+    };
+    let frames = load_training_set(&training, None)
+        .with_context(|| format!("loading {}", training.display()))?;
     let options = CorpusOptions {
         seed: a.seed,
         ..CorpusOptions::default()

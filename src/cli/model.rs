@@ -64,9 +64,11 @@ pub struct BuildArgs {
     /// Folder of .pts files (default: the images folder).
     #[arg(long)]
     landmarks: Option<PathBuf>,
-    /// Approximate pixel count of the reference frame.
-    #[arg(long, default_value_t = 40_000)]
-    pixels: usize,
+    /// Approximate pixel count of the reference frame (default: the faces' own size in the
+    /// training images — the median area their landmarks cover — so the model draws the face
+    /// at the resolution it was recorded at; GRID s1 and FGNet: about 20 000).
+    #[arg(long)]
+    pixels: Option<usize>,
     /// Fraction of shape variance to keep.
     #[arg(long, default_value_t = 0.95)]
     shape_var: f64,
@@ -177,8 +179,8 @@ fn build(a: BuildArgs) -> Result<()> {
             ))
         }
     };
-    let options = BuildOptions {
-        pixels: a.pixels,
+    let mut options = BuildOptions {
+        pixels: a.pixels.unwrap_or(0),
         shape: Components::Variance {
             fraction: a.shape_var,
             max: None,
@@ -209,6 +211,13 @@ fn build(a: BuildArgs) -> Result<()> {
             "left out {} image(s) without landmarks (--skip-unmarked), e.g. {}",
             unmarked.len(),
             unmarked[0].display()
+        );
+    }
+    if a.pixels.is_none() {
+        options.pixels = facespace::model::face_pixels(&examples);
+        println!(
+            "reference frame of about {} pixels: the faces' own size in these images (--pixels overrides)",
+            options.pixels
         );
     }
     let (bar, mut progress) = progress_bar();

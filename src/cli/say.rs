@@ -14,7 +14,7 @@ pub const DEFAULT_TALKER: &str = "models/grid";
 
 #[derive(Args)]
 #[command(
-    after_help = "Examples:\n  facespace say \"Please call me tomorrow morning about the shipment.\" -o out/say.mp4\n  facespace say --audio models/grid/demo/bbbf9a.mp4 --transcript models/grid/demo/bbbf9a.txt -o out/bbbf9a.mp4"
+    after_help = "Example: facespace say \"Please call me tomorrow morning about the shipment.\" -o out/say.mp4\n    also: facespace say --audio models/grid/demo/bbbf9a.mp4 --transcript models/grid/demo/bbbf9a.txt -o out/bbbf9a.mp4"
 )]
 pub struct SayArgs {
     /// Text to speak (text-to-speech in the talker's voice); with --audio, the words of that

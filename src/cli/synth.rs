@@ -58,8 +58,9 @@ pub enum PoseArg {
 
 #[derive(Args)]
 pub struct SynthArgs {
-    /// The face model the codebook was built with (default: the demo model,
-    /// models/demo/model).
+    /// The face model the codebook was built with (default: found by the model hash the
+    /// codebook records — the model/ beside it, then the committed models — else the demo
+    /// model, models/demo/model).
     #[arg(long)]
     model: Option<PathBuf>,
     /// The codebook to synthesise from (`codebook build`).
@@ -123,7 +124,8 @@ pub struct SynthArgs {
     #[arg(long)]
     background: Option<PathBuf>,
     /// Where the pose comes from with a background video: replay its tracked poses frame by
-    /// frame (looping forwards and backwards), or hold its first frame still. A background
+    /// frame (a video shorter than the speech extended by joining its stretches where they
+    /// match, never backwards), or hold its first frame still. A background
     /// image always lends its own pose.
     #[arg(long, value_enum, default_value_t = PoseArg::Replay)]
     pose: PoseArg,
@@ -157,10 +159,28 @@ pub struct SynthArgs {
     output: PathBuf,
 }
 
+/// The model a codebook was built with, found by the hash it records: the `model/` beside
+/// the codebook (a talker folder's, say), then the committed models.
+fn model_of(codebook: &std::path::Path) -> Option<PathBuf> {
+    let cb = Codebook::load(codebook).ok()?;
+    let hash = cb.model_hash.as_ref()?;
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models");
+    let mut candidates: Vec<PathBuf> = codebook
+        .parent()
+        .map(|p| vec![p.join("model"), p.join("lower")])
+        .unwrap_or_default();
+    for talker in ["grid", "demo"] {
+        candidates.push(root.join(talker).join("model"));
+    }
+    candidates.push(root.join("grid/lower"));
+    facespace::model::FaceModel::find_by_hash(hash, &candidates).map(|(p, _)| p)
+}
+
 pub fn run(a: SynthArgs) -> Result<()> {
     let model_path = a
         .model
         .clone()
+        .or_else(|| model_of(&a.codebook))
         .unwrap_or_else(|| PathBuf::from(super::DEMO_MODEL));
     let mut inputs = vec![model_path.as_path(), a.codebook.as_path()];
     for p in [
@@ -183,7 +203,7 @@ pub fn run(a: SynthArgs) -> Result<()> {
     cb.check_model(&model).with_context(|| match &a.model {
         Some(m) => format!("codebook {} and model {}", a.codebook.display(), m.display()),
         None => format!(
-            "codebook {}: you gave no --model, and the default is the demo model ({}); give the model the codebook was built with",
+            "codebook {}: you gave no --model, none beside it or committed has the model hash it records, and the default is the demo model ({}); give the model the codebook was built with",
             a.codebook.display(),
             super::shown(&model_path)
         ),
@@ -287,6 +307,11 @@ pub fn run(a: SynthArgs) -> Result<()> {
         None => None,
     };
     let tracker = tracker.as_ref().unwrap_or(&model);
+    if a.track_model.is_some() && tracker.tracker().hash() != model.tracker().hash() {
+        eprintln!(
+            "note: --track-model is not the model of the codebook's talker: the face synthesised for the codebook's talker is drawn over the background's face — a face swap, not that person speaking"
+        );
+    }
     let backdrop = match &a.background {
         Some(p) if is_image(p) => {
             Some(Backdrop::still(tracker, p).map_err(|e| {

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
-use facespace::talker::build::{Identity, Parts};
+use facespace::talker::build::{Identity, Parts, Recordings};
 use facespace::talker::{Mode, Settings, Voice};
 
 use super::progress_bar;
@@ -21,29 +21,36 @@ pub enum TalkerCommand {
 
 #[derive(Args)]
 pub struct BuildArgs {
-    /// The whole-face model (`model build`).
+    /// The talker's model (`model build`; whole-face, or a lower-face region model).
     #[arg(long)]
     model: PathBuf,
-    /// A codebook built with it (`codebook build --photometric sentence`).
-    #[arg(long)]
-    codebook: PathBuf,
+    /// The talker's recordings: each NAME.mp4 with its words in NAME.txt (or phone labels
+    /// NAME.lab / .TextGrid / .tsv). They become the corpus (kept in the talker's corpus/),
+    /// the codebook (appearance re-centred per sentence) and, from the --footage-clips whose
+    /// head sat most alike, the idle footage.
+    #[arg(long, conflicts_with_all = ["codebook", "footage", "footage_from"])]
+    recordings: Option<PathBuf>,
+    /// A codebook built with the model (`codebook build --photometric sentence`), instead of
+    /// --recordings.
+    #[arg(long, required_unless_present = "recordings")]
+    codebook: Option<PathBuf>,
     /// Videos of the talker for the living frame (natural head motion and blinks; together
     /// at least a second, better half a minute).
-    #[arg(long, num_args = 1.., required_unless_present = "footage_from")]
+    #[arg(long, num_args = 1.., required_unless_present_any = ["footage_from", "recordings"])]
     footage: Vec<PathBuf>,
     /// Instead of --footage: a folder of the codebook's recordings (NAME.mp4), from which the
     /// --footage-clips takes whose head sat most alike are used.
     #[arg(long, conflicts_with = "footage")]
     footage_from: Option<PathBuf>,
-    /// How many takes --footage-from uses.
+    /// How many takes --footage-from or --recordings use.
     #[arg(long, default_value_t = 16)]
     footage_clips: usize,
     /// The talker's name.
     #[arg(long)]
     name: String,
-    /// What the recordings are, for the provenance record.
+    /// What the recordings are (corpus, licence), for the provenance record.
     #[arg(long, default_value = "recordings of the talker")]
-    recordings: String,
+    about: String,
     /// Examples blended per phone, N (chosen on validation: `eval --validation`).
     #[arg(long, default_value_t = facespace::synth::blend::DEFAULT_TOP_N)]
     top_n: usize,
@@ -94,36 +101,30 @@ fn build(a: BuildArgs) -> Result<()> {
             chosen_on: a.chosen_on.clone(),
         },
         voice,
-        recordings: a.recordings.clone(),
-    };
-    let footage = match &a.footage_from {
-        Some(dir) => {
-            let model = super::load_model(&a.model)?;
-            let codebook = facespace::codebook::Codebook::load(&a.codebook)
-                .with_context(|| format!("loading codebook {}", a.codebook.display()))?;
-            let names = facespace::talker::footage::closest_takes(&model, &codebook, a.footage_clips)?;
-            names
-                .iter()
-                .map(|n| {
-                    let video = dir.join(format!("{n}.mp4"));
-                    anyhow::ensure!(
-                        video.is_file(),
-                        "--footage-from {}: no {n}.mp4 (the codebook's sentence {n})",
-                        dir.display()
-                    );
-                    Ok(video)
-                })
-                .collect::<Result<Vec<_>>>()?
-        }
-        None => a.footage.clone(),
-    };
-    let parts = Parts {
-        model: a.model.clone(),
-        codebook: a.codebook.clone(),
-        footage,
+        recordings: a.about.clone(),
     };
     let clock = std::time::Instant::now();
-    let (bar, progress) = progress_bar();
+    let (bar, mut progress) = progress_bar();
+    let parts = match (&a.recordings, &a.codebook) {
+        (Some(dir), _) => facespace::talker::build::parts_from_recordings(
+            &Recordings {
+                model: a.model.clone(),
+                dir: dir.clone(),
+                footage_clips: a.footage_clips,
+            },
+            &a.output,
+            &mut progress,
+        )?,
+        (None, Some(codebook)) => Parts {
+            model: a.model.clone(),
+            codebook: codebook.clone(),
+            footage: match &a.footage_from {
+                Some(dir) => takes_in(&a.model, codebook, dir, a.footage_clips)?,
+                None => a.footage.clone(),
+            },
+        },
+        (None, None) => anyhow::bail!("give --recordings, or --codebook with --footage"),
+    };
     let talker = facespace::talker::build::build(&identity, &parts, &a.output, progress)?;
     bar.finish_and_clear();
     let f = &talker.footage;
@@ -139,4 +140,29 @@ fn build(a: BuildArgs) -> Result<()> {
         f.median_step()
     );
     Ok(())
+}
+
+/// The `count` takes of `codebook` whose head sat most alike, as videos in `dir`.
+fn takes_in(
+    model: &std::path::Path,
+    codebook: &std::path::Path,
+    dir: &std::path::Path,
+    count: usize,
+) -> Result<Vec<PathBuf>> {
+    let model = super::load_model(model)?;
+    let codebook = facespace::codebook::Codebook::load(codebook)
+        .with_context(|| format!("loading codebook {}", codebook.display()))?;
+    let names = facespace::talker::footage::closest_takes(&model, &codebook, count)?;
+    names
+        .iter()
+        .map(|n| {
+            let video = dir.join(format!("{n}.mp4"));
+            anyhow::ensure!(
+                video.is_file(),
+                "--footage-from {}: no {n}.mp4 (the codebook's sentence {n})",
+                dir.display()
+            );
+            Ok(video)
+        })
+        .collect()
 }

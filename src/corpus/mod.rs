@@ -7,7 +7,8 @@ pub mod demo;
 mod recordings;
 
 pub use recordings::{
-    DEFAULT_MAX_FAILED, Recorded, RecordedCorpus, Shard, Skipped, from_recordings, merge,
+    DEFAULT_MAX_FAILED, Recorded, RecordedCorpus, Shard, Skipped, VIDEO_EXTENSIONS, from_recordings,
+    merge,
 };
 
 use std::path::{Path, PathBuf};

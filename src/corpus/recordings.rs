@@ -45,7 +45,7 @@ fn align_transcript(
 }
 
 /// Video file extensions looked for (frame folders count too).
-const VIDEO_EXTENSIONS: &[&str] = &["mp4", "m4v", "mov", "y4m", "mkv", "avi", "webm"];
+pub const VIDEO_EXTENSIONS: &[&str] = &["mp4", "m4v", "mov", "y4m", "mkv", "avi", "webm"];
 
 /// One recorded sentence as written.
 #[derive(Clone, Debug, PartialEq)]

@@ -147,6 +147,21 @@ impl FaceModel {
         )
     }
 
+    /// The first of `candidates` that is a model whose [`FaceModel::hash`] is `hash`, loaded
+    /// (folders that are not models, or not loadable, are passed over): how a codebook, which
+    /// records its model's hash, finds its model when none is named.
+    pub fn find_by_hash(hash: &str, candidates: &[std::path::PathBuf]) -> Option<(std::path::PathBuf, FaceModel)> {
+        candidates
+            .iter()
+            .filter(|c| c.join(MANIFEST).is_file())
+            .find_map(|c| {
+                FaceModel::load(c)
+                    .ok()
+                    .filter(|m| m.hash() == hash)
+                    .map(|m| (c.clone(), m))
+            })
+    }
+
     /// Loads and validates a model folder: format and version, every array's shape against
     /// the manifest, finite values and non-negative variances, and that the stored mask
     /// matches the reference frame rebuilt from the placement.

@@ -12,7 +12,7 @@ use image::RgbImage;
 use thiserror::Error;
 
 pub use io::MODEL_VERSION;
-pub use training::{TrainingExample, load_marked, load_training_set};
+pub use training::{FACE_PIXELS, TrainingExample, face_pixels, load_marked, load_training_set};
 
 use crate::Progress;
 use crate::appearance::AppearanceModel;

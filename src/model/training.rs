@@ -133,3 +133,36 @@ fn check_inside(
         None => Ok(()),
     }
 }
+
+/// Fewest and most reference-frame pixels [`face_pixels`] chooses.
+pub const FACE_PIXELS: std::ops::RangeInclusive<usize> = 5_000..=200_000;
+
+/// The reference-frame size that matches the faces of `examples` as recorded: the median,
+/// over the examples, of the area their landmarks' convex hull covers in the image, rounded
+/// to a thousand and held within [`FACE_PIXELS`] — so a model of a face 120 px wide draws it
+/// at about its own resolution (GRID s1: ≈ 20 000) and one of a 720×576 close-up keeps the
+/// detail that a fixed count would blur at full size (issue 33).
+pub fn face_pixels(examples: &[TrainingExample]) -> usize {
+    let mut areas: Vec<f64> = examples
+        .iter()
+        .filter_map(|e| {
+            let p = &e.landmarks.points;
+            let triangles = crate::mesh::delaunay(p).ok()?;
+            Some(
+                triangles
+                    .iter()
+                    .map(|t| {
+                        let [a, b, c] = t.map(|v| p[v as usize]);
+                        crate::mesh::signed_area(a, b, c).abs() / 2.0
+                    })
+                    .sum(),
+            )
+        })
+        .collect();
+    if areas.is_empty() {
+        return *FACE_PIXELS.start();
+    }
+    areas.sort_by(f64::total_cmp);
+    let median = areas[areas.len() / 2];
+    (((median / 1000.0).round() as usize) * 1000).clamp(*FACE_PIXELS.start(), *FACE_PIXELS.end())
+}

@@ -1,7 +1,9 @@
 //! What a synthesised face is drawn over, and the pose it takes from there (DESIGN §7: the
 //! pose is never blended). A still frame lends its pose (the face found in it by the AAM
-//! search); a video is tracked and lends its pose frame by frame, played forwards then
-//! backwards when the utterance is longer — and its landmarks, for region synthesis.
+//! search); a video is tracked and lends its pose frame by frame — one shorter than the
+//! utterance extended as a talker's footage is (stretches joined where they match, never
+//! backwards) — and its landmarks, for region synthesis; a talker's footage lends its living
+//! frame ([`Backdrop::footage`]).
 
 use std::path::Path;
 
@@ -35,26 +37,7 @@ pub enum BackdropError {
     /// The background video could not be read.
     #[error(transparent)]
     Video(#[from] VideoError),
-    /// A background video larger than is held in memory for a loop.
-    #[error(
-        "{path}: looping its {frames} frames of {width}×{height} needs {mib} MiB in memory (at most {MAX_LOOP_MIB}); use a shorter utterance or a longer background"
-    )]
-    TooLarge {
-        /// The video.
-        path: std::path::PathBuf,
-        /// Its frames.
-        frames: usize,
-        /// Frame width.
-        width: u32,
-        /// Frame height.
-        height: u32,
-        /// Memory it would take.
-        mib: usize,
-    },
 }
-
-/// Most memory a looped background may take.
-pub const MAX_LOOP_MIB: usize = 2048;
 
 /// Where the pose comes from when the background is a video.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -78,6 +61,9 @@ pub struct Backdrop {
     pub tracked: crate::facespace::Frames,
     /// [`FaceModel::hash`] of the tracker: `tracked` is in its space.
     pub tracker_hash: String,
+    /// For footage (a talker's, or a video shorter than the utterance): which frame is shown
+    /// when, and where stretches join.
+    pub plan: Option<crate::talker::footage::Plan>,
     frames: Frames,
 }
 
@@ -85,7 +71,6 @@ pub struct Backdrop {
 enum Frames {
     Still(RgbImage),
     Video(std::path::PathBuf),
-    Loop(Vec<RgbImage>),
     Footage(crate::talker::footage::Shown),
 }
 
@@ -96,10 +81,6 @@ impl Backdrop {
         Ok(match &self.frames {
             Frames::Still(image) => Background::Still(image.clone()),
             Frames::Video(path) => Background::Video(Box::new(Source::open(path)?)),
-            Frames::Loop(frames) => Background::Loop {
-                frames: frames.clone(),
-                next: 0,
-            },
             Frames::Footage(shown) => Background::Footage(Box::new(shown.fresh())),
         })
     }
@@ -141,6 +122,7 @@ impl Backdrop {
             landmarks,
             tracked,
             tracker_hash: footage.model_hash.clone(),
+            plan: Some(plan.clone()),
             frames: Frames::Footage(footage.shown(plan)),
         })
     }
@@ -260,11 +242,13 @@ impl Backdrop {
             landmarks: vec![fit.landmarks],
             tracked,
             tracker_hash: tracker.hash(),
+            plan: None,
         })
     }
 
-    /// A video, tracked with `tracker`: replayed frame by frame (looping forwards and
-    /// backwards past its end) or held at its first frame. `frames` is the number of output
+    /// A video, tracked with `tracker`: replayed frame by frame (a video shorter than the
+    /// utterance extended as a talker's footage is: stretches joined where they match, never
+    /// backwards) or held at its first frame. `frames` is the number of output
     /// frames to cover. Only the frames shown are tracked — the first `frames`, or the first
     /// one when held — so a long video costs no more than its part under the utterance, and
     /// a background of someone else fails as soon as those frames are lost.
@@ -288,12 +272,14 @@ impl Backdrop {
             early_verdict: Some(EARLY_VERDICT_FRAMES),
             ..options.clone()
         };
-        let (mut landmarks, mut values) = (Vec::new(), Vec::<f32>::new());
+        let (mut landmarks, mut values, mut thumbs) = (Vec::new(), Vec::<f32>::new(), Vec::new());
+        let size = (source.info().width, source.info().height);
         let tracking = codec::track(tracker, source, options, progress, |image, t| {
             let start = values.len();
             values.resize(start + dims, 0.0);
             tracker.project_into(&image, &t.landmarks, &mut values[start..])?;
             landmarks.push(t.landmarks.clone());
+            thumbs.push(crate::talker::footage::thumbnail(&image));
             Ok(())
         })?;
         let tracked = crate::facespace::Frames::from_rows(tracker.layout(), fps, values)
@@ -315,6 +301,7 @@ impl Backdrop {
                 landmarks: vec![landmarks[0].clone()],
                 tracked,
                 tracker_hash,
+                plan: None,
             },
             PoseMode::Replay if poses.len() >= frames => Backdrop {
                 frames: Frames::Video(path.into()),
@@ -322,31 +309,21 @@ impl Backdrop {
                 landmarks: landmarks[..frames].to_vec(),
                 tracked,
                 tracker_hash,
+                plan: None,
             },
             PoseMode::Replay => {
-                let source = Source::open(path)?;
-                let (w, h) = (source.info().width, source.info().height);
-                let mib = (poses.len() * (w * h * 3) as usize) >> 20;
-                if mib > MAX_LOOP_MIB {
-                    return Err(BackdropError::TooLarge {
-                        path: path.into(),
-                        frames: poses.len(),
-                        width: w,
-                        height: h,
-                        mib,
-                    });
-                }
-                let images = source.collect::<Result<Vec<_>, _>>()?;
-                let shown = (0..frames)
-                    .map(|t| landmarks[super::ping_pong(t, landmarks.len())].clone())
-                    .collect();
-                Backdrop {
-                    frames: Frames::Loop(images),
-                    pose: Pose::Replay(poses),
-                    landmarks: shown,
-                    tracked,
+                // Shorter than the speech: extended as a talker's footage is — stretches
+                // joined where they match, never played backwards.
+                let footage = crate::talker::footage::Footage::of_video(
+                    path,
+                    size,
                     tracker_hash,
-                }
+                    landmarks,
+                    tracked,
+                    &thumbs,
+                );
+                let plan = footage.best_plan(frames, 0);
+                Backdrop::footage(&footage, &plan).map_err(CodecError::from)?
             }
         })
     }

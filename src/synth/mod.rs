@@ -248,8 +248,9 @@ pub enum Pose {
     Codebook,
     /// One pose throughout (a background frame's).
     Hold(Similarity),
-    /// Frame by frame from a recorded sequence (a tracked background video), forwards then
-    /// backwards ([`ping_pong`]) when the utterance is longer.
+    /// Frame by frame from a recorded sequence (a tracked background video or a talker's
+    /// living frame, as long as the utterance; a shorter list is played forwards then
+    /// backwards, [`ping_pong`]).
     Replay(Vec<Similarity>),
 }
 

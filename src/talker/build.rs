@@ -39,6 +39,106 @@ pub struct Identity {
     pub recordings: String,
 }
 
+/// The recordings road: a talker's videos (each `NAME.mp4` with its words in `NAME.txt`, or
+/// phone labels of the same stem) and a model of the talker. They become the corpus
+/// (`T/corpus/`, kept: an interrupted build resumes after it), the codebook (appearance
+/// re-centred per sentence, re-lit to the footage when spoken) and, from the
+/// `footage_clips` recordings whose head sat most alike, the idle footage.
+#[derive(Clone, Debug)]
+pub struct Recordings {
+    /// The whole-face (or lower-face region) model of the talker.
+    pub model: PathBuf,
+    /// The folder of recordings.
+    pub dir: PathBuf,
+    /// How many recordings become idle footage.
+    pub footage_clips: usize,
+}
+
+/// Makes the parts of a talker from `recordings` inside `out` (see [`Recordings`]), keeping
+/// those already made, and returns them for [`build`].
+pub fn parts_from_recordings(
+    recordings: &Recordings,
+    out: &Path,
+    mut progress: impl FnMut(Progress) + Send,
+) -> Result<Parts, TalkerError> {
+    let dir = out.to_path_buf();
+    let corpus_error = |e: crate::corpus::CorpusError| TalkerError::Speech(format!("the corpus of {}: {e}", recordings.dir.display()));
+    let model = FaceModel::load(&recordings.model).map_err(|source| TalkerError::Model {
+        dir: dir.clone(),
+        source,
+    })?;
+    let corpus = out.join("corpus");
+    let done = crate::corpus::recorded_fps(&corpus).ok().flatten();
+    let fps = match done {
+        Some(fps) => fps,
+        None => {
+            let made = crate::corpus::from_recordings(
+                &model,
+                &recordings.dir,
+                &corpus,
+                &crate::codec::EncodeOptions::default(),
+                None,
+                &crate::phonemes::PhoneMap::default(),
+                crate::corpus::DEFAULT_MAX_FAILED,
+                crate::corpus::DEFAULT_TOLERANCE,
+                crate::corpus::Shard::default(),
+                &mut progress,
+            )
+            .map_err(corpus_error)?;
+            made.fps
+        }
+    };
+    let codebook_dir = out.join("codebook");
+    let hash = model.hash();
+    let kept = Codebook::load(&codebook_dir)
+        .ok()
+        .filter(|cb| cb.model_hash.as_deref() == Some(hash.as_str()));
+    let codebook = match kept {
+        Some(cb) => cb,
+        None => {
+            let cb = Codebook::from_corpus(
+                &corpus,
+                &model,
+                fps,
+                None,
+                &crate::phonemes::PhoneMap::default(),
+                crate::codebook::SimilarityOptions::default(),
+                crate::corpus::Photometric::Sentence,
+                crate::corpus::DEFAULT_TOLERANCE,
+                &mut progress,
+            )
+            .map_err(|source| TalkerError::Codebook {
+                dir: dir.clone(),
+                source,
+            })?;
+            cb.save(&codebook_dir).map_err(|source| TalkerError::Codebook {
+                dir: dir.clone(),
+                source,
+            })?;
+            cb
+        }
+    };
+    let names = super::footage::closest_takes(&model, &codebook, recordings.footage_clips)
+        .map_err(|source| TalkerError::Model {
+            dir: dir.clone(),
+            source,
+        })?;
+    let footage = names
+        .iter()
+        .filter_map(|name| {
+            crate::corpus::VIDEO_EXTENSIONS
+                .iter()
+                .map(|x| recordings.dir.join(format!("{name}.{x}")))
+                .find(|p| p.is_file())
+        })
+        .collect();
+    Ok(Parts {
+        model: recordings.model.clone(),
+        codebook: codebook_dir,
+        footage,
+    })
+}
+
 /// Whether `a` and `b` are the same folder.
 fn same(a: &Path, b: &Path) -> bool {
     matches!((a.canonicalize(), b.canonicalize()), (Ok(x), Ok(y)) if x == y)

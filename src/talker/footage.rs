@@ -463,31 +463,43 @@ impl Footage {
             let mut best: Option<(f32, usize, usize)> = None;
             let limit = if clear >= min_run + k { clear } else { room };
             let last_exit = (at + limit).saturating_sub(k + 1);
-            for exit in (at + min_run.saturating_sub(1))..=last_exit.min(at + left - 1) {
-                let played = exit + 1 - at + k;
-                if played >= left {
+            // First as above; where that finds nothing (footage of a clip or two shorter than
+            // a few stretches — a user's short background), loops back within a clip too,
+            // never by less than a stretch.
+            for strict in [true, false] {
+                if best.is_some() {
                     break;
                 }
-                // Enough to finish, or to play a stretch and dissolve out of it again.
-                let need = (min_run + k).min(left - played);
-                for enter in (k + 1)..self.len() {
-                    if enter - k - 1 < start_of(enter) || end_of(enter) - enter < need {
-                        continue;
+                for exit in (at + min_run.saturating_sub(1))..=last_exit.min(at + left - 1) {
+                    let played = exit + 1 - at + k;
+                    if played >= left {
+                        break;
                     }
-                    // Never into what this stretch plays or just played, nor a skip of
-                    // less than a stretch ahead of it.
-                    if clip_of(enter) == clip_of(at)
-                        && enter + 2 * min_run >= at
-                        && enter <= exit + k + 1 + min_run
-                    {
-                        continue;
-                    }
-                    let repeated = before[enter + need] - before[enter - k];
-                    let again = REPEAT_COST * median_step * repeated as f32;
-                    let c = cost(exit, enter) + again;
-                    // Ties: the later exit (longer stretches).
-                    if best.is_none_or(|(b, ..)| c <= b) {
-                        best = Some((c, exit, enter));
+                    // Enough to finish, or to play a stretch and dissolve out of it again.
+                    let need = if strict { min_run + k } else { min_run }.min(left - played);
+                    for enter in (k + 1)..self.len() {
+                        if enter - k - 1 < start_of(enter) || end_of(enter) - enter < need {
+                            continue;
+                        }
+                        // Never into what this stretch plays or just played, nor a skip of
+                        // less than a stretch ahead of it; loosened, never back by less than a
+                        // stretch.
+                        let same = clip_of(enter) == clip_of(at);
+                        let near = if strict {
+                            enter + 2 * min_run >= at && enter <= exit + k + 1 + min_run
+                        } else {
+                            enter + min_run > exit && enter <= exit + k + 1
+                        };
+                        if same && near {
+                            continue;
+                        }
+                        let repeated = before[enter + need] - before[enter - k];
+                        let again = REPEAT_COST * median_step * repeated as f32;
+                        let c = cost(exit, enter) + again;
+                        // Ties: the later exit (longer stretches).
+                        if best.is_none_or(|(b, ..)| c <= b) {
+                            best = Some((c, exit, enter));
+                        }
                     }
                 }
             }
@@ -520,6 +532,38 @@ impl Footage {
         plan.frames.truncate(n);
         plan.mix.truncate(n);
         plan
+    }
+
+    /// One video as footage, from its frames tracked and held in memory (nothing written; its
+    /// first [`MAX_FRAMES`] frames): a user's background shorter than the speech is extended
+    /// as a talker's footage is.
+    pub fn of_video(
+        path: &Path,
+        size: (u32, u32),
+        model_hash: String,
+        landmarks: Vec<Landmarks>,
+        tracked: Frames,
+        thumbs: &[Vec<f32>],
+    ) -> Footage {
+        // The join costs are frames², so at most MAX_FRAMES of it (2.7 minutes at 25 fps).
+        let n = landmarks.len().min(MAX_FRAMES);
+        let (mut landmarks, tracked) = (landmarks, tracked.slice(0..n.min(tracked.len())));
+        landmarks.truncate(n);
+        let thumbs = &thumbs[..n.min(thumbs.len())];
+        let file = path.file_name().map_or_else(String::new, |f| f.to_string_lossy().into_owned());
+        Footage {
+            dir: crate::atomic::parent_of(path).to_path_buf(),
+            clips: vec![Clip {
+                file,
+                frames: landmarks.len(),
+            }],
+            fps: tracked.fps(),
+            size,
+            model_hash,
+            landmarks,
+            tracked,
+            distance: distances(thumbs),
+        }
     }
 
     /// The median join cost between consecutive frames of a clip: what one recorded step
@@ -701,7 +745,7 @@ impl Shown {
 }
 
 /// The grey image at 1/[`THUMB`] size (box average), as floats.
-fn thumbnail(image: &RgbImage) -> Vec<f32> {
+pub(crate) fn thumbnail(image: &RgbImage) -> Vec<f32> {
     let (w, h) = (image.width() / THUMB, image.height() / THUMB);
     let mut out = vec![0f32; (w * h) as usize];
     for y in 0..h * THUMB {
