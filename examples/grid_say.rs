@@ -163,16 +163,10 @@ fn main() {
                 p.backdrop.match_lighting(&talker.model, &talker.codebook, &mut u);
                 u.variants()[0].1.clone()
             };
-            let mut images = Vec::new();
-            facespace::render::stream(
+            let images = facespace::render::images(
                 &renderer as &dyn Renderer,
                 &frames,
                 p.backdrop.background().unwrap(),
-                |im| -> Result<(), facespace::render::RenderError> {
-                    images.push(im);
-                    Ok(())
-                },
-                facespace::no_progress,
             )
             .unwrap();
             rows.push((frames, images));

@@ -90,6 +90,19 @@ fn codebook() -> Codebook {
     .unwrap()
 }
 
+/// A codebook of `sentences` with [`codebook`]'s similarity options.
+fn like_codebook(sentences: Vec<Sentence>) -> Codebook {
+    Codebook::build(
+        sentences,
+        FPS,
+        LAYOUT,
+        None,
+        codebook().options.clone(),
+        &mut facespace::no_progress,
+    )
+    .unwrap()
+}
+
 /// A codebook holding nothing but silence.
 fn common_silence(like: &Codebook) -> Codebook {
     Codebook::build(
@@ -199,15 +212,7 @@ fn ties_are_broken_by_duration_then_deeper_context_never_by_name() {
         if reverse {
             sentences.reverse();
         }
-        Codebook::build(
-            sentences,
-            FPS,
-            LAYOUT,
-            None,
-            codebook().options.clone(),
-            &mut facespace::no_progress,
-        )
-        .unwrap()
+        like_codebook(sentences)
     };
     let one = Blend {
         context: 1,
@@ -399,15 +404,7 @@ fn variance_preservation_scales_the_motion_by_one_gain() {
         wiggly("B", &["sil", "aa", "m", "iy", "sil"], 0.1, -0.6),
         wiggly("C", &["sil", "aa", "m", "iy", "sil"], 0.2, 0.3),
     ];
-    let cb = Codebook::build(
-        sentences,
-        FPS,
-        LAYOUT,
-        None,
-        codebook().options.clone(),
-        &mut facespace::no_progress,
-    )
-    .unwrap();
+    let cb = like_codebook(sentences);
     let t = target(&["sil", "aa", "m", "iy", "sil"], 0.2);
     for n in [1, 3] {
         let run = |preserve_variance| {

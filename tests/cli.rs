@@ -832,45 +832,32 @@ fn a_track_model_of_someone_else_is_called_a_face_swap() {
     let dir = tempfile::tempdir().unwrap();
     let root = common::root();
     let arg = |p: &str| root.join(p).to_string_lossy().into_owned();
-    let out = dir.path().join("swap");
-    let o = facespace(&[
-        "synth",
-        "--model",
-        &arg("models/grid/model"),
-        "--codebook",
-        &arg("models/grid/codebook"),
-        "--labels",
-        &arg("tests/data/grid/bbbs7a.lab"),
-        "--track-model",
-        &arg("models/demo/model"),
-        "--background",
-        &arg("models/demo/background.mp4"),
-        "--renderer",
-        "cpu",
-        "-o",
-        out.to_str().unwrap(),
-    ]);
+    // GRID's codebook drawn over a background tracked with `track_model`.
+    let synth = |track_model: &str, background: &str, out: &str| {
+        facespace(&[
+            "synth",
+            "--model",
+            &arg("models/grid/model"),
+            "--codebook",
+            &arg("models/grid/codebook"),
+            "--labels",
+            &arg("tests/data/grid/bbbs7a.lab"),
+            "--track-model",
+            &arg(track_model),
+            "--background",
+            &arg(background),
+            "--renderer",
+            "cpu",
+            "-o",
+            dir.path().join(out).to_str().unwrap(),
+        ])
+    };
+    let o = synth("models/demo/model", "models/demo/background.mp4", "swap");
     let t = text(&o);
     assert!(o.status.success(), "{t}");
     assert!(t.contains("a face swap"), "{t}");
     // The codebook's own talker over his own footage is no swap.
-    let o = facespace(&[
-        "synth",
-        "--model",
-        &arg("models/grid/model"),
-        "--codebook",
-        &arg("models/grid/codebook"),
-        "--labels",
-        &arg("tests/data/grid/bbbs7a.lab"),
-        "--track-model",
-        &arg("models/grid/model"),
-        "--background",
-        &arg("tests/data/grid/bbbs7a.mp4"),
-        "--renderer",
-        "cpu",
-        "-o",
-        dir.path().join("own").to_str().unwrap(),
-    ]);
+    let o = synth("models/grid/model", "tests/data/grid/bbbs7a.mp4", "own");
     assert!(o.status.success(), "{}", text(&o));
     assert!(!text(&o).contains("face swap"), "{}", text(&o));
 }

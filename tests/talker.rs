@@ -154,18 +154,8 @@ fn performed(name: &str) -> (facespace::talker::Performance, Vec<RgbImage>) {
     let p = talker.perform(&request, staging.path()).unwrap();
     let renderer = CpuRenderer::with_edge(&talker.model, Edge::Articulators(DEFAULT_FEATHER));
     let frames = p.utterance.variants()[0].1.clone();
-    let mut images = Vec::new();
-    facespace::render::stream(
-        &renderer as &dyn Renderer,
-        &frames,
-        p.backdrop.background().unwrap(),
-        |image| -> Result<(), facespace::render::RenderError> {
-            images.push(image);
-            Ok(())
-        },
-        facespace::no_progress,
-    )
-    .unwrap();
+    let images =
+        facespace::render::images(&renderer as &dyn Renderer, &frames, p.backdrop.background().unwrap()).unwrap();
     (p, images)
 }
 

@@ -380,6 +380,27 @@ pub fn stream<E: Send + From<RenderError>>(
     )
 }
 
+/// Every frame of `frames` rendered over `background`, in memory (for measuring what a viewer
+/// sees before any video encoding; [`stream`] for anything long).
+pub fn images(
+    renderer: &dyn Renderer,
+    frames: &Frames,
+    background: Background,
+) -> Result<Vec<RgbImage>, RenderError> {
+    let mut out = Vec::with_capacity(frames.len());
+    stream(
+        renderer,
+        frames,
+        background,
+        |image| -> Result<(), RenderError> {
+            out.push(image);
+            Ok(())
+        },
+        crate::no_progress,
+    )?;
+    Ok(out)
+}
+
 /// Index of frame `t` in a sequence of `n` played forwards, then backwards, and so on
 /// (`0, 1, …, n−1, n−2, …, 1, 0, 1, …`), so a loop of background frames never jumps.
 pub fn ping_pong(t: usize, n: usize) -> usize {

@@ -65,7 +65,7 @@ pub fn parts_from_recordings(
     let corpus_error = |e: crate::corpus::CorpusError| TalkerError::Speech(format!("the corpus of {}: {e}", recordings.dir.display()));
     let model = FaceModel::load(&recordings.model).map_err(|source| TalkerError::Model {
         dir: dir.clone(),
-        source,
+        source: Box::new(source),
     })?;
     let corpus = out.join("corpus");
     let done = crate::corpus::recorded_fps(&corpus).ok().flatten();
@@ -109,11 +109,11 @@ pub fn parts_from_recordings(
             )
             .map_err(|source| TalkerError::Codebook {
                 dir: dir.clone(),
-                source,
+                source: Box::new(source),
             })?;
             cb.save(&codebook_dir).map_err(|source| TalkerError::Codebook {
                 dir: dir.clone(),
-                source,
+                source: Box::new(source),
             })?;
             cb
         }
@@ -121,7 +121,7 @@ pub fn parts_from_recordings(
     let names = super::footage::closest_takes(&model, &codebook, recordings.footage_clips)
         .map_err(|source| TalkerError::Model {
             dir: dir.clone(),
-            source,
+            source: Box::new(source),
         })?;
     let footage = names
         .iter()
@@ -159,11 +159,11 @@ pub fn build(
     std::fs::create_dir_all(out).map_err(io(out))?;
     let model_error = |source| TalkerError::Model {
         dir: dir.clone(),
-        source,
+        source: Box::new(source),
     };
     let codebook_error = |source| TalkerError::Codebook {
         dir: dir.clone(),
-        source,
+        source: Box::new(source),
     };
     let model = FaceModel::load(&parts.model).map_err(model_error)?;
     let codebook = Codebook::load(&parts.codebook).map_err(codebook_error)?;
@@ -187,7 +187,7 @@ pub fn build(
         Footage::build(&model, &parts.footage, &footage_dir, &mut progress).map_err(
             |source: FootageError| TalkerError::Footage {
                 dir: dir.clone(),
-                source,
+                source: Box::new(source),
             },
         )?;
     }

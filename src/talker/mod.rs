@@ -134,32 +134,32 @@ pub enum TalkerError {
     Manifest {
         /// The talker folder.
         dir: PathBuf,
-        /// The cause.
-        source: ManifestError,
+        /// The cause (boxed: the error enum travels in every result).
+        source: Box<ManifestError>,
     },
     /// The model part.
     #[error("talker {dir}: its model: {source}")]
     Model {
         /// The talker folder.
         dir: PathBuf,
-        /// The cause.
-        source: ModelError,
+        /// The cause (boxed: the error enum travels in every result).
+        source: Box<ModelError>,
     },
     /// The codebook part.
     #[error("talker {dir}: its codebook: {source}")]
     Codebook {
         /// The talker folder.
         dir: PathBuf,
-        /// The cause.
-        source: CodebookError,
+        /// The cause (boxed: a codebook error is large, and every result carries the enum).
+        source: Box<CodebookError>,
     },
     /// The footage part.
     #[error("talker {dir}: its {source}")]
     Footage {
         /// The talker folder.
         dir: PathBuf,
-        /// The cause.
-        source: FootageError,
+        /// The cause (boxed: the error enum travels in every result).
+        source: Box<FootageError>,
     },
     /// A part made with another model than the talker's.
     #[error(
@@ -205,6 +205,10 @@ pub enum TalkerError {
         source: std::io::Error,
     },
 }
+
+/// The phones of a request's speech, its words when there were words, and the sound to put
+/// under the video.
+type Heard = (Vec<Segment>, Option<String>, Option<PathBuf>);
 
 /// A talker, loaded (module docs).
 pub struct Talker {
@@ -333,7 +337,7 @@ impl Talker {
     pub fn load(dir: &Path) -> Result<Talker, TalkerError> {
         let manifest_error = |source| TalkerError::Manifest {
             dir: dir.into(),
-            source,
+            source: Box::new(source),
         };
         let m: TalkerManifest =
             manifest::read(&dir.join(MANIFEST), FORMAT, TALKER_VERSION).map_err(manifest_error)?;
@@ -356,21 +360,21 @@ impl Talker {
         });
         let (model, hash) = model.map_err(|source| TalkerError::Model {
             dir: dir.into(),
-            source,
+            source: Box::new(source),
         })?;
         let codebook = codebook.map_err(|source| TalkerError::Codebook {
             dir: dir.into(),
-            source,
+            source: Box::new(source),
         })?;
         codebook
             .check_model_hash(&hash, model.layout())
             .map_err(|source| TalkerError::Codebook {
                 dir: dir.into(),
-                source,
+                source: Box::new(source),
             })?;
         let footage = footage.map_err(|source| TalkerError::Footage {
             dir: dir.into(),
-            source,
+            source: Box::new(source),
         })?;
         if footage.model_hash != hash {
             return Err(TalkerError::Foreign {
@@ -396,7 +400,7 @@ impl Talker {
         request: &SayRequest,
         staging: &Path,
         notes: &mut Vec<String>,
-    ) -> Result<(Vec<Segment>, Option<String>, Option<PathBuf>), TalkerError> {
+    ) -> Result<Heard, TalkerError> {
         let align = |sound: &Path, words: &str| {
             crate::align::Aligner::load_default(&request.dicts)
                 .and_then(|a| a.align_file(sound, words))
@@ -470,7 +474,7 @@ impl Talker {
             .anchor_region(&self.model, &mut utterance)
             .map_err(|source| TalkerError::Model {
                 dir: self.dir.clone(),
-                source,
+                source: Box::new(source),
             })?;
         backdrop.match_lighting(&self.model, &self.codebook, &mut utterance);
         notes.extend(utterance.synthesis.warnings.iter().cloned());
