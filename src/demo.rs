@@ -135,6 +135,9 @@ pub enum DemoError {
     /// The renderer asked for could not be made.
     #[error(transparent)]
     Render(#[from] RenderError),
+    /// The talker could not be loaded or speak.
+    #[error(transparent)]
+    Talker(#[from] crate::talker::TalkerError),
 }
 
 /// Options of [`run`].
@@ -281,6 +284,17 @@ fn grid_into(
         &mut progress,
     )?;
     alignment.write(&w.join("utterance.TextGrid"))?;
+    // The main verb: the same recording and words through `say`, over his idle footage (not
+    // the sentence's own take) — what `facespace say --audio CLIP --text WORDS` writes.
+    let talker = crate::talker::Talker::load(&committed("models/grid"))?;
+    let request = crate::talker::SayRequest {
+        renderer: options.renderer,
+        ..crate::talker::SayRequest::new(crate::talker::Speech::Recording {
+            audio: clip.clone(),
+            words: words.to_owned(),
+        })
+    };
+    talker.say(&request, &w.join("say.mp4"), &mut progress)?;
     let o = &options.output;
     Ok(DemoReport {
         talker: Talker::Grid,
@@ -305,7 +319,13 @@ fn grid_into(
                 o.join("beside_background.mp4"),
             )],
             synthesis_files(o, "trajectory plot (with the real one)"),
-            vec![("words and phones aligned", o.join("utterance.TextGrid"))],
+            vec![
+                ("words and phones aligned", o.join("utterance.TextGrid")),
+                (
+                    "say: the same words over his footage",
+                    o.join("say.mp4"),
+                ),
+            ],
         ]
         .concat(),
     })

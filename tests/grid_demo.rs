@@ -155,6 +155,7 @@ fn the_demo_speaks_beside_the_real_recording() {
         "unit/smoothed/video.mp4",
         "unit/beside_background.mp4",
         "unit/report.json",
+        "say.mp4",
     ] {
         assert!(out.join(f).is_file(), "missing {f}");
     }
@@ -198,6 +199,7 @@ fn the_demo_speaks_beside_the_real_recording() {
         "beside_background.mp4",
         "smoothed/video.mp4",
         "side_by_side.mp4",
+        "say.mp4",
     ] {
         let sound = facespace::audio::read(&out.join(video), 16_000, 60.0).unwrap();
         let source = facespace::audio::read(&clip, 16_000, 60.0).unwrap();
