@@ -135,9 +135,15 @@ pub enum DemoError {
     /// The renderer asked for could not be made.
     #[error(transparent)]
     Render(#[from] RenderError),
-    /// The talker could not be loaded or speak.
+    /// The talker could not be loaded or speak (boxed: the largest of these errors).
     #[error(transparent)]
-    Talker(#[from] crate::talker::TalkerError),
+    Talker(Box<crate::talker::TalkerError>),
+}
+
+impl From<crate::talker::TalkerError> for DemoError {
+    fn from(e: crate::talker::TalkerError) -> Self {
+        DemoError::Talker(Box::new(e))
+    }
 }
 
 /// Options of [`run`].
