@@ -883,3 +883,41 @@ fn synth_finds_the_codebooks_model() {
     assert!(o.status.success(), "{}", text(&o));
     assert!(out.join("video.mp4").is_file());
 }
+
+/// `synth --talker T` takes the talker's model, codebook and settings; a flag overrides them.
+#[test]
+fn synth_takes_a_talkers_settings() {
+    let dir = tempfile::tempdir().unwrap();
+    let grid = common::root().join("models/grid");
+    let talker = dir.path().join("talker");
+    std::fs::create_dir(&talker).unwrap();
+    for part in ["model", "codebook", "footage"] {
+        std::os::unix::fs::symlink(grid.join(part), talker.join(part)).unwrap();
+    }
+    let manifest = std::fs::read_to_string(grid.join("talker.json")).unwrap();
+    assert!(manifest.contains("\"top_n\": 5"));
+    std::fs::write(talker.join("talker.json"), manifest.replace("\"top_n\": 5", "\"top_n\": 2")).unwrap();
+    let labels = common::root().join("tests/data/grid/bbbs7a.lab");
+    let method = |extra: &[&str], out: &str| {
+        let out = dir.path().join(out);
+        let mut args = vec![
+            "synth",
+            "--talker",
+            talker.to_str().unwrap(),
+            "--labels",
+            labels.to_str().unwrap(),
+            "--renderer",
+            "cpu",
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let o = facespace(&args);
+        assert!(o.status.success(), "{}", text(&o));
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+        report["method"].as_str().unwrap().to_owned()
+    };
+    assert_eq!(method(&[], "own"), "blend C=1 N=2");
+    assert_eq!(method(&["--top-n", "4"], "flag"), "blend C=1 N=4");
+}

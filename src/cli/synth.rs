@@ -63,9 +63,13 @@ pub struct SynthArgs {
     /// model, models/demo/model).
     #[arg(long)]
     model: Option<PathBuf>,
-    /// The codebook to synthesise from (`codebook build`).
+    /// A talker folder (`talker build`): its model, codebook and settings (N, C, λ) and its
+    /// voice for --say are the defaults; the flags override them.
     #[arg(long)]
-    codebook: PathBuf,
+    talker: Option<PathBuf>,
+    /// The codebook to synthesise from (`codebook build`; default: the talker's).
+    #[arg(long, required_unless_present = "talker")]
+    codebook: Option<PathBuf>,
     /// Phone timings (.lab, .TextGrid, .tsv).
     #[arg(long, conflicts_with_all = ["text", "transcript", "say"], required_unless_present_any = ["text", "transcript", "say"])]
     labels: Option<PathBuf>,
@@ -99,12 +103,13 @@ pub struct SynthArgs {
     /// [unitsel]'s constants).
     #[arg(long)]
     weights: Option<PathBuf>,
-    /// Context width C.
-    #[arg(long, default_value_t = 1)]
-    context: usize,
-    /// Examples blended per phone, N (default: chosen on GRID s1's validation split).
-    #[arg(long, default_value_t = facespace::synth::blend::DEFAULT_TOP_N)]
-    top_n: usize,
+    /// Context width C (default: the talker's, else 1).
+    #[arg(long)]
+    context: Option<usize>,
+    /// Examples blended per phone, N (default: the talker's, else 5 — chosen on GRID s1's
+    /// validation split).
+    #[arg(long)]
+    top_n: Option<usize>,
     /// Blend by the plain weighted average, without restoring the examples' spread (the
     /// motion then shrinks with N).
     #[arg(long)]
@@ -112,10 +117,10 @@ pub struct SynthArgs {
     /// Smoothing spline on, off, or both for a blind A/B side-by-side.
     #[arg(long, value_enum, default_value_t = Smooth::On)]
     smooth: Smooth,
-    /// Smoothing weight λ of the cubic smoothing spline (default: chosen on GRID s1's
-    /// validation split).
-    #[arg(long, default_value_t = DEFAULT_SMOOTHING)]
-    smoothing: f64,
+    /// Smoothing weight λ of the cubic smoothing spline (default: the talker's, else 3e-5 —
+    /// chosen on GRID s1's validation split).
+    #[arg(long)]
+    smoothing: Option<f64>,
     /// Output frame rate (default: the background video's, else the codebook's).
     #[arg(long)]
     fps: Option<f64>,
@@ -176,13 +181,57 @@ fn model_of(codebook: &std::path::Path) -> Option<PathBuf> {
     facespace::model::FaceModel::find_by_hash(hash, &candidates).map(|(p, _)| p)
 }
 
-pub fn run(a: SynthArgs) -> Result<()> {
+/// The parts and settings a `--talker` lends (read from its manifest only: the parts are
+/// loaded below as if named by their flags).
+struct Lent {
+    model: PathBuf,
+    codebook: PathBuf,
+    settings: facespace::talker::Settings,
+    voice: Option<String>,
+}
+
+fn lent(talker: &std::path::Path) -> Result<Lent> {
+    let path = talker.join(facespace::talker::MANIFEST);
+    let m: facespace::talker::TalkerManifest = serde_json::from_str(
+        &facespace::manifest::read_regular_string(&path)
+            .with_context(|| format!("reading {}", path.display()))?,
+    )
+    .with_context(|| format!("{}: not a talker manifest", path.display()))?;
+    let part = |name: &str| facespace::manifest::member(talker, name);
+    Ok(Lent {
+        model: part(&m.model)?,
+        codebook: part(&m.codebook)?,
+        settings: m.settings,
+        voice: m.voice.map(|v| v.festival),
+    })
+}
+
+pub fn run(mut a: SynthArgs) -> Result<()> {
+    let lent = a.talker.as_deref().map(lent).transpose()?;
+    if let Some(l) = &lent {
+        a.model = a.model.take().or(Some(l.model.clone()));
+        a.codebook = a.codebook.take().or(Some(l.codebook.clone()));
+    }
+    let settings = lent.as_ref().map(|l| &l.settings);
+    let top_n = a
+        .top_n
+        .or(settings.map(|s| s.top_n))
+        .unwrap_or(facespace::synth::blend::DEFAULT_TOP_N);
+    let context = a.context.or(settings.map(|s| s.context)).unwrap_or(1);
+    let lambda = a
+        .smoothing
+        .or(settings.map(|s| s.smoothing))
+        .unwrap_or(DEFAULT_SMOOTHING);
+    let codebook_path = a
+        .codebook
+        .clone()
+        .context("give --codebook (or --talker)")?;
     let model_path = a
         .model
         .clone()
-        .or_else(|| model_of(&a.codebook))
+        .or_else(|| model_of(&codebook_path))
         .unwrap_or_else(|| PathBuf::from(super::DEMO_MODEL));
-    let mut inputs = vec![model_path.as_path(), a.codebook.as_path()];
+    let mut inputs = vec![model_path.as_path(), codebook_path.as_path()];
     for p in [
         &a.labels,
         &a.transcript,
@@ -198,13 +247,13 @@ pub fn run(a: SynthArgs) -> Result<()> {
     inputs.extend(a.dicts.iter().map(|d| d.as_path()));
     super::check_output(&a.output, &inputs)?;
     let model = load_model(&model_path)?;
-    let cb = Codebook::load(&a.codebook)
-        .with_context(|| format!("loading codebook {}", a.codebook.display()))?;
+    let cb = Codebook::load(&codebook_path)
+        .with_context(|| format!("loading codebook {}", codebook_path.display()))?;
     cb.check_model(&model).with_context(|| match &a.model {
-        Some(m) => format!("codebook {} and model {}", a.codebook.display(), m.display()),
+        Some(m) => format!("codebook {} and model {}", codebook_path.display(), m.display()),
         None => format!(
             "codebook {}: you gave no --model, none beside it or committed has the model hash it records, and the default is the demo model ({}); give the model the codebook was built with",
-            a.codebook.display(),
+            codebook_path.display(),
             super::shown(&model_path)
         ),
     })?;
@@ -221,8 +270,12 @@ pub fn run(a: SynthArgs) -> Result<()> {
     let speech = match (&a.say, &spoken) {
         (Some(text), Some(spoken)) => {
             let wav = spoken.path().join("speech.wav");
-            let engine = facespace::tts::speak(text, &wav).context("--say")?;
-            println!("speech by {} → aligned", engine.name());
+            let voice = lent.as_ref().and_then(|l| l.voice.as_deref());
+            let spoken = facespace::tts::speak_as(text, &wav, voice).context("--say")?;
+            if let Some(note) = &spoken.note {
+                eprintln!("note: {note}");
+            }
+            println!("speech by {} ({}) → aligned", spoken.engine.name(), spoken.voice);
             Some(wav)
         }
         _ => a.audio.clone(),
@@ -281,14 +334,14 @@ pub fn run(a: SynthArgs) -> Result<()> {
         None => None,
     };
     let smoothing = match a.smooth {
-        Smooth::On => Smoothing::On(a.smoothing),
+        Smooth::On => Smoothing::On(lambda),
         Smooth::Off => Smoothing::Off,
-        Smooth::Ab => Smoothing::Ab(a.smoothing),
+        Smooth::Ab => Smoothing::Ab(lambda),
     };
     let synthesiser: Box<dyn Synthesiser> = match a.mode {
         Mode::Blend => Box::new(Blend {
-            context: a.context,
-            top_n: a.top_n,
+            context,
+            top_n,
             preserve_variance: !a.plain_average,
         }),
         Mode::Unit => Box::new(match &a.weights {
@@ -359,7 +412,7 @@ pub fn run(a: SynthArgs) -> Result<()> {
     if a.strict && !borrowed.is_empty() {
         anyhow::bail!(
             "--strict: the codebook {} has no example of {}; build it from sentences that have them, or drop --strict to borrow the nearest phones",
-            a.codebook.display(),
+            codebook_path.display(),
             borrowed.join(", ")
         );
     }
