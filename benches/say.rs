@@ -1,5 +1,5 @@
 //! The talker pipeline on the committed GRID s1 talker (issue 33): loading the talker folder,
-//! and `say` of a 3-second sentence into an MP4 — from text (Festival speaks, the aligner
+//! planning its living frame, and `say` of a 3-second sentence into an MP4 — from text (Festival speaks, the aligner
 //! times it; skipped without an engine) and from a recording with its words.
 //! Run: cargo bench --bench say
 
@@ -16,6 +16,11 @@ fn bench(c: &mut Criterion) {
         b.iter(|| Talker::load(&dir).unwrap())
     });
     let talker = Talker::load(&dir).unwrap();
+    for n in [92, 1199] {
+        group.bench_function(format!("living frame for {n} frames (best of 16 starts)"), |b| {
+            b.iter(|| talker.footage.best_plan(n, 0))
+        });
+    }
     let out = tempfile::tempdir().unwrap();
     let video = out.path().join("say.mp4");
     let data = root.join("tests/data/grid");

@@ -401,8 +401,14 @@ impl Footage {
     /// The best living frame for `n` output frames: [`Footage::plan`] from the start of every
     /// clip, the one whose worst join costs least (ties: the lower total) — unless several
     /// are about as good (worst join within 20 % of the best), when `seed` picks among those,
-    /// so utterances do not all open on the same take.
+    /// so utterances do not all open on the same take. An utterance longer than the footage
+    /// gets [`Footage::plan`] from the seed's clip.
     pub fn best_plan(&self, n: usize, seed: u64) -> Plan {
+        // Longer than the footage, where the start matters least and each plan costs most:
+        // one plan, from the seed's clip.
+        if n > self.len() {
+            return self.plan(n, seed);
+        }
         let worst = |p: &Plan| p.join_costs.iter().copied().fold(0f32, f32::max);
         let mut plans: Vec<Plan> = self.clip_starts()[..self.clips.len()]
             .iter()
