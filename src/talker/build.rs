@@ -62,7 +62,10 @@ pub fn parts_from_recordings(
     mut progress: impl FnMut(Progress) + Send,
 ) -> Result<Parts, TalkerError> {
     let dir = out.to_path_buf();
-    let corpus_error = |e: crate::corpus::CorpusError| TalkerError::Speech(format!("the corpus of {}: {e}", recordings.dir.display()));
+    let corpus_error = |e: crate::corpus::CorpusError| TalkerError::Corpus {
+        dir: recordings.dir.clone(),
+        source: Box::new(e),
+    };
     let model = FaceModel::load(&recordings.model).map_err(|source| TalkerError::Model {
         dir: dir.clone(),
         source: Box::new(source),

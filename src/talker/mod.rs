@@ -175,9 +175,25 @@ pub enum TalkerError {
         /// The model's hash.
         expected: String,
     },
-    /// The speech could not be made or read.
-    #[error("{0}")]
-    Speech(String),
+    /// Text-to-speech failed (no engine: the install line).
+    #[error(transparent)]
+    Tts(#[from] crate::tts::TtsError),
+    /// The speech could not be aligned with its words.
+    #[error("aligning {path}: {source}")]
+    Align {
+        /// The sound.
+        path: PathBuf,
+        /// The cause (boxed: the error enum travels in every result).
+        source: Box<crate::align::AlignError>,
+    },
+    /// The recordings could not be made a corpus.
+    #[error("the corpus of {dir}: {source}")]
+    Corpus {
+        /// The recordings.
+        dir: PathBuf,
+        /// The cause.
+        source: Box<crate::corpus::CorpusError>,
+    },
     /// The phones could not be read.
     #[error(transparent)]
     Phonemes(#[from] PhonemeError),
@@ -405,7 +421,10 @@ impl Talker {
             crate::align::Aligner::load_default(&request.dicts)
                 .and_then(|a| a.align_file(sound, words))
                 .map(|a| a.segments())
-                .map_err(|e| TalkerError::Speech(format!("aligning {}: {e}", sound.display())))
+                .map_err(|e| TalkerError::Align {
+                    path: sound.to_path_buf(),
+                    source: Box::new(e),
+                })
         };
         Ok(match &request.speech {
             Speech::Text(text) => {
@@ -414,8 +433,7 @@ impl Talker {
                     .voice
                     .as_deref()
                     .or(self.manifest.voice.as_ref().map(|v| v.festival.as_str()));
-                let spoken = crate::tts::speak_as(text, &wav, voice)
-                    .map_err(|e| TalkerError::Speech(e.to_string()))?;
+                let spoken = crate::tts::speak_as(text, &wav, voice)?;
                 if let Some(note) = spoken.note {
                     let hint = self
                         .manifest
