@@ -398,11 +398,7 @@ impl Annotator {
 fn untrusted(fit: &crate::fit::FitResult, image: &image::RgbImage) -> Option<String> {
     let threshold = crate::fit::DEFAULT_REINIT_ERROR;
     let inside = first_outside(&fit.landmarks, image).is_none();
-    let explained = matches!(
-        fit.error.partial_cmp(&threshold),
-        Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
-    );
-    (!explained || !inside).then(|| {
+    (!fit.explained() || !inside).then(|| {
         format!(
             "the model does not explain this face (residual {:.1} grey levels, a face it was built for fits under {threshold}{})",
             fit.error,

@@ -164,13 +164,15 @@ pub struct SynthArgs {
     output: PathBuf,
 }
 
-/// The model a codebook was built with, found by the hash it records: the `model/` beside
-/// the codebook (a talker folder's, say), then the committed models.
-fn model_of(codebook: &std::path::Path) -> Option<PathBuf> {
-    let cb = Codebook::load(codebook).ok()?;
-    let hash = cb.model_hash.as_ref()?;
+/// The model `codebook` (read from `path`) was built with, found by the hash it records: the
+/// `model/` beside the codebook (a talker folder's, say), then the committed models; loaded.
+fn model_of(
+    path: &std::path::Path,
+    codebook: &Codebook,
+) -> Option<(PathBuf, facespace::model::FaceModel)> {
+    let hash = codebook.model_hash.as_ref()?;
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models");
-    let mut candidates: Vec<PathBuf> = codebook
+    let mut candidates: Vec<PathBuf> = path
         .parent()
         .map(|p| vec![p.join("model"), p.join("lower")])
         .unwrap_or_default();
@@ -178,7 +180,7 @@ fn model_of(codebook: &std::path::Path) -> Option<PathBuf> {
         candidates.push(root.join(talker).join("model"));
     }
     candidates.push(root.join("grid/lower"));
-    facespace::model::FaceModel::find_by_hash(hash, &candidates).map(|(p, _)| p)
+    facespace::model::FaceModel::find_by_hash(hash, &candidates)
 }
 
 /// The parts and settings a `--talker` lends (read from its manifest only: the parts are
@@ -226,10 +228,17 @@ pub fn run(mut a: SynthArgs) -> Result<()> {
         .codebook
         .clone()
         .context("give --codebook (or --talker)")?;
+    let cb = Codebook::load(&codebook_path)
+        .with_context(|| format!("loading codebook {}", codebook_path.display()))?;
+    // Without --model, the one the codebook records (loaded once, here).
+    let found = match &a.model {
+        Some(_) => None,
+        None => model_of(&codebook_path, &cb),
+    };
     let model_path = a
         .model
         .clone()
-        .or_else(|| model_of(&codebook_path))
+        .or_else(|| found.as_ref().map(|(p, _)| p.clone()))
         .unwrap_or_else(|| PathBuf::from(super::DEMO_MODEL));
     let mut inputs = vec![model_path.as_path(), codebook_path.as_path()];
     for p in [
@@ -246,9 +255,10 @@ pub fn run(mut a: SynthArgs) -> Result<()> {
     }
     inputs.extend(a.dicts.iter().map(|d| d.as_path()));
     super::check_output(&a.output, &inputs)?;
-    let model = load_model(&model_path)?;
-    let cb = Codebook::load(&codebook_path)
-        .with_context(|| format!("loading codebook {}", codebook_path.display()))?;
+    let model = match found {
+        Some((_, model)) => model,
+        None => load_model(&model_path)?,
+    };
     cb.check_model(&model).with_context(|| match &a.model {
         Some(m) => format!("codebook {} and model {}", codebook_path.display(), m.display()),
         None => format!(

@@ -153,16 +153,6 @@ fn takes_in(
     let codebook = facespace::codebook::Codebook::load(codebook)
         .with_context(|| format!("loading codebook {}", codebook.display()))?;
     let names = facespace::talker::footage::closest_takes(&model, &codebook, count)?;
-    names
-        .iter()
-        .map(|n| {
-            let video = dir.join(format!("{n}.mp4"));
-            anyhow::ensure!(
-                video.is_file(),
-                "--footage-from {}: no {n}.mp4 (the codebook's sentence {n})",
-                dir.display()
-            );
-            Ok(video)
-        })
-        .collect()
+    facespace::talker::footage::take_videos(dir, &names)
+        .with_context(|| format!("--footage-from {}", dir.display()))
 }

@@ -101,6 +101,17 @@ pub struct FitResult {
     pub converged: bool,
 }
 
+impl FitResult {
+    /// Whether the model explains the face it found: a residual at most the tracker's
+    /// re-initialisation threshold ([`DEFAULT_REINIT_ERROR`]); NaN counts as unexplained.
+    pub fn explained(&self) -> bool {
+        matches!(
+            self.error.partial_cmp(&DEFAULT_REINIT_ERROR),
+            Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
+        )
+    }
+}
+
 /// A fitter: per pyramid level, the precomputed steepest-descent images and Hessian.
 pub struct Fitter<'m> {
     model: &'m FaceModel,

@@ -212,17 +212,11 @@ impl Backdrop {
         let fitter = Fitter::new(tracker.tracker(), FitOptions::default(), 2)?;
         let start = fitter.search_start(&image)?;
         let fit = fitter.fit(&image, &start)?;
-        let threshold = crate::fit::DEFAULT_REINIT_ERROR;
-        // NaN counts as no face.
-        let explained = matches!(
-            fit.error.partial_cmp(&threshold),
-            Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
-        );
-        if !explained {
+        if !fit.explained() {
             return Err(CodecError::NoFace {
                 path: path.into(),
                 error: fit.error,
-                threshold,
+                threshold: crate::fit::DEFAULT_REINIT_ERROR,
             }
             .into());
         }

@@ -126,15 +126,12 @@ pub fn parts_from_recordings(
             dir: dir.clone(),
             source: Box::new(source),
         })?;
-    let footage = names
-        .iter()
-        .filter_map(|name| {
-            crate::corpus::VIDEO_EXTENSIONS
-                .iter()
-                .map(|x| recordings.dir.join(format!("{name}.{x}")))
-                .find(|p| p.is_file())
-        })
-        .collect();
+    let footage = super::footage::take_videos(&recordings.dir, &names).map_err(|source| {
+        TalkerError::Footage {
+            dir: dir.clone(),
+            source: Box::new(source),
+        }
+    })?;
     Ok(Parts {
         model: recordings.model.clone(),
         codebook: codebook_dir,

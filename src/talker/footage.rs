@@ -652,6 +652,25 @@ pub fn closest_takes(
         .unwrap_or_default())
 }
 
+/// The video of each take named in `names` among the recordings in `dir` (`NAME.mp4`, or
+/// another extension `corpus from-videos` reads): a take that is not there is an error
+/// naming it.
+pub fn take_videos(dir: &Path, names: &[String]) -> Result<Vec<PathBuf>, FootageError> {
+    names
+        .iter()
+        .map(|name| {
+            crate::corpus::VIDEO_EXTENSIONS
+                .iter()
+                .map(|x| dir.join(format!("{name}.{x}")))
+                .find(|p| p.is_file())
+                .ok_or_else(|| FootageError::Inconsistent {
+                    dir: dir.into(),
+                    reason: format!("no video of the codebook's sentence {name} ({name}.mp4)"),
+                })
+        })
+        .collect()
+}
+
 fn check_length(frames: usize, fps: f64) -> Result<(), FootageError> {
     let seconds = frames as f64 / fps;
     if seconds < MIN_SECONDS {
