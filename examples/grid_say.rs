@@ -10,19 +10,22 @@
 //! - the sharpness of the mouth as drawn: mean grey gradient magnitude inside the lips'
 //!   bounding box (3 px margin) of the rendered frames over that of the recorded ones.
 //!
-//! Rows: `say` as shipped, and the same phones by blend N = 3, λ = 3e-6 (the old `synth`
-//! defaults) with everything else alike — the same anchoring, re-lighting and footage.
+//! Rows: `say` as shipped (the talker's settings, chosen on GRID's validation split for
+//! correlation with the lip motion and amplitude kept), and the same phones by the settings
+//! chosen for correlation alone before (blend N = 5, λ = 3e-5) and by the old `synth`
+//! defaults (N = 3, λ = 3e-6), everything else alike — the same anchoring, re-lighting and
+//! footage.
 //!
-//! `cargo run --release --example grid_say -- ../shared/data/grid-s1 [LIMIT]`
+//! `cargo run --release --example grid_say -- ../shared/data/grid-s1 [LIMIT|all] [SPLIT]`
+//! (SPLIT: `test`, the default, or `validation`, where the constants were chosen).
 
 use std::path::{Path, PathBuf};
 
 use facespace::codec::{self, EncodeOptions};
-use facespace::eval::mouth::{MouthPc, inner_mouth_height};
+use facespace::eval::mouth::{MouthPc, inner_mouth_height, lip_motion};
 use facespace::eval::{pearson, standard_deviation};
 use facespace::facespace::Frames;
 use facespace::render::{CpuRenderer, DEFAULT_FEATHER, Edge, Renderer};
-use facespace::shape::Similarity;
 use facespace::synth::blend::Blend;
 use facespace::talker::{SayRequest, Speech, Talker};
 use facespace::video::Source;
@@ -54,28 +57,6 @@ fn tracked(talker: &Talker, clip: &Path) -> (Vec<RgbImage>, Frames) {
     })
     .unwrap();
     (images, Frames::from_rows(model.layout(), fps, rows).unwrap())
-}
-
-/// Lip landmarks without the pose, per frame.
-fn lips(talker: &Talker, f: &Frames) -> Vec<Vec<[f64; 2]>> {
-    f.iter()
-        .map(|p| talker.model.shape.instance(&Similarity::IDENTITY, p.shape).points[48..68].to_vec())
-        .collect()
-}
-
-/// Mean frame-to-frame displacement of the lip landmarks.
-fn motion(l: &[Vec<[f64; 2]>]) -> f64 {
-    let steps: Vec<f64> = l
-        .windows(2)
-        .map(|w| {
-            w[0].iter()
-                .zip(&w[1])
-                .map(|(a, b)| (a[0] - b[0]).hypot(a[1] - b[1]))
-                .sum::<f64>()
-                / w[0].len() as f64
-        })
-        .collect();
-    steps.iter().sum::<f64>() / steps.len().max(1) as f64
 }
 
 /// Mean grey gradient magnitude inside the lips' bounding box (3 px margin) of each frame.
@@ -118,22 +99,33 @@ struct Sentence {
 fn main() {
     let mut args = std::env::args().skip(1);
     let grid = PathBuf::from(args.next().expect("the GRID s1 folder"));
-    let limit: usize = args.next().map_or(usize::MAX, |n| n.parse().unwrap());
+    let limit: usize = args.next().map_or(usize::MAX, |n| n.parse().unwrap_or(usize::MAX));
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let clock = std::time::Instant::now();
     let talker = Talker::load(&root.join("models/grid")).unwrap();
-    let ids: Vec<String> = std::fs::read_to_string(grid.join("test.txt"))
+    let split = args.next().unwrap_or_else(|| "test".into());
+    // The corpus's damaged clips (none in test; two in validation) are left out, as
+    // `corpus from-videos` leaves them out.
+    let damaged = std::fs::read_to_string(grid.join("damaged.txt")).unwrap_or_default();
+    let damaged: Vec<&str> = damaged.split_whitespace().collect();
+    let ids: Vec<String> = std::fs::read_to_string(grid.join(format!("{split}.txt")))
         .unwrap()
         .lines()
         .map(|l| l.trim().to_owned())
-        .filter(|l| !l.is_empty())
+        .filter(|l| !l.is_empty() && !damaged.contains(&l.as_str()))
         .take(limit)
         .collect();
-    let old = Blend {
-        top_n: 3,
-        ..Blend::default()
-    };
-    let systems = ["say (talker settings: blend N=5, λ=3e-5)", "old synth defaults (blend N=3, λ=3e-6)"];
+    let settings = &talker.manifest.settings;
+    let say = format!(
+        "say (talker settings: blend N={}, λ={:e})",
+        settings.top_n, settings.smoothing
+    );
+    let others = [(5, 3e-5), (3, 3e-6)];
+    let systems = [
+        say.as_str(),
+        "chosen for correlation alone (blend N=5, λ=3e-5)",
+        "old synth defaults (blend N=3, λ=3e-6)",
+    ];
     let renderer = CpuRenderer::with_edge(&talker.model, Edge::Articulators(DEFAULT_FEATHER));
     let mut sentences = Vec::new();
     for id in &ids {
@@ -150,15 +142,20 @@ fn main() {
             let frames = if system == 0 {
                 p.utterance.variants()[0].1.clone()
             } else {
+                let (top_n, lambda) = others[system - 1];
+                let blend = Blend {
+                    top_n,
+                    ..Blend::default()
+                };
                 let req = facespace::synth::Request {
                     pose: p.backdrop.pose.clone(),
                     ..facespace::synth::Request::new(
                         p.target.clone(),
                         real.fps(),
-                        facespace::synth::Smoothing::On(facespace::synth::GENERATED_SMOOTHING),
+                        facespace::synth::Smoothing::On(lambda),
                     )
                 };
-                let mut u = facespace::synth::synthesise(&old, &talker.codebook, req).unwrap();
+                let mut u = facespace::synth::synthesise(&blend, &talker.codebook, req).unwrap();
                 p.backdrop.anchor_region(&talker.model, &mut u).unwrap();
                 p.backdrop.match_lighting(&talker.model, &talker.codebook, &mut u);
                 u.variants()[0].1.clone()
@@ -183,7 +180,7 @@ fn main() {
     let pc = MouthPc::fit(&talker.model, &reals).expect("a 68-point model");
     let points = |f: &Frames| facespace::eval::landmarks(&talker.model, f);
     println!(
-        "GRID s1 test split (recorded), {} sentences, `say --audio CLIP --text WORDS` over the talker's idle footage:\n",
+        "GRID s1 {split} split (recorded), {} sentences, `say --audio CLIP --text WORDS` over the talker's idle footage:\n",
         sentences.len()
     );
     println!("| system | r_pca eq. 16 | r_h inner | inner s.d. × real | lip motion × real | mouth sharpness × real |");
@@ -199,13 +196,13 @@ fn main() {
             let (ha, hb) = (h(&a), h(&b));
             r_h += pearson(&ha, &hb);
             sd += standard_deviation(&ha) / standard_deviation(&hb).max(1e-9);
-            mo += motion(&lips(&talker, &a)) / motion(&lips(&talker, &b)).max(1e-9);
+            mo += lip_motion(&talker.model, &a) / lip_motion(&talker.model, &b).max(1e-12);
             sharp += sharpness(&images[..n], &points(&a))
                 / sharpness(&s.real_images[..n], &points(&b)).max(1e-9);
         }
         let m = sentences.len() as f64;
         println!(
-            "| {name} | {:.3} | {:.3} | {:.2} | {:.2} | {:.2} |",
+            "| {name} | {:.3} | {:.3} | {:.2} | {:.3} | {:.2} |",
             r_pca / m,
             r_h / m,
             sd / m,

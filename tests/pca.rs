@@ -245,3 +245,46 @@ fn bad_input_is_a_typed_error() {
         Err(PcaError::BadComponents(_))
     ));
 }
+
+/// Weighted projection (issue 33's anchoring) against references: equal weights give the
+/// plain projection; a sample in the span is recovered whatever the weights; off the span,
+/// the solution makes the weighted residual orthogonal to every component (the normal
+/// equations), and weighting some values more fits them closer. Weights that are negative or
+/// leave too few values are refused.
+#[test]
+fn weighted_projection_solves_the_normal_equations() {
+    let (data, _) = low_rank_data(40, 12, 3, 21);
+    let rows: Vec<&[f32]> = data.iter().map(|r| r.as_slice()).collect();
+    let model = PcaModel::fit(&rows, Components::Count(3)).unwrap();
+    let uniform = model.weighted(&[2.0; 12]).unwrap();
+    let x = &data[5];
+    let plain = model.project(x);
+    let w = uniform.project(&model, x);
+    assert!(plain.iter().zip(&w).all(|(a, b)| (a - b).abs() < 1e-3), "{plain:?} {w:?}");
+
+    let weights: Vec<f64> = (0..12).map(|i| if i < 4 { 10.0 } else { 0.5 }).collect();
+    let skewed = model.weighted(&weights).unwrap();
+    let inside = model.reconstruct(&[3.0, -2.0, 1.0]);
+    let b = skewed.project(&model, &inside);
+    assert!(b.iter().zip([3.0, -2.0, 1.0]).all(|(a, e)| (a - e).abs() < 1e-3), "{b:?}");
+
+    let mut rng = Rng::new(9);
+    let off: Vec<f32> = x.iter().map(|v| v + rng.normal() as f32 * 5.0).collect();
+    let b = skewed.project(&model, &off);
+    let fit = model.reconstruct(&b);
+    for k in 0..3 {
+        let g: f64 = (0..12)
+            .map(|i| weights[i] * f64::from(off[i] - fit[i]) * f64::from(model.component(k)[i]))
+            .sum();
+        assert!(g.abs() < 1e-2, "component {k}: {g}");
+    }
+    let err = |fit: &[f32]| -> f64 { (0..4).map(|i| f64::from(off[i] - fit[i]).powi(2)).sum() };
+    let plain_fit = model.reconstruct(&model.project(&off));
+    assert!(err(&fit) < err(&plain_fit), "{} vs {}", err(&fit), err(&plain_fit));
+
+    let mut bad = vec![1.0; 12];
+    bad[3] = -1.0;
+    assert!(model.weighted(&bad).is_none());
+    assert!(model.weighted(&[1.0; 5]).is_none());
+    assert!(model.weighted(&[0.0; 12]).is_none());
+}

@@ -115,3 +115,84 @@ fn mouth_measures_on_analytic_cases() {
     let norm: f64 = pc.axis().iter().map(|v| v * v).sum();
     assert!((norm - 1.0).abs() < 1e-9);
 }
+
+/// Lip motion (issue 33) as properties: zero for a still mouth under a moving head (the pose
+/// is not the mouth's), linear in the amplitude of a shape motion, and for a shape parameter
+/// stepping 0 → a → 0 … the mean lip displacement of that step computed from the landmarks.
+#[test]
+fn lip_motion_is_the_mouths_own_speed() {
+    use facespace::eval::mouth::lip_motion;
+    use facespace::facespace::Frames;
+    use facespace::shape::Similarity;
+    let model =
+        facespace::model::FaceModel::load(&common::root().join("models/demo/model")).unwrap();
+    let layout = model.layout();
+    let first = layout.shape_range().start;
+    let frames_with = |amp: f64, head: f64| {
+        let values = ndarray::Array2::from_shape_fn((30, layout.dims()), |(t, k)| {
+            if k == first {
+                (amp * (t % 2) as f64) as f32
+            } else if k == 0 {
+                1.0 + (head * t as f64) as f32
+            } else if k == 2 {
+                (head * 10.0 * t as f64) as f32
+            } else {
+                0.0
+            }
+        });
+        Frames::new(layout, 25.0, values).unwrap()
+    };
+    assert_eq!(lip_motion(&model, &frames_with(0.0, 0.01)), 0.0);
+    let sd = model.shape.pca.variances[0].sqrt() as f64;
+    let one = lip_motion(&model, &frames_with(sd, 0.0));
+    assert!(one > 0.0);
+    assert!((lip_motion(&model, &frames_with(2.0 * sd, 0.03)) / one - 2.0).abs() < 1e-4);
+    let mut b = vec![0f32; layout.shape_range().len()];
+    let rest = model.shape.instance(&Similarity::IDENTITY, &b).points;
+    b[0] = sd as f32;
+    let moved = model.shape.instance(&Similarity::IDENTITY, &b).points;
+    let step: f64 = (48..68)
+        .map(|i| (rest[i][0] - moved[i][0]).hypot(rest[i][1] - moved[i][1]))
+        .sum::<f64>()
+        / 20.0;
+    assert!((one - step).abs() < 1e-4 * step, "{one} vs {step}");
+    assert_eq!(lip_motion(&model, &frames_with(sd, 0.0).slice(0..1)), 0.0);
+}
+
+/// A talker's settings (issue 33) chosen on the demo corpus's validation split: one trial per
+/// N and λ of the grids; smoothing more never makes the mouth move faster (lip motion over
+/// real falls with λ for every N); and the chosen trial is the rule's — within the motion
+/// floor and amplitude band if any trial is, and then no trial within them correlates better.
+#[test]
+fn talker_settings_keep_the_lip_motion() {
+    use facespace::eval::systems::{SETTINGS_LAMBDA_GRID, TOP_N_GRID, choose_settings};
+    let (model, generated, cb) = common::demo_corpus_codebook();
+    let validation = generated.part(Split::Validation);
+    let choice = choose_settings(&model, &cb, &validation, &TOP_N_GRID, &SETTINGS_LAMBDA_GRID)
+        .unwrap()
+        .expect("the demo face has lips");
+    assert_eq!(
+        choice.trials.len(),
+        TOP_N_GRID.len() * SETTINGS_LAMBDA_GRID.len()
+    );
+    for by_n in choice.trials.chunks(SETTINGS_LAMBDA_GRID.len()) {
+        for w in by_n.windows(2) {
+            assert!(
+                w[1].mouth.lip_motion_ratio <= w[0].mouth.lip_motion_ratio + 1e-9,
+                "N={} λ {} → {}: motion {} → {}",
+                w[0].top_n,
+                w[0].smoothing,
+                w[1].smoothing,
+                w[0].mouth.lip_motion_ratio,
+                w[1].mouth.lip_motion_ratio
+            );
+        }
+    }
+    let within: Vec<_> = choice.trials.iter().filter(|t| t.shortfall() == 0.0).collect();
+    assert_eq!(choice.within_bounds, !within.is_empty());
+    if choice.within_bounds {
+        assert!(choice.chosen.mouth.lip_motion_ratio >= 0.9);
+        assert!(within.iter().all(|t| t.correlation() <= choice.chosen.correlation()));
+    }
+    assert_eq!(choice.sentences, validation.len());
+}

@@ -116,14 +116,19 @@ pub fn run(a: EvalArgs) -> Result<()> {
             "\nmouth measures ([unitsel] §7): r_pca = eq. 16, first PC of the photometrically normalised mouth region (fitted on the test frames); r_h on the inner-mouth height; flicker = synthesised / real within-sentence s.d. per appearance parameter"
         );
         println!(
-            "{:<46} {:>10} {:>10} {:>11} {:>13}",
-            "system", "r_pca eq16", "r_h inner", "inner sd ×", "flicker worst"
+            "{:<46} {:>10} {:>10} {:>11} {:>13} {:>13}",
+            "system", "r_pca eq16", "r_h inner", "inner sd ×", "lip motion ×", "flicker worst"
         );
         for row in &table {
             if let Some(m) = &row.mouth {
                 println!(
-                    "{:<46} {:>10.3} {:>10.3} {:>11.3} {:>13.2}",
-                    row.system, m.r_pca_mouth, m.r_h_inner, m.inner_sd_ratio, m.flicker_worst
+                    "{:<46} {:>10.3} {:>10.3} {:>11.3} {:>13.3} {:>13.2}",
+                    row.system,
+                    m.r_pca_mouth,
+                    m.r_h_inner,
+                    m.inner_sd_ratio,
+                    m.lip_motion_ratio,
+                    m.flicker_worst
                 );
             }
         }

@@ -64,7 +64,8 @@ pub struct SynthArgs {
     #[arg(long)]
     model: Option<PathBuf>,
     /// A talker folder (`talker build`): its model, codebook and settings (N, C, λ) and its
-    /// voice for --say are the defaults; the flags override them.
+    /// voice for --say are the defaults; the flags override them. Without it and without
+    /// --codebook, the default talker (`models/grid`, as `say`).
     #[arg(long)]
     talker: Option<PathBuf>,
     /// The codebook to synthesise from (`codebook build`; default: the talker's).
@@ -209,6 +210,9 @@ fn lent(talker: &std::path::Path) -> Result<Lent> {
 }
 
 pub fn run(mut a: SynthArgs) -> Result<()> {
+    if a.talker.is_none() && a.codebook.is_none() {
+        a.talker = Some(super::committed_path(super::say::DEFAULT_TALKER)?);
+    }
     let lent = a.talker.as_deref().map(lent).transpose()?;
     if let Some(l) = &lent {
         a.model = a.model.take().or(Some(l.model.clone()));

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
-use facespace::talker::build::{Identity, Parts, Recordings};
+use facespace::talker::build::{Identity, Parts, Recordings, Validation};
 use facespace::talker::{Mode, Settings, Voice};
 
 use super::progress_bar;
@@ -42,6 +42,12 @@ pub struct BuildArgs {
     /// --footage-clips takes whose head sat most alike are used.
     #[arg(long, conflicts_with = "footage")]
     footage_from: Option<PathBuf>,
+    /// Validation sentences of the talker, tracked with the model and not in the codebook (a
+    /// `corpus from-videos` folder): blend N and λ are chosen on them (lip motion ≥ 0.9× and
+    /// inner-mouth s.d. within 10 % of real, then the best correlated), instead of --top-n and
+    /// --smoothing. --recordings keeps every 10th of its own recordings for this.
+    #[arg(long, conflicts_with = "recordings")]
+    validation: Option<PathBuf>,
     /// How many takes --footage-from or --recordings use.
     #[arg(long, default_value_t = 16)]
     footage_clips: usize,
@@ -51,13 +57,13 @@ pub struct BuildArgs {
     /// What the recordings are (corpus, licence), for the provenance record.
     #[arg(long, default_value = "recordings of the talker")]
     about: String,
-    /// Examples blended per phone, N (chosen on validation: `eval --validation`).
+    /// Examples blended per phone, N, when no validation sentences choose it.
     #[arg(long, default_value_t = facespace::synth::blend::DEFAULT_TOP_N)]
     top_n: usize,
     /// Context width C.
     #[arg(long, default_value_t = 1)]
     context: usize,
-    /// Smoothing weight λ.
+    /// Smoothing weight λ, when no validation sentences choose it.
     #[arg(long, default_value_t = facespace::synth::DEFAULT_SMOOTHING)]
     smoothing: f64,
     /// Where the settings were chosen, in words.
@@ -115,18 +121,36 @@ fn build(a: BuildArgs) -> Result<()> {
             &a.output,
             &mut progress,
         )?,
-        (None, Some(codebook)) => Parts {
-            model: a.model.clone(),
-            codebook: codebook.clone(),
-            footage: match &a.footage_from {
-                Some(dir) => takes_in(&a.model, codebook, dir, a.footage_clips)?,
-                None => a.footage.clone(),
-            },
-        },
+        (None, Some(codebook)) => {
+            let model = super::load_model(&a.model)?;
+            let cb = facespace::codebook::Codebook::load(codebook)
+                .with_context(|| format!("loading codebook {}", codebook.display()))?;
+            Parts {
+                model: a.model.clone(),
+                codebook: codebook.clone(),
+                footage: match &a.footage_from {
+                    Some(dir) => {
+                        let names = facespace::talker::footage::closest_takes(
+                            &model,
+                            &cb,
+                            a.footage_clips,
+                        )?;
+                        facespace::talker::footage::take_videos(dir, &names)
+                            .with_context(|| format!("--footage-from {}", dir.display()))?
+                    }
+                    None => a.footage.clone(),
+                },
+                validation: match &a.validation {
+                    Some(dir) => Some(Validation::load(dir, &model, cb.fps)?),
+                    None => None,
+                },
+            }
+        }
         (None, None) => anyhow::bail!("give --recordings, or --codebook with --footage"),
     };
     let talker = facespace::talker::build::build(&identity, &parts, &a.output, progress)?;
     bar.finish_and_clear();
+    println!("settings: {}", talker.manifest.settings.chosen_on);
     let f = &talker.footage;
     println!(
         "talker {} → {} in {:.1} s: {} codebook sentences; footage {} clips, {} frames ({:.1} s, median step {:.2} grey levels)",
@@ -140,19 +164,4 @@ fn build(a: BuildArgs) -> Result<()> {
         f.median_step()
     );
     Ok(())
-}
-
-/// The `count` takes of `codebook` whose head sat most alike, as videos in `dir`.
-fn takes_in(
-    model: &std::path::Path,
-    codebook: &std::path::Path,
-    dir: &std::path::Path,
-    count: usize,
-) -> Result<Vec<PathBuf>> {
-    let model = super::load_model(model)?;
-    let codebook = facespace::codebook::Codebook::load(codebook)
-        .with_context(|| format!("loading codebook {}", codebook.display()))?;
-    let names = facespace::talker::footage::closest_takes(&model, &codebook, count)?;
-    facespace::talker::footage::take_videos(dir, &names)
-        .with_context(|| format!("--footage-from {}", dir.display()))
 }

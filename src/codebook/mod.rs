@@ -321,7 +321,7 @@ impl Codebook {
         tolerance: f64,
         progress: &mut dyn FnMut(Progress),
     ) -> Result<Self, CodebookError> {
-        let mut sentences = crate::corpus::load_checked(
+        let sentences = crate::corpus::load_checked(
             dir,
             fps,
             model.layout(),
@@ -330,6 +330,19 @@ impl Codebook {
             map,
             tolerance,
         )?;
+        Self::from_sentences(sentences, model, fps, options, photometric, progress)
+    }
+
+    /// Builds a codebook of `model`'s face-space from sentences tracked with it, normalised
+    /// by `photometric`.
+    pub fn from_sentences(
+        mut sentences: Vec<Sentence>,
+        model: &FaceModel,
+        fps: f64,
+        options: SimilarityOptions,
+        photometric: crate::corpus::Photometric,
+        progress: &mut dyn FnMut(Progress),
+    ) -> Result<Self, CodebookError> {
         if photometric == crate::corpus::Photometric::Sentence {
             crate::corpus::recentre_appearance(&mut sentences);
         }

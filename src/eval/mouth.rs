@@ -5,7 +5,7 @@
 
 use crate::facespace::Frames;
 use crate::model::FaceModel;
-use crate::shape::Point;
+use crate::shape::{Point, Similarity};
 
 /// iBUG-68 lip landmarks (outer 48–59, inner 60–67): triangles with all three corners among
 /// them make the mouth region.
@@ -174,6 +174,27 @@ pub fn inner_mouth_height(points: &[Point]) -> f64 {
         .map(|&(top, bottom)| points[bottom][1] - points[top][1])
         .sum::<f64>()
         / 3.0
+}
+
+/// Lip motion: the mean frame-to-frame displacement of the lip landmarks (iBUG 48–67) of the
+/// shape alone, without the pose — how fast the mouth moves, which smoothing and averaging
+/// take first and correlation does not see. Zero for fewer than two frames.
+pub fn lip_motion(model: &FaceModel, frames: &Frames) -> f64 {
+    let lips: Vec<Vec<Point>> = frames
+        .iter()
+        .map(|p| {
+            let points = model.shape.instance(&Similarity::IDENTITY, p.shape).points;
+            points[*LIPS.start() as usize..=*LIPS.end() as usize].to_vec()
+        })
+        .collect();
+    let steps: Vec<f64> = lips
+        .windows(2)
+        .map(|w| {
+            let d: f64 = w[0].iter().zip(&w[1]).map(|(a, b)| (a[0] - b[0]).hypot(a[1] - b[1])).sum();
+            d / w[0].len() as f64
+        })
+        .collect();
+    steps.iter().sum::<f64>() / steps.len().max(1) as f64
 }
 
 /// Per appearance parameter, the synthesised within-sentence s.d. over the real one's.

@@ -4,7 +4,7 @@
 
 use serde::Serialize;
 
-use super::mouth::{MouthPc, flicker, inner_mouth_height};
+use super::mouth::{MouthPc, flicker, inner_mouth_height, lip_motion};
 use super::{Scores, landmarks, mean_scores, pearson, score, standard_deviation};
 use crate::codebook::Codebook;
 use crate::corpus::Sentence;
@@ -101,6 +101,8 @@ pub struct MouthScores {
     pub r_h_inner: f64,
     /// Synthesised over real inner-mouth height s.d. (articulation amplitude kept).
     pub inner_sd_ratio: f64,
+    /// Synthesised over real lip motion ([`lip_motion`]: how fast the mouth moves).
+    pub lip_motion_ratio: f64,
     /// Per appearance parameter, the synthesised within-sentence s.d. over the real one's.
     pub flicker: Vec<f64>,
     /// The largest of `flicker`.
@@ -162,6 +164,7 @@ pub fn evaluate(
                             pearson(&hi_s, &hi_r),
                             standard_deviation(&hi_s) / standard_deviation(&hi_r).max(1e-9),
                             flicker(&a, &b),
+                            lip_motion(model, &a) / lip_motion(model, &b).max(1e-12),
                         ));
                     }
                     Ok(score(model, synth, &s.frames))
@@ -183,6 +186,7 @@ pub fn evaluate(
                     r_pca_mouth: mouth.iter().map(|x| x.0).sum::<f64>() / m,
                     r_h_inner: mouth.iter().map(|x| x.1).sum::<f64>() / m,
                     inner_sd_ratio: mouth.iter().map(|x| x.2).sum::<f64>() / m,
+                    lip_motion_ratio: mouth.iter().map(|x| x.4).sum::<f64>() / m,
                     flicker_worst: flicker.iter().copied().fold(0.0, f64::max),
                     flicker,
                 }
@@ -242,4 +246,190 @@ pub fn real_mouth_sd(model: &FaceModel, heldout: &[Sentence]) -> f64 {
         .map(|s| score(model, &s.frames, &s.frames))
         .collect();
     mean_scores(&scores).mouth_sd_px
+}
+
+/// Blend N tried when a talker's settings are chosen ([`choose_settings`]).
+pub const TOP_N_GRID: [usize; 4] = [3, 5, 8, 12];
+
+/// λ tried when a talker's settings are chosen; 0 is no smoothing.
+pub const SETTINGS_LAMBDA_GRID: [f64; 8] = [0.0, 1e-7, 3e-7, 1e-6, 3e-6, 1e-5, 3e-5, 1e-4];
+
+/// The least lip motion, over real, a talker's settings may keep (issue 33: a mouth that
+/// moves as fast as the talker's, not a smoothed average of it).
+pub const MOTION_FLOOR: f64 = 0.9;
+
+/// How far the inner-mouth height's s.d. may stray from real, as a fraction.
+pub const AMPLITUDE_BAND: f64 = 0.1;
+
+/// One blend setting scored on the validation sentences.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SettingsTrial {
+    /// Examples blended per phone, N.
+    pub top_n: usize,
+    /// Smoothing weight λ (0: none).
+    pub smoothing: f64,
+    /// Its mouth measures, means over the validation sentences.
+    pub mouth: MouthScores,
+}
+
+impl SettingsTrial {
+    /// What the choice maximises: the mean of mouth r_pca (eq. 16) and inner r_h.
+    pub fn correlation(&self) -> f64 {
+        0.5 * (self.mouth.r_pca_mouth + self.mouth.r_h_inner)
+    }
+
+    /// How far it falls short of the motion floor and the amplitude band (0: within both).
+    pub fn shortfall(&self) -> f64 {
+        (MOTION_FLOOR - self.mouth.lip_motion_ratio).max(0.0)
+            + ((self.mouth.inner_sd_ratio - 1.0).abs() - AMPLITUDE_BAND).max(0.0)
+    }
+}
+
+/// The blend settings chosen for a talker on validation sentences, with every trial.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SettingsChoice {
+    /// The chosen trial.
+    pub chosen: SettingsTrial,
+    /// Whether it keeps the lip motion and amplitude (else it is the one nearest to them).
+    pub within_bounds: bool,
+    /// How many validation sentences chose it.
+    pub sentences: usize,
+    /// Every trial, N-major.
+    pub trials: Vec<SettingsTrial>,
+}
+
+impl SettingsChoice {
+    /// The rule of [`choose_settings`] over scored trials: of those within the motion floor
+    /// and the amplitude band, the best correlated; when none is, the one falling least short,
+    /// then the best correlated. `None` without trials.
+    pub fn from_trials(trials: Vec<SettingsTrial>, sentences: usize) -> Option<Self> {
+        let chosen = trials
+            .iter()
+            .min_by(|a, b| {
+                a.shortfall()
+                    .total_cmp(&b.shortfall())
+                    .then(b.correlation().total_cmp(&a.correlation()))
+            })?
+            .clone();
+        Some(SettingsChoice {
+            within_bounds: chosen.shortfall() == 0.0,
+            chosen,
+            sentences,
+            trials,
+        })
+    }
+
+    /// The rule and its outcome in words, for a talker's `chosen_on`.
+    pub fn describe(&self, split: &str) -> String {
+        let c = &self.chosen;
+        let bounds = if self.within_bounds {
+            "the best mean of mouth r_pca (eq. 16) and inner r_h among the settings keeping"
+        } else {
+            "none kept both, so the nearest to keeping"
+        };
+        format!(
+            "blend C=1 N={} λ={:e} on {} validation sentences ({split}): {bounds} lip motion ≥ {MOTION_FLOOR}× and inner s.d. within {:.0} % of real (r_pca {:.3}, r_h {:.3}, motion {:.2}×, s.d. {:.2}×)",
+            c.top_n,
+            c.smoothing,
+            self.sentences,
+            AMPLITUDE_BAND * 100.0,
+            c.mouth.r_pca_mouth,
+            c.mouth.r_h_inner,
+            c.mouth.lip_motion_ratio,
+            c.mouth.inner_sd_ratio
+        )
+    }
+}
+
+/// Chooses a talker's blend N and λ (C = 1) on `validation` (sentences kept out of the
+/// codebook and never reported): of the settings whose lip motion is at least
+/// [`MOTION_FLOOR`] of real and whose inner-mouth s.d. is within [`AMPLITUDE_BAND`], the one
+/// with the best mean of mouth r_pca (eq. 16) and inner r_h — correlation alone picks heavy
+/// smoothing that halves how fast the mouth moves (BENCHMARKS "Say"). When none keeps both,
+/// the one falling least short, then the best correlated. `None` when the model has no lips
+/// (not a 68-point face) to measure.
+pub fn choose_settings(
+    model: &FaceModel,
+    codebook: &Codebook,
+    validation: &[Sentence],
+    tops: &[usize],
+    lambdas: &[f64],
+) -> Result<Option<SettingsChoice>, SynthError> {
+    if validation.is_empty() {
+        return Ok(None);
+    }
+    let mut systems = Vec::new();
+    for &top_n in tops {
+        for &l in lambdas {
+            let blend = Blend {
+                top_n,
+                ..Blend::default()
+            };
+            systems.push(System::new(blend, (l > 0.0).then_some(l)));
+        }
+    }
+    let scores = evaluate(model, codebook, validation, &systems)?;
+    let mut trials = Vec::new();
+    for ((top_n, smoothing), s) in tops
+        .iter()
+        .flat_map(|&n| lambdas.iter().map(move |&l| (n, l)))
+        .zip(scores)
+    {
+        match s.mouth {
+            Some(mouth) => trials.push(SettingsTrial {
+                top_n,
+                smoothing,
+                mouth,
+            }),
+            None => return Ok(None),
+        }
+    }
+    Ok(SettingsChoice::from_trials(trials, validation.len()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn trial(top_n: usize, r: f64, sd: f64, motion: f64) -> SettingsTrial {
+        SettingsTrial {
+            top_n,
+            smoothing: 0.0,
+            mouth: MouthScores {
+                r_pca_mouth: r,
+                r_h_inner: r,
+                inner_sd_ratio: sd,
+                lip_motion_ratio: motion,
+                flicker: vec![1.0],
+                flicker_worst: 1.0,
+            },
+        }
+    }
+
+    /// The best correlated of the trials within bounds wins over better correlated ones out
+    /// of them (too slow, too small, too large); with none within, the nearest.
+    #[test]
+    fn settings_keep_the_motion_then_correlate() {
+        let trials = vec![
+            trial(1, 0.90, 1.0, 0.70),
+            trial(2, 0.85, 1.0, 0.95),
+            trial(3, 0.88, 1.0, 0.91),
+            trial(4, 0.95, 0.85, 1.0),
+            trial(5, 0.95, 1.15, 1.0),
+        ];
+        let c = SettingsChoice::from_trials(trials, 7).unwrap();
+        assert_eq!(c.chosen.top_n, 3);
+        assert!(c.within_bounds);
+        assert_eq!((c.sentences, c.trials.len()), (7, 5));
+        assert!(c.describe("here").contains("N=3"));
+        let c = SettingsChoice::from_trials(
+            vec![trial(1, 0.9, 1.0, 0.5), trial(2, 0.8, 1.0, 0.8), trial(3, 0.95, 1.0, 0.8)],
+            1,
+        )
+        .unwrap();
+        assert_eq!(c.chosen.top_n, 3);
+        assert!(!c.within_bounds);
+        assert!(c.describe("here").contains("nearest"));
+        assert!(SettingsChoice::from_trials(Vec::new(), 0).is_none());
+    }
 }

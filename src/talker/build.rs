@@ -12,6 +12,7 @@ use super::{
     Voice,
 };
 use crate::codebook::Codebook;
+use crate::corpus::Sentence;
 use crate::model::FaceModel;
 use crate::{Progress, atomic};
 
@@ -24,6 +25,66 @@ pub struct Parts {
     pub codebook: PathBuf,
     /// Videos of the talker to take idle footage from.
     pub footage: Vec<PathBuf>,
+    /// Sentences of the talker kept out of the codebook, to choose the settings on.
+    pub validation: Option<Validation>,
+}
+
+/// Validation sentences: tracked with the model, never in the codebook.
+#[derive(Clone, Debug)]
+pub struct Validation {
+    /// The sentences.
+    pub sentences: Vec<Sentence>,
+    /// Where they come from, in words (for `chosen_on`).
+    pub about: String,
+}
+
+impl Validation {
+    /// A corpus folder of validation sentences tracked with `model` (`corpus from-videos`),
+    /// at `fps`.
+    pub fn load(dir: &Path, model: &FaceModel, fps: f64) -> Result<Self, TalkerError> {
+        let sentences = crate::corpus::load_checked(
+            dir,
+            fps,
+            model.layout(),
+            Some(&model.hash()),
+            None,
+            &crate::phonemes::PhoneMap::default(),
+            crate::corpus::DEFAULT_TOLERANCE,
+        )
+        .map_err(|e| TalkerError::Corpus {
+            dir: dir.to_path_buf(),
+            source: Box::new(e),
+        })?;
+        Ok(Validation {
+            sentences,
+            about: format!("{}, kept out of the codebook", dir.display()),
+        })
+    }
+}
+
+/// The recordings road keeps every [`HOLD_OUT_EVERY`]-th sentence (by name) out of the
+/// codebook to choose the settings on, when it has at least [`HOLD_OUT_FROM`] sentences.
+pub const HOLD_OUT_EVERY: usize = 10;
+
+/// See [`HOLD_OUT_EVERY`]: fewer sentences keep the given settings.
+pub const HOLD_OUT_FROM: usize = 30;
+
+/// Splits sentences (sorted by name) into the codebook's and the validation part
+/// ([`HOLD_OUT_EVERY`]); all to the codebook under [`HOLD_OUT_FROM`].
+pub fn hold_out(mut sentences: Vec<Sentence>) -> (Vec<Sentence>, Vec<Sentence>) {
+    sentences.sort_by(|a, b| a.name.cmp(&b.name));
+    if sentences.len() < HOLD_OUT_FROM {
+        return (sentences, Vec::new());
+    }
+    let (mut train, mut validation) = (Vec::new(), Vec::new());
+    for (i, s) in sentences.into_iter().enumerate() {
+        if i % HOLD_OUT_EVERY == HOLD_OUT_EVERY / 2 {
+            validation.push(s);
+        } else {
+            train.push(s);
+        }
+    }
+    (train, validation)
 }
 
 /// Who the talker is and how it speaks.
@@ -91,33 +152,42 @@ pub fn parts_from_recordings(
             made.fps
         }
     };
+    let codebook_error = |source| TalkerError::Codebook {
+        dir: dir.clone(),
+        source: Box::new(source),
+    };
+    let map = crate::phonemes::PhoneMap::default();
+    let sentences = crate::corpus::load_checked(
+        &corpus,
+        fps,
+        model.layout(),
+        Some(&model.hash()),
+        None,
+        &map,
+        crate::corpus::DEFAULT_TOLERANCE,
+    )
+    .map_err(corpus_error)?;
+    let (train, validation) = hold_out(sentences);
     let codebook_dir = out.join("codebook");
     let hash = model.hash();
-    let kept = Codebook::load(&codebook_dir)
-        .ok()
-        .filter(|cb| cb.model_hash.as_deref() == Some(hash.as_str()));
+    let kept = Codebook::load(&codebook_dir).ok().filter(|cb| {
+        cb.model_hash.as_deref() == Some(hash.as_str())
+            && cb.sentences.len() == train.len()
+            && cb.sentences.iter().zip(&train).all(|(c, t)| c.name == t.name)
+    });
     let codebook = match kept {
         Some(cb) => cb,
         None => {
-            let cb = Codebook::from_corpus(
-                &corpus,
+            let cb = Codebook::from_sentences(
+                train,
                 &model,
                 fps,
-                None,
-                &crate::phonemes::PhoneMap::default(),
                 crate::codebook::SimilarityOptions::default(),
                 crate::corpus::Photometric::Sentence,
-                crate::corpus::DEFAULT_TOLERANCE,
                 &mut progress,
             )
-            .map_err(|source| TalkerError::Codebook {
-                dir: dir.clone(),
-                source: Box::new(source),
-            })?;
-            cb.save(&codebook_dir).map_err(|source| TalkerError::Codebook {
-                dir: dir.clone(),
-                source: Box::new(source),
-            })?;
+            .map_err(codebook_error)?;
+            cb.save(&codebook_dir).map_err(codebook_error)?;
             cb
         }
     };
@@ -132,10 +202,17 @@ pub fn parts_from_recordings(
             source: Box::new(source),
         }
     })?;
+    let about = format!(
+        "every {HOLD_OUT_EVERY}th of the recordings, kept out of the codebook"
+    );
     Ok(Parts {
         model: recordings.model.clone(),
         codebook: codebook_dir,
         footage,
+        validation: (!validation.is_empty()).then_some(Validation {
+            sentences: validation,
+            about,
+        }),
     })
 }
 
@@ -191,6 +268,24 @@ pub fn build(
             },
         )?;
     }
+    let mut settings = identity.settings.clone();
+    if let Some(v) = &parts.validation {
+        progress(Progress {
+            stage: "choosing the settings on validation sentences",
+            done: 0,
+            total: 1,
+        });
+        let choice = crate::eval::systems::choose_settings(
+            &model,
+            &codebook,
+            &v.sentences,
+            &crate::eval::systems::TOP_N_GRID,
+            &crate::eval::systems::SETTINGS_LAMBDA_GRID,
+        )?;
+        if let Some(choice) = choice {
+            settings = Settings::chosen(&choice, &v.about);
+        }
+    }
     let manifest = TalkerManifest {
         format: FORMAT.into(),
         version: TALKER_VERSION,
@@ -198,7 +293,7 @@ pub fn build(
         model: "model".into(),
         codebook: "codebook".into(),
         footage: "footage".into(),
-        settings: identity.settings.clone(),
+        settings,
         voice: identity.voice.clone(),
         provenance: Provenance {
             recordings: identity.recordings.clone(),
@@ -210,4 +305,38 @@ pub fn build(
     let json = serde_json::to_vec_pretty(&manifest).expect("talker manifest serialises");
     atomic::write_file(&path, &json).map_err(io(&path))?;
     Talker::load(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::facespace::{Frames, Layout};
+
+    fn sentences(n: usize) -> Vec<Sentence> {
+        let layout = Layout::new(1, 1);
+        (0..n)
+            .rev()
+            .map(|i| Sentence {
+                name: format!("s{i:03}"),
+                source: String::new(),
+                frames: Frames::new(layout, 25.0, ndarray::Array2::zeros((2, layout.dims())))
+                    .unwrap(),
+                segments: Vec::new(),
+            })
+            .collect()
+    }
+
+    /// Every 10th sentence by name goes to validation from 30 sentences on, none before;
+    /// the parts are disjoint and together the whole.
+    #[test]
+    fn hold_out_keeps_every_tenth_apart() {
+        let (train, validation) = hold_out(sentences(29));
+        assert_eq!((train.len(), validation.len()), (29, 0));
+        let (train, validation) = hold_out(sentences(45));
+        let names = |v: &[Sentence]| v.iter().map(|s| s.name.clone()).collect::<Vec<_>>();
+        assert_eq!(names(&validation), ["s005", "s015", "s025", "s035"]);
+        assert_eq!(train.len(), 41);
+        assert!(train.iter().all(|s| !names(&validation).contains(&s.name)));
+        assert!(train.windows(2).all(|w| w[0].name < w[1].name));
+    }
 }

@@ -68,6 +68,17 @@ pub struct Settings {
 }
 
 impl Settings {
+    /// The blend settings chosen on validation sentences (`split`: which, in words).
+    pub fn chosen(choice: &crate::eval::systems::SettingsChoice, split: &str) -> Self {
+        Settings {
+            mode: Mode::Blend,
+            top_n: choice.chosen.top_n,
+            context: 1,
+            smoothing: choice.chosen.smoothing,
+            chosen_on: choice.describe(split),
+        }
+    }
+
     /// The synthesiser these settings name.
     pub fn synthesiser(&self) -> Box<dyn Synthesiser> {
         match self.mode {
