@@ -1,8 +1,8 @@
 //! The whole pipeline on committed data (`facespace demo`, the README's first command).
 //!
 //! **GRID s1** (the default, recorded): a test-split sentence that is not in the codebook is
-//! aligned from its own sound and words, synthesised by top-N blending (the system and λ
-//! chosen on GRID's validation split) and by unit selection from the codebook of his 741
+//! aligned from its own sound and words, synthesised by top-N blending (the talker's N and λ,
+//! chosen by `talker build` on GRID's validation split) and by unit selection from the codebook of his 741
 //! kept training sentences, drawn over the sentence's own video (its tracked pose replayed,
 //! the synthesis re-lit to its lighting), and written with its sound: smoothed, unsmoothed,
 //! the blind A/B side-by-side, and the real recording beside the synthesis.
@@ -33,12 +33,6 @@ use crate::synth::{GENERATED_SMOOTHING, Request, Smoothing, SynthError, synthesi
 
 /// The FGNet demo utterance; it must not be one of the corpus sentences.
 pub const DEMO_TEXT: &str = "A brave pilot found the hidden map.";
-
-/// Smoothing weight λ for GRID s1: the default, chosen on his validation split.
-pub const GRID_SMOOTHING: f64 = crate::synth::DEFAULT_SMOOTHING;
-
-/// Examples blended per phone for GRID s1: the default, chosen on his validation split.
-pub const GRID_TOP_N: usize = crate::synth::blend::DEFAULT_TOP_N;
 
 fn committed(path: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(path)
@@ -228,10 +222,11 @@ fn grid_into(
     w: &Path,
     mut progress: impl FnMut(Progress),
 ) -> Result<DemoReport, DemoError> {
+    // His talker folder: its model, codebook and the settings chosen on his validation split.
+    let talker = crate::talker::Talker::load(&committed("models/grid"))?;
+    let (model, cb) = (&talker.model, &talker.codebook);
+    let settings = &talker.manifest.settings;
     let model_path = grid_model();
-    let model = FaceModel::load(&model_path)?;
-    let cb = Codebook::load(&grid_codebook())?;
-    cb.check_model(&model)?;
     let clip = options.clip.clone().unwrap_or_else(grid_clip);
     let stem = clip.file_stem().map(|s| s.to_string_lossy().into_owned());
     if cb.sentences.iter().any(|s| Some(&s.name) == stem.as_ref()) {
@@ -254,10 +249,10 @@ fn grid_into(
         .and_then(|a| a.align_file(&clip, &words))
         .map_err(align_error)?;
     let target = alignment.segments();
-    let (backdrop, fps) = replayed_backdrop(&model, &clip, &target)?;
+    let (backdrop, fps) = replayed_backdrop(model, &clip, &target)?;
     let request = Request {
         pose: backdrop.pose.clone(),
-        ..Request::new(target, fps, Smoothing::Ab(GRID_SMOOTHING))
+        ..Request::new(target, fps, Smoothing::Ab(settings.smoothing))
     };
     // Over his own take only the lips and jaw are drawn: the eyes stay the video's.
     let chosen = choose_renderer(
@@ -275,14 +270,15 @@ fn grid_into(
         beside_background: true,
     };
     let blend = Blend {
-        top_n: GRID_TOP_N,
+        top_n: settings.top_n,
+        context: settings.context,
         ..Blend::default()
     };
     let (utterance, report, unit_report) = both_modes(
         w,
         &blend,
-        &cb,
-        &model,
+        cb,
+        model,
         &backdrop,
         request,
         renderer,
@@ -292,7 +288,6 @@ fn grid_into(
     alignment.write(&w.join("utterance.TextGrid"))?;
     // The main verb: the same recording and words through `say`, over his idle footage (not
     // the sentence's own take) — what `facespace say --audio CLIP --text WORDS` writes.
-    let talker = crate::talker::Talker::load(&committed("models/grid"))?;
     let request = crate::talker::SayRequest {
         renderer: options.renderer,
         ..crate::talker::SayRequest::new(crate::talker::Speech::Recording {

@@ -895,8 +895,8 @@ fn synth_takes_a_talkers_settings() {
         std::os::unix::fs::symlink(grid.join(part), talker.join(part)).unwrap();
     }
     let manifest = std::fs::read_to_string(grid.join("talker.json")).unwrap();
-    assert!(manifest.contains("\"top_n\": 5"));
-    std::fs::write(talker.join("talker.json"), manifest.replace("\"top_n\": 5", "\"top_n\": 2")).unwrap();
+    assert!(manifest.contains("\"top_n\": 12"));
+    std::fs::write(talker.join("talker.json"), manifest.replace("\"top_n\": 12", "\"top_n\": 2")).unwrap();
     let labels = common::root().join("tests/data/grid/bbbs7a.lab");
     let method = |extra: &[&str], out: &str| {
         let out = dir.path().join(out);
@@ -920,4 +920,19 @@ fn synth_takes_a_talkers_settings() {
     };
     assert_eq!(method(&[], "own"), "blend C=1 N=2");
     assert_eq!(method(&["--top-n", "4"], "flag"), "blend C=1 N=4");
+    // Neither --talker nor --codebook: the default talker (models/grid) and its settings.
+    let out = dir.path().join("default");
+    let o = facespace(&[
+        "synth",
+        "--labels",
+        labels.to_str().unwrap(),
+        "--renderer",
+        "cpu",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["method"], "blend C=1 N=12");
 }

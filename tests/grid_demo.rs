@@ -75,14 +75,16 @@ fn synthesis_is_relit_to_the_take_it_is_drawn_over() {
     let model = FaceModel::load(&facespace::demo::grid_model()).unwrap();
     let cb = Codebook::load(&facespace::demo::grid_codebook()).unwrap();
     let a1 = model.layout().appearance_range().start;
+    let talker = common::root().join("models/grid");
+    let settings = facespace::talker::Talker::load(&talker).unwrap().manifest.settings;
     for name in TEST_CLIPS {
         let (target, fps, backdrop) = take(&model, name);
         let request = Request {
             pose: backdrop.pose.clone(),
-            ..Request::new(target, fps, Smoothing::On(facespace::demo::GRID_SMOOTHING))
+            ..Request::new(target, fps, Smoothing::On(settings.smoothing))
         };
         let blend = Blend {
-            top_n: facespace::demo::GRID_TOP_N,
+            top_n: settings.top_n,
             ..Blend::default()
         };
         let mut utterance = synthesise(&blend, &cb, request).unwrap();

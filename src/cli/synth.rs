@@ -69,7 +69,7 @@ pub struct SynthArgs {
     #[arg(long)]
     talker: Option<PathBuf>,
     /// The codebook to synthesise from (`codebook build`; default: the talker's).
-    #[arg(long, required_unless_present = "talker")]
+    #[arg(long)]
     codebook: Option<PathBuf>,
     /// Phone timings (.lab, .TextGrid, .tsv).
     #[arg(long, conflicts_with_all = ["text", "transcript", "say"], required_unless_present_any = ["text", "transcript", "say"])]
