@@ -257,7 +257,7 @@ fn grid_into(
     // Over his own take only the lips and jaw are drawn: the eyes stay the video's.
     let chosen = choose_renderer(
         options.renderer,
-        &model,
+        model,
         Edge::Articulators(DEFAULT_FEATHER),
     )?;
     let renderer = chosen.renderer.as_ref();
