@@ -936,3 +936,59 @@ fn synth_takes_a_talkers_settings() {
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
     assert_eq!(report["method"], "blend C=1 N=12");
 }
+
+/// `study create --talker T` takes the talker's model, codebook and λ, and its blend N joins
+/// the default conditions (issue 33: the study draws the talker as `say` does).
+#[test]
+fn study_create_takes_a_talkers_settings() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = common::root();
+    let heldout = dir.path().join("heldout");
+    let clips = dir.path().join("clips");
+    std::fs::create_dir(&clips).unwrap();
+    for ext in ["mp4", "txt"] {
+        std::fs::copy(
+            root.join(format!("tests/data/grid/bbwtzp.{ext}")),
+            clips.join(format!("bbwtzp.{ext}")),
+        )
+        .unwrap();
+    }
+    let o = facespace(&[
+        "corpus",
+        "from-videos",
+        clips.to_str().unwrap(),
+        "--model",
+        root.join("models/grid/model").to_str().unwrap(),
+        "-o",
+        heldout.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let study = dir.path().join("study");
+    let o = facespace(&[
+        "study",
+        "create",
+        "--talker",
+        root.join("models/grid").to_str().unwrap(),
+        "--heldout",
+        heldout.to_str().unwrap(),
+        "--viewers",
+        "1",
+        "--renderer",
+        "cpu",
+        "-o",
+        study.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let manifest: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(study.join("study.json")).unwrap()).unwrap();
+    let conditions: Vec<String> = manifest["conditions"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c.as_str().unwrap().to_owned())
+        .collect();
+    assert!(conditions.contains(&"blend-n12".to_owned()), "{conditions:?}");
+    assert_eq!(conditions.len(), 9, "{conditions:?}");
+    assert_eq!(manifest["smoothing"].as_f64(), Some(3e-7));
+    assert_eq!(manifest["stimuli"].as_array().unwrap().len(), 9);
+}

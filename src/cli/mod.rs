@@ -363,3 +363,29 @@ impl Refusals {
         eprintln!("refused {path:?}: {why}");
     }
 }
+
+/// The parts and settings a `--talker` lends (read from its manifest only: the parts are
+/// loaded below as if named by their flags).
+pub struct Lent {
+    pub model: PathBuf,
+    pub codebook: PathBuf,
+    pub settings: facespace::talker::Settings,
+    pub voice: Option<String>,
+}
+
+pub fn lent(talker: &std::path::Path) -> Result<Lent> {
+    use anyhow::Context;
+    let path = talker.join(facespace::talker::MANIFEST);
+    let m: facespace::talker::TalkerManifest = serde_json::from_str(
+        &facespace::manifest::read_regular_string(&path)
+            .with_context(|| format!("reading {}", path.display()))?,
+    )
+    .with_context(|| format!("{}: not a talker manifest", path.display()))?;
+    let part = |name: &str| facespace::manifest::member(talker, name);
+    Ok(Lent {
+        model: part(&m.model)?,
+        codebook: part(&m.codebook)?,
+        settings: m.settings,
+        voice: m.voice.map(|v| v.festival),
+    })
+}

@@ -42,33 +42,37 @@ pub enum TaskArg {
 
 #[derive(Args)]
 pub struct CreateArgs {
-    /// The face model of the codebook and the held-out sentences.
-    #[arg(long, default_value = super::DEMO_MODEL_SHOWN, value_parser = super::committed_path)]
-    model: PathBuf,
-    /// The codebook the synthetic conditions draw on (no held-out sentence in it).
+    /// A talker folder (`talker build`): its model, codebook and λ are the defaults (its N is
+    /// a condition as `blend-nN`); the flags override them.
     #[arg(long)]
-    codebook: PathBuf,
+    talker: Option<PathBuf>,
+    /// The face model of the codebook and the held-out sentences (default: the talker's, else
+    /// the demo model).
+    #[arg(long)]
+    model: Option<PathBuf>,
+    /// The codebook the synthetic conditions draw on (no held-out sentence in it; default: the
+    /// talker's).
+    #[arg(long, required_unless_present = "talker")]
+    codebook: Option<PathBuf>,
     /// Held-out sentences (NAME.npy or NAME.fsp/ with NAME.lab; NAME.m4a is muxed in), none
     /// of them in the codebook.
     #[arg(long)]
     heldout: PathBuf,
     /// Conditions: original, blend-nN, random-lips, unit, smoothed, unsmoothed (the default
-    /// blend C=1 N=3 with and without smoothing).
-    #[arg(
-        long,
-        value_delimiter = ',',
-        default_value = "original,blend-n1,blend-n3,blend-n5,random-lips,unit,smoothed,unsmoothed"
-    )]
-    conditions: Vec<String>,
+    /// blend C=1 N=3 with and without smoothing). Default: original, blend-n1, blend-n3,
+    /// blend-n5, random-lips, unit, smoothed, unsmoothed, and with --talker its blend-nN.
+    #[arg(long, value_delimiter = ',')]
+    conditions: Option<Vec<String>>,
     /// Viewers, each with their own order and link.
     #[arg(long, default_value_t = 10)]
     viewers: usize,
     /// Which tests.
     #[arg(long, value_enum, default_value_t = TaskArg::Both)]
     task: TaskArg,
-    /// Smoothing weight λ of every smoothed condition (choose it with `eval --validation`).
-    #[arg(long, default_value_t = DEFAULT_SMOOTHING)]
-    smoothing: f64,
+    /// Smoothing weight λ of every smoothed condition (default: the talker's, else 3e-5;
+    /// choose it with `eval --validation`).
+    #[arg(long)]
+    smoothing: Option<f64>,
     /// Unit-selection weights (a `train-weights` file; default: all weights 1).
     #[arg(long)]
     weights: Option<PathBuf>,
@@ -112,13 +116,48 @@ pub fn run(c: StudyCommand) -> Result<()> {
     }
 }
 
+/// The conditions of a study when none are named.
+const DEFAULT_CONDITIONS: [&str; 8] = [
+    "original",
+    "blend-n1",
+    "blend-n3",
+    "blend-n5",
+    "random-lips",
+    "unit",
+    "smoothed",
+    "unsmoothed",
+];
+
 fn create(a: CreateArgs) -> Result<()> {
-    let model = load_model(&a.model)?;
-    let cb = Codebook::load(&a.codebook)
-        .with_context(|| format!("loading codebook {}", a.codebook.display()))?;
+    let lent = a.talker.as_deref().map(super::lent).transpose()?;
+    let model_path = a
+        .model
+        .clone()
+        .or(lent.as_ref().map(|l| l.model.clone()))
+        .unwrap_or_else(|| super::committed_path(super::DEMO_MODEL_SHOWN).expect("infallible"));
+    let codebook = a
+        .codebook
+        .clone()
+        .or(lent.as_ref().map(|l| l.codebook.clone()))
+        .context("give --codebook (or --talker)")?;
+    let smoothing = a
+        .smoothing
+        .or(lent.as_ref().map(|l| l.settings.smoothing))
+        .unwrap_or(DEFAULT_SMOOTHING);
+    let model = load_model(&model_path)?;
+    let cb = Codebook::load(&codebook)
+        .with_context(|| format!("loading codebook {}", codebook.display()))?;
     cb.check_model(&model)?;
-    let conditions = a
-        .conditions
+    let mut names = a.conditions.clone().unwrap_or_else(|| {
+        DEFAULT_CONDITIONS.iter().map(|c| c.to_string()).collect()
+    });
+    if let (None, Some(l)) = (&a.conditions, &lent) {
+        let own = format!("blend-n{}", l.settings.top_n);
+        if !names.contains(&own) {
+            names.push(own);
+        }
+    }
+    let conditions = names
         .iter()
         .map(|s| s.parse::<Condition>().map_err(anyhow::Error::msg))
         .collect::<Result<Vec<_>>>()?;
@@ -135,7 +174,7 @@ fn create(a: CreateArgs) -> Result<()> {
             TaskArg::Turing => Task::Turing,
             TaskArg::Both => Task::Both,
         },
-        smoothing: a.smoothing,
+        smoothing,
         unit,
         seed: a.seed,
     };

@@ -184,36 +184,11 @@ fn model_of(
     facespace::model::FaceModel::find_by_hash(hash, &candidates)
 }
 
-/// The parts and settings a `--talker` lends (read from its manifest only: the parts are
-/// loaded below as if named by their flags).
-struct Lent {
-    model: PathBuf,
-    codebook: PathBuf,
-    settings: facespace::talker::Settings,
-    voice: Option<String>,
-}
-
-fn lent(talker: &std::path::Path) -> Result<Lent> {
-    let path = talker.join(facespace::talker::MANIFEST);
-    let m: facespace::talker::TalkerManifest = serde_json::from_str(
-        &facespace::manifest::read_regular_string(&path)
-            .with_context(|| format!("reading {}", path.display()))?,
-    )
-    .with_context(|| format!("{}: not a talker manifest", path.display()))?;
-    let part = |name: &str| facespace::manifest::member(talker, name);
-    Ok(Lent {
-        model: part(&m.model)?,
-        codebook: part(&m.codebook)?,
-        settings: m.settings,
-        voice: m.voice.map(|v| v.festival),
-    })
-}
-
 pub fn run(mut a: SynthArgs) -> Result<()> {
     if a.talker.is_none() && a.codebook.is_none() {
         a.talker = Some(super::committed_path(super::say::DEFAULT_TALKER)?);
     }
-    let lent = a.talker.as_deref().map(lent).transpose()?;
+    let lent = a.talker.as_deref().map(super::lent).transpose()?;
     if let Some(l) = &lent {
         a.model = a.model.take().or(Some(l.model.clone()));
         a.codebook = a.codebook.take().or(Some(l.codebook.clone()));
