@@ -22,7 +22,7 @@
 use std::path::{Path, PathBuf};
 
 use facespace::codec::{self, EncodeOptions};
-use facespace::eval::mouth::{MouthPc, inner_mouth_height, lip_motion};
+use facespace::eval::mouth::{MouthPc, inner_mouth_height, lip_motion, mouth_sharpness};
 use facespace::eval::{pearson, standard_deviation};
 use facespace::facespace::Frames;
 use facespace::render::{CpuRenderer, DEFAULT_FEATHER, Edge, Renderer};
@@ -57,37 +57,6 @@ fn tracked(talker: &Talker, clip: &Path) -> (Vec<RgbImage>, Frames) {
     })
     .unwrap();
     (images, Frames::from_rows(model.layout(), fps, rows).unwrap())
-}
-
-/// Mean grey gradient magnitude inside the lips' bounding box (3 px margin) of each frame.
-fn sharpness(images: &[RgbImage], landmarks: &[Vec<[f64; 2]>]) -> f64 {
-    let grey = |im: &RgbImage, x: u32, y: u32| {
-        let p = im.get_pixel(x, y).0;
-        0.299 * f64::from(p[0]) + 0.587 * f64::from(p[1]) + 0.114 * f64::from(p[2])
-    };
-    let mut total = 0.0;
-    for (im, l) in images.iter().zip(landmarks) {
-        let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-        for p in &l[48..68] {
-            (x0, x1, y0, y1) = (x0.min(p[0]), x1.max(p[0]), y0.min(p[1]), y1.max(p[1]));
-        }
-        let (x0, y0) = ((x0 - 3.0).max(1.0) as u32, (y0 - 3.0).max(1.0) as u32);
-        let (x1, y1) = (
-            ((x1 + 3.0) as u32).min(im.width() - 2),
-            ((y1 + 3.0) as u32).min(im.height() - 2),
-        );
-        let (mut sum, mut n) = (0.0f64, 0.0f64);
-        for y in y0..=y1 {
-            for x in x0..=x1 {
-                let gx = grey(im, x + 1, y) - grey(im, x - 1, y);
-                let gy = grey(im, x, y + 1) - grey(im, x, y - 1);
-                sum += 0.5 * gx.hypot(gy);
-                n += 1.0;
-            }
-        }
-        total += sum / n.max(1.0);
-    }
-    total / images.len().max(1) as f64
 }
 
 struct Sentence {
@@ -197,8 +166,8 @@ fn main() {
             r_h += pearson(&ha, &hb);
             sd += standard_deviation(&ha) / standard_deviation(&hb).max(1e-9);
             mo += lip_motion(&talker.model, &a) / lip_motion(&talker.model, &b).max(1e-12);
-            sharp += sharpness(&images[..n], &points(&a))
-                / sharpness(&s.real_images[..n], &points(&b)).max(1e-9);
+            sharp += mouth_sharpness(&images[..n], &points(&a))
+                / mouth_sharpness(&s.real_images[..n], &points(&b)).max(1e-9);
         }
         let m = sentences.len() as f64;
         println!(

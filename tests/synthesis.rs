@@ -196,3 +196,30 @@ fn talker_settings_keep_the_lip_motion() {
     }
     assert_eq!(choice.sentences, validation.len());
 }
+
+/// Mouth sharpness against analytic images: a grey ramp of slope g per pixel (any direction)
+/// scores g inside the lips' box, a flat image 0, and a box reaching past the border is
+/// clipped, not a panic.
+#[test]
+fn mouth_sharpness_of_ramps() {
+    use facespace::eval::mouth::mouth_sharpness;
+    let mut lips = vec![[0.0, 0.0]; 68];
+    for (k, p) in lips.iter_mut().enumerate().skip(48) {
+        *p = [40.0 + (k - 48) as f64, 30.0 + ((k * 7) % 11) as f64];
+    }
+    let ramp = |gx: f64, gy: f64| {
+        image::RgbImage::from_fn(100, 80, |x, y| {
+            let v = (10.0 + gx * f64::from(x) + gy * f64::from(y)) as u8;
+            image::Rgb([v, v, v])
+        })
+    };
+    let s = mouth_sharpness(&[ramp(2.0, 0.0)], &[lips.clone()]);
+    assert!((s - 2.0).abs() < 0.02, "{s}");
+    let s = mouth_sharpness(&[ramp(0.0, 1.0), ramp(1.0, 0.0)], &[lips.clone(), lips.clone()]);
+    assert!((s - 1.0).abs() < 0.02, "{s}");
+    let s = mouth_sharpness(&[ramp(0.6, 0.8)], &[lips.clone()]);
+    assert!((s - 1.0).abs() < 0.05, "{s}");
+    assert_eq!(mouth_sharpness(&[ramp(0.0, 0.0)], &[lips.clone()]), 0.0);
+    let far: Vec<[f64; 2]> = lips.iter().map(|p| [p[0] + 500.0, p[1] - 500.0]).collect();
+    assert!(mouth_sharpness(&[ramp(1.0, 0.0)], &[far]).is_finite());
+}

@@ -197,6 +197,42 @@ pub fn lip_motion(model: &FaceModel, frames: &Frames) -> f64 {
     steps.iter().sum::<f64>() / steps.len().max(1) as f64
 }
 
+/// Mouth sharpness: the mean grey (BT.601 luma) gradient magnitude, by central differences,
+/// inside the lips' bounding box (iBUG 48–67, a 3-pixel margin) of each image, averaged over
+/// the images — a soft mouth (a blurred appearance model, a reference frame too small for
+/// the face) scores below the recorded one. Images under 3×3 pixels score 0.
+pub fn mouth_sharpness(images: &[image::RgbImage], landmarks: &[Vec<Point>]) -> f64 {
+    let grey = |im: &image::RgbImage, x: u32, y: u32| {
+        let p = im.get_pixel(x, y).0;
+        0.299 * f64::from(p[0]) + 0.587 * f64::from(p[1]) + 0.114 * f64::from(p[2])
+    };
+    let mut total = 0.0;
+    for (im, l) in images.iter().zip(landmarks) {
+        if im.width() < 3 || im.height() < 3 {
+            continue;
+        }
+        let lips = &l[*LIPS.start() as usize..=*LIPS.end() as usize];
+        let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+        for p in lips {
+            (x0, x1, y0, y1) = (x0.min(p[0]), x1.max(p[0]), y0.min(p[1]), y1.max(p[1]));
+        }
+        let clamp = |v: f64, hi: u32| (v.max(1.0) as u32).min(hi);
+        let (x0, x1) = (clamp(x0 - 3.0, im.width() - 2), clamp(x1 + 3.0, im.width() - 2));
+        let (y0, y1) = (clamp(y0 - 3.0, im.height() - 2), clamp(y1 + 3.0, im.height() - 2));
+        let (mut sum, mut n) = (0.0f64, 0.0f64);
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                let gx = grey(im, x + 1, y) - grey(im, x - 1, y);
+                let gy = grey(im, x, y + 1) - grey(im, x, y - 1);
+                sum += 0.5 * gx.hypot(gy);
+                n += 1.0;
+            }
+        }
+        total += sum / n.max(1.0);
+    }
+    total / images.len().max(1) as f64
+}
+
 /// Per appearance parameter, the synthesised within-sentence s.d. over the real one's.
 pub fn flicker(synth: &Frames, real: &Frames) -> Vec<f64> {
     let range = synth.layout().appearance_range();
