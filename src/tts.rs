@@ -156,7 +156,13 @@ pub fn speak_as(text: &str, out: &Path, voice: Option<&str>) -> Result<Spoken, T
             if asked != DEFAULT_VOICE {
                 tried.push(DEFAULT_VOICE);
             }
+            // Festival exits 0 without writing anything when a voice is not installed: a
+            // voice spoke only if the WAV is there.
+            let wrote = |ok: Result<(), TtsError>| {
+                ok.is_ok() && std::fs::metadata(out).is_ok_and(|m| m.len() > 44)
+            };
             for v in tried.iter().filter(|v| plain_voice(v)) {
+                let _ = std::fs::remove_file(out);
                 let ok = run(
                     engine,
                     Command::new("text2wave")
@@ -166,7 +172,7 @@ pub fn speak_as(text: &str, out: &Path, voice: Option<&str>) -> Result<Spoken, T
                         .arg("-o")
                         .arg(out),
                 );
-                if ok.is_ok() {
+                if wrote(ok) {
                     let note = (*v != asked).then(|| {
                         format!("Festival has no voice {asked} here; {v} spoke instead")
                     });
@@ -178,10 +184,18 @@ pub fn speak_as(text: &str, out: &Path, voice: Option<&str>) -> Result<Spoken, T
                 }
             }
             // Without either voice, Festival's default voice.
+            let _ = std::fs::remove_file(out);
             run(
                 engine,
                 Command::new("text2wave").arg(&input).arg("-o").arg(out),
             )?;
+            if !wrote(Ok(())) {
+                return Err(TtsError::Failed {
+                    engine,
+                    status: "no speech written".into(),
+                    stderr: format!("no Festival voice spoke (tried {})", tried.join(", ")),
+                });
+            }
             Ok(Spoken {
                 engine: Engine::Festival,
                 voice: "Festival's default".into(),
