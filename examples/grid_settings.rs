@@ -27,7 +27,11 @@ fn main() {
     println!("|---|---|---|---|---|---|");
     for t in &choice.trials {
         let m = &t.mouth;
-        let mark = if t == &choice.chosen { " **chosen**" } else { "" };
+        let mark = if t == &choice.chosen {
+            " **chosen**"
+        } else {
+            ""
+        };
         println!(
             "| {} | {:e} | {:.3} | {:.3} | {:.3} | {:.3}{mark} |",
             t.top_n, t.smoothing, m.r_pca_mouth, m.r_h_inner, m.inner_sd_ratio, m.lip_motion_ratio

@@ -17,21 +17,29 @@ use facespace::video::Source;
 
 fn main() {
     let args: Vec<PathBuf> = std::env::args().skip(1).map(PathBuf::from).collect();
-    println!("| model | reference pixels | clip | frame size | mouth sharpness, drawn / recorded |");
+    println!(
+        "| model | reference pixels | clip | frame size | mouth sharpness, drawn / recorded |"
+    );
     println!("|---|---|---|---|---|");
     for pair in args.chunks(2) {
         let model = FaceModel::load(&pair[0]).unwrap();
         let source = Source::open(&pair[1]).unwrap();
         let fps = source.info().fps;
         let (mut images, mut rows, mut marks) = (Vec::new(), Vec::new(), Vec::new());
-        codec::track(&model, source, &EncodeOptions::default(), facespace::no_progress, |image, t| {
-            let start = rows.len();
-            rows.resize(start + model.layout().dims(), 0.0);
-            model.project_into(&image, &t.landmarks, &mut rows[start..])?;
-            marks.push(t.landmarks.points.clone());
-            images.push(image);
-            Ok(())
-        })
+        codec::track(
+            &model,
+            source,
+            &EncodeOptions::default(),
+            facespace::no_progress,
+            |image, t| {
+                let start = rows.len();
+                rows.resize(start + model.layout().dims(), 0.0);
+                model.project_into(&image, &t.landmarks, &mut rows[start..])?;
+                marks.push(t.landmarks.points.clone());
+                images.push(image);
+                Ok(())
+            },
+        )
         .unwrap();
         let frames = Frames::from_rows(model.layout(), fps, rows).unwrap();
         let renderer = CpuRenderer::with_edge(&model, Edge::Articulators(DEFAULT_FEATHER));

@@ -128,6 +128,7 @@ pub mod talker;
 pub mod trajectory;
 pub mod tts;
 pub mod video;
+pub mod visemes;
 pub mod warp;
 
 /// A progress report from long-running work: `done` of `total` units of `stage`.

@@ -36,5 +36,6 @@ mod track;
 mod trajectory;
 mod unit_selection;
 mod video;
+mod visemes;
 mod walkthrough;
 mod warp;

@@ -15,6 +15,7 @@ mod study;
 mod synth;
 mod talker;
 mod track;
+mod visemes;
 mod weights;
 
 use std::path::PathBuf;
@@ -127,6 +128,12 @@ enum Command {
     /// Make talker folders (`talker build`).
     #[command(subcommand)]
     Talker(talker::TalkerCommand),
+    /// Speech → a mouth-shape track for 2D rigs in Rhubarb Lip Sync's shapes (A–F, G, H, X)
+    /// and formats (TSV, JSON, Moho .dat).
+    #[command(
+        after_help = "Example: facespace visemes tests/data/grid/bbbf9a.wav --transcript tests/data/grid/bbbf9a.txt -f json -o out/bbbf9a.json"
+    )]
+    Visemes(visemes::VisemesArgs),
 }
 
 pub fn run() -> Result<()> {
@@ -147,6 +154,7 @@ pub fn run() -> Result<()> {
         Command::Study(c) => study::run(c),
         Command::Demo(a) => demo::run(a),
         Command::Say(a) => say::run(a),
+        Command::Visemes(a) => visemes::run(a),
         Command::Talker(c) => talker::run(c),
     }
 }

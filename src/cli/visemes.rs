@@ -1,0 +1,117 @@
+//! `facespace visemes`: speech → a mouth-shape track for 2D rigs in Rhubarb Lip Sync's
+//! formats (TSV, JSON, Moho `.dat`).
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+use clap::{Args, ValueEnum};
+use facespace::phonemes::{PhoneMap, read_labels};
+use facespace::visemes::{self, Extended};
+use facespace::{align, atomic, audio};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Format {
+    /// `start<TAB>shape` lines, then the end with the closed mouth.
+    Tsv,
+    /// `metadata` (soundFile, duration) and `mouthCues` (start, end, value).
+    Json,
+    /// Moho / OpenToonz switch data (`MohoSwitch1`, `frame shape` lines).
+    Dat,
+}
+
+#[derive(Args)]
+pub struct VisemesArgs {
+    /// The recording (WAV, MP4/M4A, or what a system ffmpeg reads).
+    audio: PathBuf,
+    /// The words spoken (aligned to the recording).
+    #[arg(long, conflicts_with_all = ["transcript", "labels"])]
+    text: Option<String>,
+    /// A text file holding the words spoken.
+    #[arg(long, conflicts_with = "labels")]
+    transcript: Option<PathBuf>,
+    /// Phone timings of the recording instead of words (.lab, .TextGrid, .tsv).
+    #[arg(long)]
+    labels: Option<PathBuf>,
+    /// A talker folder: its face, synthesised for this speech, chooses how far each open
+    /// shape opens (B, C or D by the nearest of its typical /iy/, /eh/, /aa/ openings).
+    #[arg(long)]
+    talker: Option<PathBuf>,
+    /// Output format.
+    #[arg(short = 'f', long, value_enum, default_value_t = Format::Tsv)]
+    format: Format,
+    /// The extended shapes the rig has (Rhubarb's `--extendedShapes`): any of G, H, X.
+    #[arg(long, default_value = "GHX")]
+    extended_shapes: String,
+    /// Frame rate of a `.dat` file (24–100).
+    #[arg(long, default_value_t = 24.0)]
+    dat_frame_rate: f64,
+    /// Preston Blair shape names in a `.dat` file (MBP, etc, E, AI, O, U, FV, L, rest).
+    #[arg(long)]
+    dat_preston_blair: bool,
+    /// Where to write the track (default: standard output).
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+}
+
+pub fn run(a: VisemesArgs) -> Result<()> {
+    let extended = Extended::parse(&a.extended_shapes)?;
+    let speech = audio::read(&a.audio, align::frontend::SAMPLE_RATE, align::MAX_SECONDS)
+        .with_context(|| format!("reading {}", a.audio.display()))?;
+    let words = match (&a.text, &a.transcript) {
+        (Some(t), _) => Some(t.clone()),
+        (None, Some(p)) => Some(
+            facespace::manifest::read_regular_string(p)
+                .with_context(|| format!("reading the transcript {}", p.display()))?,
+        ),
+        (None, None) => None,
+    };
+    let segments = match (&words, &a.labels) {
+        (Some(w), _) => align::Aligner::load_default(&[])?
+            .align(&speech.samples, speech.rate, w)
+            .with_context(|| format!("aligning {}", a.audio.display()))?
+            .segments(),
+        (None, Some(l)) => read_labels(l, None, &PhoneMap::default())
+            .with_context(|| format!("reading {}", l.display()))?,
+        (None, None) => bail!(
+            "give the words spoken (--text or --transcript) or phone timings (--labels): shapes from the sound alone need phone recognition, which facespace does not do yet"
+        ),
+    };
+    let mut cues = visemes::cues(&segments, speech.seconds(), extended)?;
+    if let Some(dir) = &a.talker {
+        let talker = facespace::talker::Talker::load(dir)?;
+        let levels = visemes::face_levels(&talker.model, &talker.codebook).with_context(|| {
+            format!(
+                "{}: its codebook lacks /iy/, /eh/ or /aa/, or its face is not a 68-point one",
+                dir.display()
+            )
+        })?;
+        // The talker performs from the same phones, written as labels in a folder of its own.
+        let staging = tempfile::tempdir()?;
+        let labels = staging.path().join("phones.lab");
+        facespace::phonemes::write_labels(&labels, &segments)?;
+        let request = facespace::talker::SayRequest::new(facespace::talker::Speech::Labels {
+            labels,
+            tier: None,
+            map: PhoneMap::default(),
+            audio: None,
+        });
+        let p = talker.perform(&request, staging.path())?;
+        let frames = p.utterance.variants()[0].1.clone();
+        let opening = visemes::openings(&talker.model, &frames);
+        let fps = frames.fps();
+        cues = visemes::open_by_face(&cues, levels, |s, e| {
+            visemes::mean_opening(&opening, fps, s, e)
+        });
+    }
+    let text = match a.format {
+        Format::Tsv => visemes::tsv(&cues, extended),
+        Format::Json => visemes::json(&cues, &a.audio.to_string_lossy()),
+        Format::Dat => visemes::dat(&cues, a.dat_frame_rate, a.dat_preston_blair, extended)?,
+    };
+    match &a.output {
+        Some(out) => atomic::write_file(out, text.as_bytes())
+            .with_context(|| format!("writing {}", out.display()))?,
+        None => print!("{text}"),
+    }
+    Ok(())
+}

@@ -1,0 +1,419 @@
+//! Mouth shapes for 2D rigs: the nine of Rhubarb Lip Sync (A–F basic, G, H, X extended; its
+//! README, "Mouth shapes"), from phone timings and — with a talker — the mouth opening its
+//! face makes, written in Rhubarb's TSV, JSON and Moho switch (`.dat`) layouts so that the
+//! tools animators already load them into read ours.
+//!
+//! Times are whole centiseconds, as Rhubarb's: cues join where the shape does not change, the
+//! first starts at 0 and the last ends at the recording's duration (truncated to 0.01 s).
+
+use serde::Serialize;
+use thiserror::Error;
+
+use crate::phonemes::{Phone, Segment};
+
+/// One of Rhubarb's mouth shapes, with its documented meaning.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
+pub enum Shape {
+    /// Closed mouth for P, B, M (slight pressure between the lips).
+    A,
+    /// Slightly open mouth, clenched teeth: most consonants (K, S, T…) and EE as in bee.
+    B,
+    /// Open mouth: EH as in men, AE as in bat; the in-between from A or B to D.
+    C,
+    /// Wide open mouth: AA as in father.
+    D,
+    /// Slightly rounded mouth: AO as in off, ER as in bird; the in-between from C or D to F.
+    E,
+    /// Puckered lips: UW as in you, OW as in show, W as in way.
+    F,
+    /// Upper teeth on the lower lip: F, V (extended).
+    G,
+    /// Tongue raised behind the upper teeth: long L (extended).
+    H,
+    /// Idle, lips closed and relaxed: pauses (extended).
+    X,
+}
+
+impl Shape {
+    /// Every shape, A to X.
+    pub const ALL: [Shape; 9] = [
+        Shape::A,
+        Shape::B,
+        Shape::C,
+        Shape::D,
+        Shape::E,
+        Shape::F,
+        Shape::G,
+        Shape::H,
+        Shape::X,
+    ];
+
+    /// The letter Rhubarb writes.
+    pub fn letter(self) -> char {
+        b"ABCDEFGHX"[self as usize] as char
+    }
+
+    /// The shape a letter names.
+    pub fn from_letter(c: char) -> Option<Shape> {
+        Shape::ALL
+            .into_iter()
+            .find(|s| s.letter() == c.to_ascii_uppercase())
+    }
+
+    /// The basic shape (A–F) that stands in for an extended one left out: G → B, H → C,
+    /// X → A (Rhubarb's mapping).
+    pub fn basic(self) -> Shape {
+        match self {
+            Shape::G => Shape::B,
+            Shape::H => Shape::C,
+            Shape::X => Shape::A,
+            s => s,
+        }
+    }
+
+    /// Its Preston Blair name (`--dat-preston-blair`, what OpenToonz reads).
+    pub fn preston_blair(self) -> &'static str {
+        ["MBP", "etc", "E", "AI", "O", "U", "FV", "L", "rest"][self as usize]
+    }
+
+    /// The shape of a phone, by the documented meanings above; `None` for /hh/, which takes
+    /// the shape of the sound it breathes into.
+    pub fn of_phone(phone: Phone) -> Option<Shape> {
+        Some(match phone.name() {
+            "sil" => Shape::X,
+            "p" | "b" | "m" => Shape::A,
+            "f" | "v" => Shape::G,
+            "l" => Shape::H,
+            "uw" | "ow" | "w" => Shape::F,
+            "ao" | "er" | "oy" | "uh" => Shape::E,
+            "aa" | "ay" | "aw" => Shape::D,
+            "eh" | "ae" | "ah" | "ey" => Shape::C,
+            "hh" => return None,
+            _ => Shape::B,
+        })
+    }
+}
+
+/// Which extended shapes (G, H, X) a rig has; the others fall back to their basic shape.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Extended {
+    /// G is drawn.
+    pub g: bool,
+    /// H is drawn.
+    pub h: bool,
+    /// X is drawn.
+    pub x: bool,
+}
+
+impl Default for Extended {
+    /// All three (Rhubarb's default, `GHX`).
+    fn default() -> Self {
+        Extended {
+            g: true,
+            h: true,
+            x: true,
+        }
+    }
+}
+
+impl Extended {
+    /// From Rhubarb's `--extendedShapes` string (`GHX`, `GX`, `""`…).
+    pub fn parse(s: &str) -> Result<Self, VisemeError> {
+        let mut e = Extended {
+            g: false,
+            h: false,
+            x: false,
+        };
+        for c in s.chars() {
+            match c.to_ascii_uppercase() {
+                'G' => e.g = true,
+                'H' => e.h = true,
+                'X' => e.x = true,
+                _ => return Err(VisemeError::ExtendedShape(c)),
+            }
+        }
+        Ok(e)
+    }
+
+    /// `shape` as this rig draws it.
+    pub fn map(self, shape: Shape) -> Shape {
+        let kept = match shape {
+            Shape::G => self.g,
+            Shape::H => self.h,
+            Shape::X => self.x,
+            _ => true,
+        };
+        if kept { shape } else { shape.basic() }
+    }
+}
+
+/// A shape held from `start` to `end`, in centiseconds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct Cue {
+    /// Start, centiseconds.
+    pub start: u32,
+    /// End, centiseconds.
+    pub end: u32,
+    /// The shape.
+    pub shape: Shape,
+}
+
+/// Errors of viseme tracks.
+#[derive(Debug, Error)]
+pub enum VisemeError {
+    /// Not a shape letter of `--extended-shapes`.
+    #[error("extended shapes: {0:?} is not G, H or X")]
+    ExtendedShape(char),
+    /// A duration that is not a finite, positive number of seconds.
+    #[error("the recording lasts {0} s: a viseme track needs a positive, finite duration")]
+    Duration(f64),
+    /// Phone times that are not finite.
+    #[error("phone {index} ({phone:?}) has a time that is not a finite number")]
+    BadSegment {
+        /// Its index.
+        index: usize,
+        /// The phone.
+        phone: Phone,
+    },
+    /// A `.dat` frame rate outside Rhubarb's range.
+    #[error("a Moho .dat frame rate must be between 24 and 100 fps, not {0}")]
+    FrameRate(f64),
+}
+
+fn centiseconds(t: f64) -> u32 {
+    (t.max(0.0) * 100.0).round() as u32
+}
+
+/// The cues of `segments` over a recording of `duration` seconds: each phone's shape
+/// ([`Shape::of_phone`]; /hh/ takes the next phone's), mapped for the rig, joined where
+/// equal, X (or A) where no phone is, the last ending at the duration truncated to 0.01 s.
+pub fn cues(
+    segments: &[Segment],
+    duration: f64,
+    extended: Extended,
+) -> Result<Vec<Cue>, VisemeError> {
+    if !(duration.is_finite() && duration > 0.0) {
+        return Err(VisemeError::Duration(duration));
+    }
+    if let Some((index, s)) = segments
+        .iter()
+        .enumerate()
+        .find(|(_, s)| !(s.start.is_finite() && s.end.is_finite()))
+    {
+        return Err(VisemeError::BadSegment {
+            index,
+            phone: s.phone,
+        });
+    }
+    let end = (duration * 100.0 + 1e-6).floor() as u32;
+    let rest = extended.map(Shape::X);
+    let mut covered: Vec<Cue> = Vec::new();
+    let mut at = 0;
+    let add = |start: u32, stop: u32, shape: Shape, covered: &mut Vec<Cue>| {
+        if stop > start {
+            covered.push(Cue {
+                start,
+                end: stop,
+                shape,
+            });
+        }
+    };
+    for (i, s) in segments.iter().enumerate() {
+        // /hh/ breathes into the next sounding phone's shape.
+        let shape = Shape::of_phone(s.phone)
+            .or_else(|| {
+                segments[i + 1..]
+                    .iter()
+                    .filter(|n| n.phone != Phone::SIL)
+                    .find_map(|n| Shape::of_phone(n.phone))
+            })
+            .unwrap_or(Shape::C);
+        let (a, b) = (centiseconds(s.start).min(end), centiseconds(s.end).min(end));
+        add(at, a, rest, &mut covered);
+        add(at.max(a), b, extended.map(shape), &mut covered);
+        at = at.max(b);
+    }
+    add(at, end, rest, &mut covered);
+    let mut out: Vec<Cue> = Vec::with_capacity(covered.len());
+    for c in covered {
+        match out.last_mut() {
+            Some(last) if last.shape == c.shape => last.end = c.end,
+            _ => out.push(c),
+        }
+    }
+    if out.is_empty() {
+        out.push(Cue {
+            start: 0,
+            end: 0,
+            shape: rest,
+        });
+    }
+    Ok(out)
+}
+
+/// Re-chooses the degree of opening (B, C or D) of each cue from the mouth opening a talker's
+/// face makes there: `opening(t_cs)` is the mean inner-mouth height over the cue, and
+/// `levels` the talker's typical height for B, C and D (e.g. medians over its codebook's
+/// /iy/, /eh/ and /aa/); each B/C/D cue takes the nearest level. Closures, rounding, teeth on
+/// lip, tongue and rest are kept from the phones. Equal neighbours are joined again.
+pub fn open_by_face(
+    cues: &[Cue],
+    levels: [f64; 3],
+    mut opening: impl FnMut(u32, u32) -> Option<f64>,
+) -> Vec<Cue> {
+    let mut out: Vec<Cue> = Vec::with_capacity(cues.len());
+    for c in cues {
+        let mut shape = c.shape;
+        if matches!(shape, Shape::B | Shape::C | Shape::D)
+            && let Some(h) = opening(c.start, c.end).filter(|h| h.is_finite())
+        {
+            let nearest = (0..3)
+                .min_by(|&a, &b| (levels[a] - h).abs().total_cmp(&(levels[b] - h).abs()))
+                .unwrap_or(0);
+            shape = [Shape::B, Shape::C, Shape::D][nearest];
+        }
+        match out.last_mut() {
+            Some(last) if last.shape == shape => last.end = c.end,
+            _ => out.push(Cue { shape, ..*c }),
+        }
+    }
+    out
+}
+
+fn seconds(cs: u32) -> String {
+    format!("{}.{:02}", cs / 100, cs % 100)
+}
+
+/// Rhubarb's TSV: `start<TAB>shape` per cue, then the end of the recording with the closed
+/// mouth.
+pub fn tsv(cues: &[Cue], extended: Extended) -> String {
+    let mut s = String::new();
+    for c in cues {
+        s.push_str(&format!("{}\t{}\n", seconds(c.start), c.shape.letter()));
+    }
+    let end = cues.last().map_or(0, |c| c.end);
+    s.push_str(&format!(
+        "{}\t{}\n",
+        seconds(end),
+        extended.map(Shape::X).letter()
+    ));
+    s
+}
+
+/// Rhubarb's JSON: the sound file and duration, then every cue's start, end and shape, laid
+/// out as its README shows.
+pub fn json(cues: &[Cue], sound_file: &str) -> String {
+    let end = cues.last().map_or(0, |c| c.end);
+    let mut s = String::from("{\n  \"metadata\": {\n");
+    s.push_str(&format!(
+        "    \"soundFile\": {},\n",
+        serde_json::to_string(sound_file).expect("a string serialises")
+    ));
+    s.push_str(&format!("    \"duration\": {}\n  }},\n", seconds(end)));
+    s.push_str("  \"mouthCues\": [\n");
+    for (i, c) in cues.iter().enumerate() {
+        let comma = if i + 1 < cues.len() { "," } else { "" };
+        s.push_str(&format!(
+            "    {{ \"start\": {}, \"end\": {}, \"value\": \"{}\" }}{comma}\n",
+            seconds(c.start),
+            seconds(c.end),
+            c.shape.letter()
+        ));
+    }
+    s.push_str("  ]\n}\n");
+    s
+}
+
+/// Rhubarb's Moho switch file: `MohoSwitch1`, then `frame shape` at each cue's first frame
+/// (frames count from 1 at `fps`, 24–100; a cue starting in the same frame as the last one
+/// written is left out), then the closed mouth at the frame of the end. `preston_blair` writes
+/// the Preston Blair names.
+pub fn dat(
+    cues: &[Cue],
+    fps: f64,
+    preston_blair: bool,
+    extended: Extended,
+) -> Result<String, VisemeError> {
+    if !(24.0..=100.0).contains(&fps) {
+        return Err(VisemeError::FrameRate(fps));
+    }
+    let frame = |cs: u32| 1 + (fps * f64::from(cs) / 100.0 + 1e-9).floor() as u64;
+    let name = |s: Shape| {
+        if preston_blair {
+            s.preston_blair().to_owned()
+        } else {
+            s.letter().to_string()
+        }
+    };
+    let mut s = String::from("MohoSwitch1\n");
+    let mut last = 0;
+    for c in cues {
+        let f = frame(c.start);
+        if f == last {
+            continue;
+        }
+        s.push_str(&format!("{f} {}\n", name(c.shape)));
+        last = f;
+    }
+    let mut f = frame(cues.last().map_or(0, |c| c.end));
+    if f == last {
+        f += 1;
+    }
+    s.push_str(&format!("{f} {}\n", name(extended.map(Shape::X))));
+    Ok(s)
+}
+
+/// The inner-mouth height of each frame's shape without its pose (iBUG 61–63 over 67–65, in
+/// the shape model's units): the opening the face makes, whatever the head does.
+pub fn openings(model: &crate::model::FaceModel, frames: &crate::facespace::Frames) -> Vec<f64> {
+    frames
+        .iter()
+        .map(|p| {
+            let points = model
+                .shape
+                .instance(&crate::shape::Similarity::IDENTITY, p.shape)
+                .points;
+            crate::eval::mouth::inner_mouth_height(&points)
+        })
+        .collect()
+}
+
+/// A talker's typical opening ([`openings`]) for B, C and D: the median, over its codebook's
+/// /iy/, /eh/ and /aa/ (each shape's defining vowel in Rhubarb's list), of the opening at each
+/// such phone's middle frame. `None` without a 68-point face or without one of the vowels.
+pub fn face_levels(
+    model: &crate::model::FaceModel,
+    codebook: &crate::codebook::Codebook,
+) -> Option<[f64; 3]> {
+    if model.shape.n_landmarks() != 68 {
+        return None;
+    }
+    let mut levels = [0.0; 3];
+    for (k, name) in ["iy", "eh", "aa"].iter().enumerate() {
+        let phone = Phone::parse(name)?;
+        let mut heights: Vec<f64> = Vec::new();
+        for s in &codebook.sentences {
+            for g in s.segments.iter().filter(|g| g.phone == phone) {
+                let t = ((0.5 * (g.start + g.end)) * codebook.fps).round() as usize;
+                if t < s.frames.len() {
+                    let one = s.frames.slice(t..t + 1);
+                    heights.extend(openings(model, &one));
+                }
+            }
+        }
+        if heights.is_empty() {
+            return None;
+        }
+        heights.sort_by(f64::total_cmp);
+        levels[k] = heights[heights.len() / 2];
+    }
+    Some(levels)
+}
+
+/// The mean of `openings` (one per frame at `fps`) over the frames starting inside
+/// `[start, end)` centiseconds; `None` when no frame does.
+pub fn mean_opening(openings: &[f64], fps: f64, start: u32, end: u32) -> Option<f64> {
+    let first = (f64::from(start) / 100.0 * fps).ceil() as usize;
+    let last = ((f64::from(end) / 100.0 * fps).ceil() as usize).min(openings.len());
+    (first < last).then(|| openings[first..last].iter().sum::<f64>() / (last - first) as f64)
+}
