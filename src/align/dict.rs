@@ -134,6 +134,17 @@ impl Dictionary {
         Ok(())
     }
 
+    /// Every pronunciation the dictionary holds (lines it cannot read are skipped): what a
+    /// phone language model is estimated from.
+    pub fn every_pronunciation(&self, model: &AcousticModel) -> Vec<Vec<u8>> {
+        let mut out: Vec<Vec<u8>> = (0..self.lines.len())
+            .filter_map(|i| split_entry(self.line(i)))
+            .filter_map(|(_, phones)| parse_pron(phones, model).ok())
+            .collect();
+        out.extend(self.added.values().flatten().cloned());
+        out
+    }
+
     /// Every pronunciation of `word` (lower case): the model dictionary's, then the added ones.
     fn lookup(&self, word: &str, model: &AcousticModel) -> Result<Vec<Vec<u8>>, AlignError> {
         // First line whose headword is not below `word` (blank lines sort first).

@@ -157,14 +157,7 @@ pub struct Alignment {
 impl Alignment {
     /// The phones as label segments (`SIL` → `sil`), for `.lab` and TextGrid files.
     pub fn segments(&self) -> Vec<Segment> {
-        self.phones
-            .iter()
-            .map(|p| Segment {
-                start: p.start,
-                end: p.end,
-                phone: Phone::parse(&p.phone).unwrap_or(Phone::SIL),
-            })
-            .collect()
+        segments(&self.phones)
     }
 }
 
@@ -227,6 +220,28 @@ impl Aligner {
                 max: MAX_SECONDS,
             });
         }
+        let feats = self.features(samples)?;
+        let phones: usize = prons
+            .iter()
+            .map(|p| p.iter().map(Vec::len).min().unwrap_or(0))
+            .sum();
+        let prons: Vec<&[Vec<u8>]> = prons.iter().map(Vec::as_slice).collect();
+        let needed = phones * model::STATES;
+        if feats.len() < needed {
+            return Err(AlignError::TranscriptTooLong {
+                phones,
+                needed,
+                frames: feats.len(),
+            });
+        }
+        let graph = search::Graph::build(&self.model, &words, &prons);
+        let path = search::viterbi(&self.model, &graph, &feats).ok_or(AlignError::NoPath)?;
+        Ok(graph.alignment(&self.model, &words, path, feats.len()))
+    }
+
+    /// The front end's features of `samples` (16 kHz), after the checks every search needs:
+    /// finite, long enough, not silent.
+    fn features(&self, samples: &[f32]) -> Result<Vec<[f32; frontend::FEATURE_DIM]>, AlignError> {
         if let Some(index) = samples.iter().position(|x| !x.is_finite()) {
             return Err(AlignError::NotFinite { index });
         }
@@ -249,23 +264,114 @@ impl Aligner {
         if frontend::cmn(&mut cep).is_none() {
             return Err(AlignError::Silent { peak_dbfs });
         }
-        let feats = frontend::features(&cep);
-        let phones: usize = prons
-            .iter()
-            .map(|p| p.iter().map(Vec::len).min().unwrap_or(0))
-            .sum();
-        let prons: Vec<&[Vec<u8>]> = prons.iter().map(Vec::as_slice).collect();
-        let needed = phones * model::STATES;
-        if feats.len() < needed {
-            return Err(AlignError::TranscriptTooLong {
-                phones,
-                needed,
-                frames: feats.len(),
+        Ok(frontend::features(&cep))
+    }
+
+    /// Phone recognition without words: the best path through a loop of the acoustic model's
+    /// context-independent phones weighted by `lm` (pocketsphinx's allphone search) — the
+    /// mouth needs the right shapes, not the right words. Silences come out as `SIL`.
+    pub fn recognise(
+        &self,
+        samples: &[f32],
+        rate: u32,
+        lm: &PhoneLoop,
+    ) -> Result<Vec<TimedPhone>, AlignError> {
+        if rate != frontend::SAMPLE_RATE {
+            return Err(AlignError::SampleRate(rate));
+        }
+        let seconds = samples.len() as f64 / rate as f64;
+        if seconds > MAX_SECONDS {
+            return Err(AlignError::TooLong {
+                seconds,
+                max: MAX_SECONDS,
             });
         }
-        let graph = search::Graph::build(&self.model, &words, &prons);
+        let feats = self.features(samples)?;
+        let graph = search::Graph::phone_loop(&self.model, &lm.transition);
         let path = search::viterbi(&self.model, &graph, &feats).ok_or(AlignError::NoPath)?;
-        Ok(graph.alignment(&self.model, &words, path, feats.len()))
+        Ok(graph.phones(&self.model, &path, feats.len()))
+    }
+
+    /// A phone loop weighted by a phone bigram estimated from this aligner's dictionary
+    /// ([`PhoneLoop::estimate`]).
+    pub fn phone_loop(&self, weight: f64, penalty: f64) -> PhoneLoop {
+        PhoneLoop::estimate(
+            &self.dict.every_pronunciation(&self.model),
+            self.model.ci_names.len(),
+            self.model.sil,
+            weight,
+            penalty,
+        )
+    }
+}
+
+/// Timed phones as label segments (`SIL` → `sil`).
+pub fn segments(phones: &[TimedPhone]) -> Vec<Segment> {
+    phones
+        .iter()
+        .map(|p| Segment {
+            start: p.start,
+            end: p.end,
+            phone: Phone::parse(&p.phone).unwrap_or(Phone::SIL),
+        })
+        .collect()
+}
+
+/// Language weight of the phone bigram in [`Aligner::recognise`] (chosen on GRID s1's
+/// validation split, BENCHMARKS "Phones without words").
+pub const PHONE_WEIGHT: f64 = 6.5;
+
+/// Log phone insertion penalty of [`Aligner::recognise`] (as [`PHONE_WEIGHT`]).
+pub const PHONE_PENALTY: f64 = -2.0;
+
+/// The transition costs of a phone loop: `weight · ln P(b | a) + penalty` for phone `b` after
+/// phone `a`.
+#[derive(Clone, Debug)]
+pub struct PhoneLoop {
+    /// `[a][b]`, by CI phone id.
+    pub transition: Vec<Vec<f32>>,
+}
+
+impl PhoneLoop {
+    /// The phone bigram of a pronouncing dictionary, each pronunciation once: counts within
+    /// words, silence before the first and after the last phone, and — for words spoken
+    /// without a pause between them — each word-final phone followed by the distribution of
+    /// word-initial ones (weighted as much as the pauses); add-one smoothed.
+    pub fn estimate(
+        prons: &[Vec<u8>],
+        phones: usize,
+        sil: usize,
+        weight: f64,
+        penalty: f64,
+    ) -> Self {
+        let mut counts = vec![vec![1.0f64; phones]; phones];
+        let (mut first, mut last) = (vec![0.0f64; phones], vec![0.0f64; phones]);
+        for p in prons.iter().filter(|p| !p.is_empty()) {
+            let p: Vec<usize> = p.iter().map(|&c| c as usize).collect();
+            counts[sil][p[0]] += 1.0;
+            counts[p[p.len() - 1]][sil] += 1.0;
+            for w in p.windows(2) {
+                counts[w[0]][w[1]] += 1.0;
+            }
+            first[p[0]] += 1.0;
+            last[p[p.len() - 1]] += 1.0;
+        }
+        let starts: f64 = first.iter().sum::<f64>().max(1.0);
+        for a in 0..phones {
+            for b in 0..phones {
+                counts[a][b] += last[a] * first[b] / starts;
+            }
+        }
+        let transition = counts
+            .iter()
+            .map(|row| {
+                let total: f64 = row.iter().sum();
+                row.iter()
+                    .map(|&c| (weight * (c / total).ln() + penalty) as f32)
+                    .collect()
+            })
+            .collect();
+        PhoneLoop { transition }
     }
 }
 

@@ -234,6 +234,13 @@ impl AcousticModel {
         self.ci_filler[ci]
     }
 
+    /// Senones and transition matrix of the context-independent phone `base` (a phone loop's
+    /// units, which know no neighbours).
+    pub fn context_independent(&self, base: usize) -> ([u16; STATES], usize) {
+        let p = self.phones[base];
+        (self.sseq[p.ssid], p.tmat)
+    }
+
     /// Senones and transition matrix of `base` between `left` and `right` at `position`, the
     /// triphone if the model has it, else the nearest one, as `bin_mdef_phone_id_nearest`
     /// backs off: other word positions, then silence for filler (or word-edge) contexts, then

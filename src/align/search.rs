@@ -52,6 +52,55 @@ struct WordEnds {
 }
 
 impl Graph {
+    /// A phone loop: every context-independent phone (fillers other than silence left out),
+    /// each reachable from each with the cost `transition[from][to]` (`from` = the previous
+    /// phone's id; the utterance starts as if after silence), entering and leaving anywhere.
+    pub(super) fn phone_loop(model: &AcousticModel, transition: &[Vec<f32>]) -> Graph {
+        let mut g = Graph {
+            nodes: Vec::new(),
+            preds: Vec::new(),
+            start: Vec::new(),
+            finals: Vec::new(),
+        };
+        let units: Vec<usize> = (0..model.ci_names.len())
+            .filter(|&c| c == model.sil || !model.is_filler(c))
+            .collect();
+        for &c in &units {
+            let (senones, tmat) = model.context_independent(c);
+            let h = g.add(Node {
+                senones,
+                tmat,
+                phone: c as u8,
+                word: None,
+            });
+            g.start.push((h, transition[model.sil][c]));
+            g.finals.push(h);
+        }
+        for (to, &b) in units.iter().enumerate() {
+            for (from, &a) in units.iter().enumerate() {
+                g.edge(from as u32, to as u32, transition[a][b]);
+            }
+        }
+        g
+    }
+
+    /// The path's HMMs as phones with times (a phone loop's output).
+    pub(super) fn phones(&self, model: &AcousticModel, path: &Path, frames: usize) -> Vec<TimedPhone> {
+        path.entries
+            .iter()
+            .enumerate()
+            .map(|(k, &(node, start))| {
+                let end = path.entries.get(k + 1).map_or(frames as u32, |e| e.1);
+                TimedPhone {
+                    phone: model.ci_names[self.nodes[node as usize].phone as usize].clone(),
+                    start: start as f64 / FRAMES_PER_SECOND,
+                    end: end as f64 / FRAMES_PER_SECOND,
+                    word: None,
+                }
+            })
+            .collect()
+    }
+
     fn add(&mut self, node: Node) -> u32 {
         self.nodes.push(node);
         self.preds.push(Vec::new());

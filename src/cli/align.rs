@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use clap::Args;
 use facespace::align::{self, Aligner};
 use facespace::audio;
@@ -12,12 +12,9 @@ use facespace::audio;
 pub struct AlignArgs {
     /// The recording: WAV, MP4/M4A (AAC), or any format a system ffmpeg reads.
     audio: PathBuf,
-    /// The words spoken.
-    #[arg(
-        long,
-        conflicts_with = "transcript",
-        required_unless_present = "transcript"
-    )]
+    /// The words spoken. Without them (and without --transcript) the phones are recognised
+    /// from the sound alone: no word tier, and far less exact.
+    #[arg(long, conflicts_with = "transcript")]
     text: Option<String>,
     /// A text file holding the words spoken.
     #[arg(long)]
@@ -39,10 +36,12 @@ pub fn run(a: AlignArgs) -> Result<()> {
     inputs.extend(a.dicts.iter().map(|d| d.as_path()));
     super::check_output(&a.output, &inputs)?;
     let text = match (&a.text, &a.transcript) {
-        (Some(t), _) => t.clone(),
-        (None, Some(p)) => facespace::manifest::read_regular_string(p)
-            .with_context(|| format!("reading the transcript {}", p.display()))?,
-        (None, None) => bail!("give the words with --text or --transcript"),
+        (Some(t), _) => Some(t.clone()),
+        (None, Some(p)) => Some(
+            facespace::manifest::read_regular_string(p)
+                .with_context(|| format!("reading the transcript {}", p.display()))?,
+        ),
+        (None, None) => None,
     };
     let started = Instant::now();
     let dir = a
@@ -52,16 +51,31 @@ pub fn run(a: AlignArgs) -> Result<()> {
     let aligner = Aligner::load(&dir, &a.dicts)?;
     let loaded = started.elapsed().as_secs_f64();
     let speech = audio::read(&a.audio, align::frontend::SAMPLE_RATE, align::MAX_SECONDS)?;
-    let result = aligner
-        .align(&speech.samples, speech.rate, &text)
-        .with_context(|| format!("aligning {}", a.audio.display()))?;
+    let result = match &text {
+        Some(text) => aligner
+            .align(&speech.samples, speech.rate, text)
+            .with_context(|| format!("aligning {}", a.audio.display()))?,
+        None => {
+            let lm = aligner.phone_loop(align::PHONE_WEIGHT, align::PHONE_PENALTY);
+            let phones = aligner
+                .recognise(&speech.samples, speech.rate, &lm)
+                .with_context(|| format!("recognising the phones of {}", a.audio.display()))?;
+            println!("no words given: phones recognised from the sound alone (no word tier)");
+            align::Alignment {
+                words: Vec::new(),
+                frames: (speech.seconds() * 100.0).round() as usize,
+                score_per_frame: f64::NAN,
+                phones,
+            }
+        }
+    };
     result
         .write(&a.output)
         .with_context(|| format!("writing {}", a.output.display()))?;
     println!(
         "{} words, {} phones over {:.2} s → {} (model {:.0} ms, total {:.0} ms)",
         result.words.len(),
-        result.phones.iter().filter(|p| p.word.is_some()).count(),
+        result.phones.iter().filter(|p| p.phone != "SIL").count(),
         speech.seconds(),
         a.output.display(),
         loaded * 1e3,

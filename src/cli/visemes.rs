@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use facespace::phonemes::{PhoneMap, read_labels};
 use facespace::visemes::{self, Extended};
@@ -23,7 +23,8 @@ pub enum Format {
 pub struct VisemesArgs {
     /// The recording (WAV, MP4/M4A, or what a system ffmpeg reads).
     audio: PathBuf,
-    /// The words spoken (aligned to the recording).
+    /// The words spoken (aligned to the recording). Without words or --labels the phones are
+    /// recognised from the sound alone (far less exact).
     #[arg(long, conflicts_with_all = ["transcript", "labels"])]
     text: Option<String>,
     /// A text file holding the words spoken.
@@ -72,9 +73,17 @@ pub fn run(a: VisemesArgs) -> Result<()> {
             .segments(),
         (None, Some(l)) => read_labels(l, None, &PhoneMap::default())
             .with_context(|| format!("reading {}", l.display()))?,
-        (None, None) => bail!(
-            "give the words spoken (--text or --transcript) or phone timings (--labels): shapes from the sound alone need phone recognition, which facespace does not do yet"
-        ),
+        (None, None) => {
+            let aligner = align::Aligner::load_default(&[])?;
+            let lm = aligner.phone_loop(align::PHONE_WEIGHT, align::PHONE_PENALTY);
+            let phones = aligner
+                .recognise(&speech.samples, speech.rate, &lm)
+                .with_context(|| format!("recognising the phones of {}", a.audio.display()))?;
+            eprintln!(
+                "no words given: phones recognised from the sound alone (about 1 in 3 right on GRID s1; give --text or --transcript for aligned phones)"
+            );
+            align::segments(&phones)
+        }
     };
     let mut cues = visemes::cues(&segments, speech.seconds(), extended)?;
     if let Some(dir) = &a.talker {

@@ -1,0 +1,102 @@
+//! Phones recognised without words (issue 34) against GRID s1's `phones/` labels: phone error
+//! rate (edit distance over the reference's phones, silences left out) and viseme-class error
+//! (the same over the phones' viseme classes), and the speed on one core.
+//!
+//! `cargo run --release --example grid_phones -- ../shared/data/grid-s1 SPLIT [LIMIT] [WEIGHT PENALTY]…`
+//! (several WEIGHT PENALTY pairs: one row each — the grid searched on `validation`).
+
+use std::path::PathBuf;
+
+use facespace::align::{Aligner, PHONE_PENALTY, PHONE_WEIGHT, frontend};
+use facespace::phonemes::{Phone, PhoneMap, read_htk};
+
+fn edit_distance<T: PartialEq>(a: &[T], b: &[T]) -> usize {
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, x) in a.iter().enumerate() {
+        let mut diag = row[0];
+        row[0] = i + 1;
+        for (j, y) in b.iter().enumerate() {
+            let up = row[j + 1];
+            row[j + 1] = (diag + usize::from(x != y)).min(row[j] + 1).min(up + 1);
+            diag = up;
+        }
+    }
+    row[b.len()]
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let grid = PathBuf::from(&args[0]);
+    let split = &args[1];
+    let limit: usize = args
+        .get(2)
+        .and_then(|n| n.parse().ok())
+        .unwrap_or(usize::MAX);
+    let mut settings: Vec<(f64, f64)> = args[3.min(args.len())..]
+        .chunks(2)
+        .filter(|c| c.len() == 2)
+        .map(|c| (c[0].parse().unwrap(), c[1].parse().unwrap()))
+        .collect();
+    if settings.is_empty() {
+        settings.push((PHONE_WEIGHT, PHONE_PENALTY));
+    }
+    let damaged = std::fs::read_to_string(grid.join("damaged.txt")).unwrap_or_default();
+    let ids: Vec<String> = std::fs::read_to_string(grid.join(format!("{split}.txt")))
+        .unwrap()
+        .split_whitespace()
+        .filter(|id| !damaged.split_whitespace().any(|d| d == *id))
+        .take(limit)
+        .map(str::to_owned)
+        .collect();
+    let aligner = Aligner::load_default(&[]).unwrap();
+    let clips: Vec<(Vec<f32>, f64, Vec<Phone>)> = ids
+        .iter()
+        .map(|id| {
+            let audio = facespace::audio::read(
+                &grid.join(format!("clips/{id}.mp4")),
+                frontend::SAMPLE_RATE,
+                600.0,
+            )
+            .unwrap();
+            let reference: Vec<Phone> =
+                read_htk(&grid.join(format!("phones/{id}.lab")), &PhoneMap::default())
+                    .unwrap()
+                    .iter()
+                    .map(|s| s.phone)
+                    .filter(|&p| p != Phone::SIL)
+                    .collect();
+            let seconds = audio.seconds();
+            (audio.samples, seconds, reference)
+        })
+        .collect();
+    println!("GRID s1 {split} split (recorded), {} clips", clips.len());
+    println!("| weight | penalty | PER | viseme-class error | × real time, one core |");
+    println!("|---|---|---|---|---|");
+    for (weight, penalty) in settings {
+        let lm = aligner.phone_loop(weight, penalty);
+        let (mut errors, mut verrors, mut total, mut audio, mut spent) = (0, 0, 0, 0.0, 0.0);
+        for (samples, seconds, reference) in &clips {
+            let clock = std::time::Instant::now();
+            let phones = aligner
+                .recognise(samples, frontend::SAMPLE_RATE, &lm)
+                .unwrap();
+            spent += clock.elapsed().as_secs_f64();
+            audio += seconds;
+            let hyp: Vec<Phone> = phones
+                .iter()
+                .filter_map(|p| Phone::parse(&p.phone))
+                .filter(|&p| p != Phone::SIL)
+                .collect();
+            errors += edit_distance(&hyp, reference);
+            let v = |s: &[Phone]| s.iter().map(|p| p.viseme()).collect::<Vec<_>>();
+            verrors += edit_distance(&v(&hyp), &v(reference));
+            total += reference.len();
+        }
+        println!(
+            "| {weight} | {penalty} | {:.1} % | {:.1} % | {:.0}× |",
+            100.0 * errors as f64 / total as f64,
+            100.0 * verrors as f64 / total as f64,
+            audio / spent
+        );
+    }
+}
