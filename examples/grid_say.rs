@@ -14,7 +14,7 @@
 //! correlation with the lip motion and amplitude kept), and the same phones by the settings
 //! chosen for correlation alone before (blend N = 5, λ = 3e-5) and by the old `synth`
 //! defaults (N = 3, λ = 3e-6), everything else alike — the same anchoring, re-lighting and
-//! footage.
+//! footage; and `say --audio CLIP` without the words (phones recognised from the sound).
 //!
 //! `cargo run --release --example grid_say -- ../shared/data/grid-s1 [LIMIT|all] [SPLIT]`
 //! (SPLIT: `test`, the default, or `validation`, where the constants were chosen).
@@ -94,6 +94,7 @@ fn main() {
         say.as_str(),
         "chosen for correlation alone (blend N=5, λ=3e-5)",
         "old synth defaults (blend N=3, λ=3e-6)",
+        "say without the words (phones recognised from the sound)",
     ];
     let renderer = CpuRenderer::with_edge(&talker.model, Edge::Articulators(DEFAULT_FEATHER));
     let mut sentences = Vec::new();
@@ -107,9 +108,16 @@ fn main() {
         });
         let p = talker.perform(&request, staging.path()).unwrap();
         let mut rows = Vec::new();
+        // The same recording without its words: phones recognised from the sound alone.
+        let heard = talker
+            .perform(&SayRequest::new(Speech::Sound(clip.clone())), staging.path())
+            .unwrap();
         for system in 0..systems.len() {
+            let backdrop = if system == 3 { &heard.backdrop } else { &p.backdrop };
             let frames = if system == 0 {
                 p.utterance.variants()[0].1.clone()
+            } else if system == 3 {
+                heard.utterance.variants()[0].1.clone()
             } else {
                 let (top_n, lambda) = others[system - 1];
                 let blend = Blend {
@@ -132,7 +140,7 @@ fn main() {
             let images = facespace::render::images(
                 &renderer as &dyn Renderer,
                 &frames,
-                p.backdrop.background().unwrap(),
+                backdrop.background().unwrap(),
             )
             .unwrap();
             rows.push((frames, images));

@@ -24,7 +24,8 @@ pub struct SayArgs {
     #[arg(long, default_value = DEFAULT_TALKER, value_parser = super::committed_path)]
     talker: PathBuf,
     /// A recording to speak instead of text-to-speech (WAV or MP4/M4A): aligned to its words
-    /// (the text, or --transcript) and put under the video.
+    /// (the text, or --transcript) and put under the video; without words its phones are
+    /// recognised from the sound alone (a looser lip sync, with a note).
     #[arg(long, conflicts_with = "labels")]
     audio: Option<PathBuf>,
     /// A text file with the words of --audio.
@@ -89,10 +90,7 @@ pub fn run(a: SayArgs) -> Result<()> {
             words: facespace::manifest::read_regular_string(t)
                 .with_context(|| format!("reading the transcript {}", t.display()))?,
         },
-        (None, Some(audio), None, None) => anyhow::bail!(
-            "--audio {}: give its words (as the text, or --transcript FILE), or --labels",
-            audio.display()
-        ),
+        (None, Some(audio), None, None) => Speech::Sound(audio.clone()),
         (None, None, Some(text), _) => Speech::Text(text.clone()),
         (None, None, None, _) => anyhow::bail!("say what? give text, --audio with its words, or --labels"),
     };

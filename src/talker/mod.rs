@@ -264,6 +264,10 @@ pub enum Speech {
         /// Its words.
         words: String,
     },
+    /// A recording without its words: the phones are recognised from the sound alone
+    /// ([`crate::align::Aligner::recognise`]; far less exact than aligned words, with a note
+    /// saying so); the recording goes under the video.
+    Sound(PathBuf),
     /// Phone timings; with a recording to put under the video, or silent.
     Labels {
         /// The label file (.lab, .TextGrid, .tsv).
@@ -459,6 +463,27 @@ impl Talker {
             }
             Speech::Recording { audio, words } => {
                 (align(audio, words)?, Some(words.clone()), Some(audio.clone()))
+            }
+            Speech::Sound(audio) => {
+                let failed = |e| TalkerError::Align {
+                    path: audio.clone(),
+                    source: Box::new(e),
+                };
+                let aligner = crate::align::Aligner::load_default(&request.dicts).map_err(failed)?;
+                let lm = aligner.phone_loop(crate::align::PHONE_WEIGHT, crate::align::PHONE_PENALTY);
+                let sound = crate::audio::read(
+                    audio,
+                    crate::align::frontend::SAMPLE_RATE,
+                    crate::align::MAX_SECONDS,
+                )
+                .map_err(|e| failed(e.into()))?;
+                let phones = aligner
+                    .recognise(&sound.samples, sound.rate, &lm)
+                    .map_err(failed)?;
+                notes.push(
+                    "no words given: the phones were recognised from the sound alone (give the words for aligned phones and a closer lip sync)".into(),
+                );
+                (crate::align::segments(&phones), None, Some(audio.clone()))
             }
             Speech::Labels {
                 labels,
