@@ -625,3 +625,35 @@ fn phones_are_recognised_without_words() {
     let noise: Vec<f32> = (0..32_000).map(|_| (rng.normal() * 0.1) as f32).collect();
     assert!(a.recognise(&noise, rate, &lm).is_ok());
 }
+
+/// Do the words match the speech? (issue 34) On the three committed clips (recorded, none
+/// used to set the thresholds) each true transcript fits and each other clip's transcript
+/// does not, its worst words among those it does not share; `align` warns about the latter.
+#[test]
+fn transcripts_of_other_sentences_do_not_fit() {
+    let a = aligner();
+    let lm = a.phone_loop(align::PHONE_WEIGHT, align::PHONE_PENALTY);
+    for id in CLIPS {
+        let audio = clip_audio(id);
+        let (_, fit) = a.align_checked(&audio.samples, audio.rate, &transcript(id), &lm).unwrap();
+        assert!(fit.matches(), "{id}: {fit:?}");
+        for other in CLIPS.iter().filter(|o| **o != id) {
+            let text = transcript(other);
+            let (alignment, fit) = a.align_checked(&audio.samples, audio.rate, &text, &lm).unwrap();
+            assert!(!fit.matches(), "{id} with {other}'s words: {fit:?}");
+            let said = align::dict::words(&transcript(id));
+            let worst = &alignment.words[fit.worst(1)[0]].word;
+            assert!(!said.contains(worst), "{id} with {other}'s words: worst {worst}");
+        }
+    }
+    let o = common::facespace(&[
+        "align",
+        grid().join("bbbf9a.wav").to_str().unwrap(),
+        "--transcript",
+        grid().join("bbwtzp.txt").to_str().unwrap(),
+        "-o",
+        tempfile::tempdir().unwrap().path().join("x.lab").to_str().unwrap(),
+    ]);
+    assert!(o.status.success());
+    assert!(common::text(&o).contains("may not be what was said"), "{}", common::text(&o));
+}

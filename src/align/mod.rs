@@ -205,6 +205,44 @@ impl Aligner {
 
     /// Aligns `samples` (mono, 16 kHz, −1…1) to the words of `text`.
     pub fn align(&self, samples: &[f32], rate: u32, text: &str) -> Result<Alignment, AlignError> {
+        self.search_words(samples, rate, text).map(|(a, _, _)| a)
+    }
+
+    /// Aligns as [`Aligner::align`] and scores how well the words fit the sound
+    /// ([`WordFit`]) against the free phone loop `lm` over the same features.
+    pub fn align_checked(
+        &self,
+        samples: &[f32],
+        rate: u32,
+        text: &str,
+        lm: &PhoneLoop,
+    ) -> Result<(Alignment, WordFit), AlignError> {
+        let (alignment, forced, feats) = self.search_words(samples, rate, text)?;
+        let graph = search::Graph::phone_loop(&self.model, &lm.transition);
+        let free = search::viterbi(&self.model, &graph, &feats).ok_or(AlignError::NoPath)?;
+        let frames = feats.len();
+        let per_frame = |start: f64, end: f64| {
+            let (a, b) = (start * 100.0, end * 100.0);
+            let forced = forced.up_to(b, frames) - forced.up_to(a, frames);
+            let free = free.up_to(b, frames) - free.up_to(a, frames);
+            (forced - free) / (b - a).max(1.0)
+        };
+        let words = alignment
+            .words
+            .iter()
+            .map(|w| per_frame(w.start, w.end))
+            .collect();
+        let overall = per_frame(0.0, frames as f64 / 100.0);
+        Ok((alignment, WordFit { words, overall }))
+    }
+
+    /// The words' search: the alignment, its best path and the features it ran over.
+    fn search_words(
+        &self,
+        samples: &[f32],
+        rate: u32,
+        text: &str,
+    ) -> Result<(Alignment, search::Path, Vec<[f32; frontend::FEATURE_DIM]>), AlignError> {
         if rate != frontend::SAMPLE_RATE {
             return Err(AlignError::SampleRate(rate));
         }
@@ -236,7 +274,8 @@ impl Aligner {
         }
         let graph = search::Graph::build(&self.model, &words, &prons);
         let path = search::viterbi(&self.model, &graph, &feats).ok_or(AlignError::NoPath)?;
-        Ok(graph.alignment(&self.model, &words, path, feats.len()))
+        let alignment = graph.alignment(&self.model, &words, &path, feats.len());
+        Ok((alignment, path, feats))
     }
 
     /// The front end's features of `samples` (16 kHz), after the checks every search needs:
@@ -315,6 +354,42 @@ pub fn segments(phones: &[TimedPhone]) -> Vec<Segment> {
             phone: Phone::parse(&p.phone).unwrap_or(Phone::SIL),
         })
         .collect()
+}
+
+/// How well words fit their sound (goodness of pronunciation): per word, the forced
+/// alignment's log-likelihood over the word's frames minus the free phone loop's over the
+/// same frames, per frame (nats). Near 0 when the words were said — the loop can only do a
+/// little better than the right phones — and far below when they were not.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct WordFit {
+    /// Per aligned word, in order.
+    pub words: Vec<f64>,
+    /// Over the whole recording.
+    pub overall: f64,
+}
+
+/// Least [`WordFit::overall`] of words that match their sound, nats per frame (chosen on GRID
+/// s1's validation split: BENCHMARKS "Do the words match the speech?").
+pub const LEAST_OVERALL_FIT: f64 = 0.35;
+
+/// Least fit of any one word of a matching transcript, nats per frame (as
+/// [`LEAST_OVERALL_FIT`]).
+pub const LEAST_WORD_FIT: f64 = -12.5;
+
+impl WordFit {
+    /// Whether the words match the sound: the whole at least [`LEAST_OVERALL_FIT`] and no
+    /// word below [`LEAST_WORD_FIT`].
+    pub fn matches(&self) -> bool {
+        self.overall >= LEAST_OVERALL_FIT && self.words.iter().all(|&w| w >= LEAST_WORD_FIT)
+    }
+
+    /// The indices of the `n` worst-fitting words, worst first.
+    pub fn worst(&self, n: usize) -> Vec<usize> {
+        let mut order: Vec<usize> = (0..self.words.len()).collect();
+        order.sort_by(|&a, &b| self.words[a].total_cmp(&self.words[b]));
+        order.truncate(n);
+        order
+    }
 }
 
 /// Language weight of the phone bigram in [`Aligner::recognise`] (chosen on GRID s1's

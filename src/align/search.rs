@@ -273,7 +273,7 @@ impl Graph {
         &self,
         model: &AcousticModel,
         words: &[String],
-        path: Path,
+        path: &Path,
         frames: usize,
     ) -> Alignment {
         let mut phones = Vec::with_capacity(path.entries.len());
@@ -319,7 +319,32 @@ impl Graph {
 /// The best path: (HMM, first frame) in order, and its log-likelihood.
 pub(super) struct Path {
     entries: Vec<(u32, u32)>,
+    /// The path's log-likelihood up to each entry (the frames before it).
+    entry_scores: Vec<f64>,
     score: f64,
+}
+
+impl Path {
+    /// The log-likelihood of the path's first `frame` frames (of `frames`): exact at each
+    /// HMM's entry, linear in between (the HMM's frames share its score evenly).
+    pub(super) fn up_to(&self, frame: f64, frames: usize) -> f64 {
+        let at = |k: usize| -> (f64, f64) {
+            match self.entries.get(k) {
+                Some(e) => (f64::from(e.1), self.entry_scores[k]),
+                None => (frames as f64, self.score),
+            }
+        };
+        let k = self
+            .entries
+            .iter()
+            .rposition(|e| f64::from(e.1) <= frame)
+            .unwrap_or(0);
+        let ((f0, s0), (f1, s1)) = (at(k), at(k + 1));
+        if f1 <= f0 {
+            return s1;
+        }
+        s0 + (s1 - s0) * ((frame - f0) / (f1 - f0)).clamp(0.0, 1.0)
+    }
 }
 
 /// Senone scores of one frame, computed on demand: per codebook and stream the top-N
@@ -440,8 +465,8 @@ pub(super) fn viterbi(
     let mut next_hist = vec![[NONE; STATES]; n];
     let mut exit = vec![(ninf, NONE); n];
     let mut active = vec![false; n];
-    // (node, first frame, previous record)
-    let mut records: Vec<(u32, u32, u32)> = Vec::new();
+    // (node, first frame, previous record, score on entry)
+    let mut records: Vec<(u32, u32, u32, f32)> = Vec::new();
     let mut start_cost = vec![ninf; n];
     for &(h, c) in &g.start {
         start_cost[h as usize] = c;
@@ -488,7 +513,7 @@ pub(super) fn viterbi(
                 }
                 if j == 0 && entry > v {
                     v = entry;
-                    records.push((h as u32, t as u32, entry_hist));
+                    records.push((h as u32, t as u32, entry_hist, entry));
                     from = (records.len() - 1) as u32;
                 }
                 if v > ninf {
@@ -528,15 +553,18 @@ pub(super) fn viterbi(
     if at == NONE {
         return None;
     }
-    let mut entries = Vec::new();
+    let (mut entries, mut entry_scores) = (Vec::new(), Vec::new());
     while at != NONE {
-        let (node, start, prev) = records[at as usize];
+        let (node, start, prev, entered) = records[at as usize];
         entries.push((node, start));
+        entry_scores.push(f64::from(entered));
         at = prev;
     }
     entries.reverse();
+    entry_scores.reverse();
     Some(Path {
         entries,
+        entry_scores,
         score: best as f64,
     })
 }

@@ -51,12 +51,17 @@ pub fn run(a: AlignArgs) -> Result<()> {
     let aligner = Aligner::load(&dir, &a.dicts)?;
     let loaded = started.elapsed().as_secs_f64();
     let speech = audio::read(&a.audio, align::frontend::SAMPLE_RATE, align::MAX_SECONDS)?;
+    let lm = aligner.phone_loop(align::PHONE_WEIGHT, align::PHONE_PENALTY);
+    let mut fit = None;
     let result = match &text {
-        Some(text) => aligner
-            .align(&speech.samples, speech.rate, text)
-            .with_context(|| format!("aligning {}", a.audio.display()))?,
+        Some(text) => {
+            let (alignment, f) = aligner
+                .align_checked(&speech.samples, speech.rate, text, &lm)
+                .with_context(|| format!("aligning {}", a.audio.display()))?;
+            fit = Some(f);
+            alignment
+        }
         None => {
-            let lm = aligner.phone_loop(align::PHONE_WEIGHT, align::PHONE_PENALTY);
             let phones = aligner
                 .recognise(&speech.samples, speech.rate, &lm)
                 .with_context(|| format!("recognising the phones of {}", a.audio.display()))?;
@@ -81,8 +86,23 @@ pub fn run(a: AlignArgs) -> Result<()> {
         loaded * 1e3,
         started.elapsed().as_secs_f64() * 1e3
     );
-    for w in &result.words {
-        println!("  {:>7.2} {:>7.2}  {}", w.start, w.end, w.word);
+    for (k, w) in result.words.iter().enumerate() {
+        let f = fit.as_ref().map_or(String::new(), |f| format!("  fit {:+.2}", f.words[k]));
+        println!("  {:>7.2} {:>7.2}  {}{f}", w.start, w.end, w.word);
+    }
+    if let Some(f) = &fit {
+        if f.matches() {
+            println!("the words fit the speech (overall {:+.2} nats/frame)", f.overall);
+        } else {
+            let worst: Vec<&str> =
+                f.worst(3).iter().map(|&k| result.words[k].word.as_str()).collect();
+            println!(
+                "warning: these words may not be what was said (overall fit {:+.2} nats/frame, least {:.2}; worst: {}) — check the transcript, or leave out the words to recognise the phones",
+                f.overall,
+                align::LEAST_OVERALL_FIT,
+                worst.join(", ")
+            );
+        }
     }
     Ok(())
 }

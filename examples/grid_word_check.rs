@@ -1,0 +1,100 @@
+//! Do the words match the speech? (issue 34) Each clip of a GRID s1 split aligned to its own
+//! words and to the words of another clip of the split (the next one), with the goodness of
+//! fit of every word against the free phone loop (`Aligner::align_checked`): the worst word's
+//! and the whole recording's fit, true against false transcripts, to set the threshold on
+//! `validation` and check it on `test`.
+//!
+//! `cargo run --release --example grid_word_check -- ../shared/data/grid-s1 SPLIT [THRESHOLD]`
+
+use std::path::PathBuf;
+
+use facespace::align::{Aligner, PHONE_PENALTY, PHONE_WEIGHT, frontend};
+
+fn words(grid: &std::path::Path, id: &str) -> String {
+    std::fs::read_to_string(grid.join(format!("align/{id}.align")))
+        .unwrap()
+        .lines()
+        .filter_map(|l| l.split_whitespace().nth(2))
+        .filter(|w| *w != "sil" && *w != "sp")
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let grid = PathBuf::from(&args[0]);
+    let split = &args[1];
+    let threshold: Option<f64> = args.get(2).map(|t| t.parse().unwrap());
+    let damaged = std::fs::read_to_string(grid.join("damaged.txt")).unwrap_or_default();
+    let ids: Vec<String> = std::fs::read_to_string(grid.join(format!("{split}.txt")))
+        .unwrap()
+        .split_whitespace()
+        .filter(|id| !damaged.split_whitespace().any(|d| d == *id))
+        .map(str::to_owned)
+        .collect();
+    let aligner = Aligner::load_default(&[]).unwrap();
+    let lm = aligner.phone_loop(PHONE_WEIGHT, PHONE_PENALTY);
+    let (mut truth, mut lies) = (Vec::new(), Vec::new());
+    for (k, id) in ids.iter().enumerate() {
+        let audio = facespace::audio::read(
+            &grid.join(format!("clips/{id}.mp4")),
+            frontend::SAMPLE_RATE,
+            600.0,
+        )
+        .unwrap();
+        let other = &ids[(k + 1) % ids.len()];
+        for (text, out) in [
+            (words(&grid, id), &mut truth),
+            (words(&grid, other), &mut lies),
+        ] {
+            let stats = match aligner.align_checked(&audio.samples, audio.rate, &text, &lm) {
+                Ok((_, fit)) => {
+                    let mut w = fit.words.clone();
+                    w.sort_by(f64::total_cmp);
+                    [
+                        w[0],
+                        w[1],
+                        fit.overall,
+                        w.iter().sum::<f64>() / w.len() as f64,
+                    ]
+                }
+                Err(_) => [f64::NEG_INFINITY; 4],
+            };
+            out.push(stats);
+        }
+    }
+    let show = |name: &str, v: &[[f64; 4]], k: usize| {
+        let mut s: Vec<f64> = v.iter().map(|x| x[k]).collect();
+        s.sort_by(f64::total_cmp);
+        println!(
+            "{name} [{}]: min {:.2}, 5 % {:.2}, median {:.2}, 95 % {:.2}, max {:.2}",
+            ["worst word", "second worst", "overall", "mean word"][k],
+            s[0],
+            s[s.len() / 20],
+            s[s.len() / 2],
+            s[s.len() * 19 / 20],
+            s[s.len() - 1]
+        );
+    };
+    if std::env::var_os("FS_DUMP").is_some() {
+        for (label, v) in [("true", &truth), ("other", &lies)] {
+            for x in v.iter() {
+                eprintln!("{label} {} {} {} {}", x[0], x[1], x[2], x[3]);
+            }
+        }
+    }
+    println!("GRID s1 {split} split (recorded), {} clips", ids.len());
+    for k in 0..4 {
+        show("true transcripts ", &truth, k);
+        show("other sentences' ", &lies, k);
+    }
+    if let Some(t) = threshold {
+        let accepted = truth.iter().filter(|w| w[1] >= t).count();
+        let refused = lies.iter().filter(|w| w[1] < t).count();
+        println!(
+            "threshold {t}: {accepted}/{} true accepted, {refused}/{} other refused",
+            truth.len(),
+            lies.len()
+        );
+    }
+}
