@@ -10,20 +10,6 @@ use std::path::PathBuf;
 use facespace::align::{Aligner, PHONE_PENALTY, PHONE_WEIGHT, frontend};
 use facespace::phonemes::{Phone, PhoneMap, read_htk};
 
-fn edit_distance<T: PartialEq>(a: &[T], b: &[T]) -> usize {
-    let mut row: Vec<usize> = (0..=b.len()).collect();
-    for (i, x) in a.iter().enumerate() {
-        let mut diag = row[0];
-        row[0] = i + 1;
-        for (j, y) in b.iter().enumerate() {
-            let up = row[j + 1];
-            row[j + 1] = (diag + usize::from(x != y)).min(row[j] + 1).min(up + 1);
-            diag = up;
-        }
-    }
-    row[b.len()]
-}
-
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let grid = PathBuf::from(&args[0]);
@@ -87,9 +73,9 @@ fn main() {
                 .filter_map(|p| Phone::parse(&p.phone))
                 .filter(|&p| p != Phone::SIL)
                 .collect();
-            errors += edit_distance(&hyp, reference);
+            errors += facespace::eval::edit_distance(&hyp, reference);
             let v = |s: &[Phone]| s.iter().map(|p| p.viseme()).collect::<Vec<_>>();
-            verrors += edit_distance(&v(&hyp), &v(reference));
+            verrors += facespace::eval::edit_distance(&v(&hyp), &v(reference));
             total += reference.len();
         }
         println!(

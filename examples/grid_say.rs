@@ -19,6 +19,9 @@
 //! `cargo run --release --example grid_say -- ../shared/data/grid-s1 [LIMIT|all] [SPLIT]`
 //! (SPLIT: `test`, the default, or `validation`, where the constants were chosen).
 
+#[path = "common/grid.rs"]
+mod grid;
+
 use std::path::{Path, PathBuf};
 
 use facespace::codec::{self, EncodeOptions};
@@ -30,17 +33,6 @@ use facespace::synth::blend::Blend;
 use facespace::talker::{SayRequest, Speech, Talker};
 use facespace::video::Source;
 use image::RgbImage;
-
-/// A clip's words: `align/ID.align` without `sil` / `sp`.
-fn words(grid: &Path, id: &str) -> String {
-    std::fs::read_to_string(grid.join(format!("align/{id}.align")))
-        .unwrap()
-        .lines()
-        .filter_map(|l| l.split_whitespace().nth(2))
-        .filter(|w| *w != "sil" && *w != "sp")
-        .collect::<Vec<_>>()
-        .join(" ")
-}
 
 /// Every frame of `clip` and its tracked face-space points.
 fn tracked(talker: &Talker, clip: &Path) -> (Vec<RgbImage>, Frames) {
@@ -104,7 +96,7 @@ fn main() {
         let staging = tempfile::tempdir().unwrap();
         let request = SayRequest::new(Speech::Recording {
             audio: clip.clone(),
-            words: words(&grid, id),
+            words: grid::words(&grid, id),
         });
         let p = talker.perform(&request, staging.path()).unwrap();
         let mut rows = Vec::new();

@@ -6,19 +6,12 @@
 //!
 //! `cargo run --release --example grid_word_check -- ../shared/data/grid-s1 SPLIT [THRESHOLD]`
 
+#[path = "common/grid.rs"]
+mod grid;
+
 use std::path::PathBuf;
 
 use facespace::align::{Aligner, PHONE_PENALTY, PHONE_WEIGHT, frontend};
-
-fn words(grid: &std::path::Path, id: &str) -> String {
-    std::fs::read_to_string(grid.join(format!("align/{id}.align")))
-        .unwrap()
-        .lines()
-        .filter_map(|l| l.split_whitespace().nth(2))
-        .filter(|w| *w != "sil" && *w != "sp")
-        .collect::<Vec<_>>()
-        .join(" ")
-}
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -44,8 +37,8 @@ fn main() {
         .unwrap();
         let other = &ids[(k + 1) % ids.len()];
         for (text, out) in [
-            (words(&grid, id), &mut truth),
-            (words(&grid, other), &mut lies),
+            (grid::words(&grid, id), &mut truth),
+            (grid::words(&grid, other), &mut lies),
         ] {
             let stats = match aligner.align_checked(&audio.samples, audio.rate, &text, &lm) {
                 Ok((_, fit)) => {

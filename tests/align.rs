@@ -565,21 +565,6 @@ fn damaged_model_files_are_named() {
     assert!(e.contains("sendump"), "{e}");
 }
 
-/// Edit distance between two sequences (insertions, deletions, substitutions cost 1).
-fn edit_distance<T: PartialEq>(a: &[T], b: &[T]) -> usize {
-    let mut row: Vec<usize> = (0..=b.len()).collect();
-    for (i, x) in a.iter().enumerate() {
-        let mut diag = row[0];
-        row[0] = i + 1;
-        for (j, y) in b.iter().enumerate() {
-            let up = row[j + 1];
-            row[j + 1] = (diag + usize::from(x != y)).min(row[j] + 1).min(up + 1);
-            diag = up;
-        }
-    }
-    row[b.len()]
-}
-
 /// Phones without words (issue 34): on the three committed clips (recorded) the recognised
 /// phones tile the recording and come nearer their reference labels than chance — the phone
 /// error rate stays under 85 % (63.9 % over GRID's test split, BENCHMARKS); and the bad
@@ -606,7 +591,7 @@ fn phones_are_recognised_without_words() {
             .map(|s| s.phone)
             .filter(|&p| p != Phone::SIL)
             .collect();
-        errors += edit_distance(&hyp, &reference);
+        errors += facespace::eval::edit_distance(&hyp, &reference);
         total += reference.len();
     }
     let per = errors as f64 / total as f64;

@@ -251,14 +251,7 @@ impl Aligner {
             return Err(AlignError::NoWords);
         }
         let prons = self.dict.pronunciations(&words, &self.model)?;
-        let seconds = samples.len() as f64 / rate as f64;
-        if seconds > MAX_SECONDS {
-            return Err(AlignError::TooLong {
-                seconds,
-                max: MAX_SECONDS,
-            });
-        }
-        let feats = self.features(samples)?;
+        let feats = self.features(samples, rate)?;
         let phones: usize = prons
             .iter()
             .map(|p| p.iter().map(Vec::len).min().unwrap_or(0))
@@ -278,9 +271,23 @@ impl Aligner {
         Ok((alignment, path, feats))
     }
 
-    /// The front end's features of `samples` (16 kHz), after the checks every search needs:
-    /// finite, long enough, not silent.
-    fn features(&self, samples: &[f32]) -> Result<Vec<[f32; frontend::FEATURE_DIM]>, AlignError> {
+    /// The front end's features of `samples`, after the checks every search needs: 16 kHz,
+    /// at most [`MAX_SECONDS`], finite, long enough, not silent.
+    fn features(
+        &self,
+        samples: &[f32],
+        rate: u32,
+    ) -> Result<Vec<[f32; frontend::FEATURE_DIM]>, AlignError> {
+        if rate != frontend::SAMPLE_RATE {
+            return Err(AlignError::SampleRate(rate));
+        }
+        let seconds = samples.len() as f64 / rate as f64;
+        if seconds > MAX_SECONDS {
+            return Err(AlignError::TooLong {
+                seconds,
+                max: MAX_SECONDS,
+            });
+        }
         if let Some(index) = samples.iter().position(|x| !x.is_finite()) {
             return Err(AlignError::NotFinite { index });
         }
@@ -315,17 +322,7 @@ impl Aligner {
         rate: u32,
         lm: &PhoneLoop,
     ) -> Result<Vec<TimedPhone>, AlignError> {
-        if rate != frontend::SAMPLE_RATE {
-            return Err(AlignError::SampleRate(rate));
-        }
-        let seconds = samples.len() as f64 / rate as f64;
-        if seconds > MAX_SECONDS {
-            return Err(AlignError::TooLong {
-                seconds,
-                max: MAX_SECONDS,
-            });
-        }
-        let feats = self.features(samples)?;
+        let feats = self.features(samples, rate)?;
         let graph = search::Graph::phone_loop(&self.model, &lm.transition);
         let path = search::viterbi(&self.model, &graph, &feats).ok_or(AlignError::NoPath)?;
         Ok(graph.phones(&self.model, &path, feats.len()))

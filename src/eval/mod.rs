@@ -105,6 +105,22 @@ pub fn mouth_height(points: &[Point]) -> f64 {
     hi - lo
 }
 
+/// Edit (Levenshtein) distance between two sequences: insertions, deletions and
+/// substitutions cost 1 — the numerator of a phone error rate.
+pub fn edit_distance<T: PartialEq>(a: &[T], b: &[T]) -> usize {
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, x) in a.iter().enumerate() {
+        let mut diag = row[0];
+        row[0] = i + 1;
+        for (j, y) in b.iter().enumerate() {
+            let up = row[j + 1];
+            row[j + 1] = (diag + usize::from(x != y)).min(row[j] + 1).min(up + 1);
+            diag = up;
+        }
+    }
+    row[b.len()]
+}
+
 /// Landmarks of every frame of a face-space sequence.
 pub fn landmarks(model: &FaceModel, frames: &Frames) -> Vec<Vec<Point>> {
     frames
@@ -205,6 +221,20 @@ mod tests {
         // Hand-computed: x = (1,2,3,4), y = (1,3,2,4): r = 0.8.
         assert!((pearson(&[1.0, 2.0, 3.0, 4.0], &[1.0, 3.0, 2.0, 4.0]) - 0.8).abs() < 1e-12);
         assert_eq!(pearson(&[1.0, 1.0], &[1.0, 2.0]), 0.0);
+    }
+
+    /// Levenshtein's textbook cases: kitten → sitting 3, flaw → lawn 2, to or from nothing
+    /// the other's length, a copy 0.
+    #[test]
+    fn edit_distance_known_values() {
+        let d = |a: &str, b: &str| {
+            edit_distance(&a.chars().collect::<Vec<_>>(), &b.chars().collect::<Vec<_>>())
+        };
+        assert_eq!(d("kitten", "sitting"), 3);
+        assert_eq!(d("flaw", "lawn"), 2);
+        assert_eq!(d("", "abc"), 3);
+        assert_eq!(d("abc", ""), 3);
+        assert_eq!(d("same", "same"), 0);
     }
 
     #[test]
