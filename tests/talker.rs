@@ -418,3 +418,47 @@ fn footage_under_a_second_is_refused() {
         .unwrap_err();
     assert!(err.to_string().contains("at least 1 s"), "{err}");
 }
+
+/// `say --audio` with the words of another sentence is refused before anything is written,
+/// naming words that were not said and the way on (issue 34); `--accept-mismatch` takes them.
+#[test]
+fn say_refuses_words_that_were_not_said() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = common::root().join("tests/data/grid");
+    let out = dir.path().join("wrong.mp4");
+    let args = |extra: &[&str]| {
+        let mut v = vec![
+            "say".to_owned(),
+            "--audio".into(),
+            data.join("bbbf9a.mp4").to_string_lossy().into_owned(),
+            "--transcript".into(),
+            data.join("bbwtzp.txt").to_string_lossy().into_owned(),
+            "--renderer".into(),
+            "cpu".into(),
+            "-o".into(),
+            out.to_string_lossy().into_owned(),
+        ];
+        v.extend(extra.iter().map(|s| s.to_string()));
+        v
+    };
+    let run = |a: Vec<String>| {
+        let refs: Vec<&str> = a.iter().map(String::as_str).collect();
+        common::facespace(&refs)
+    };
+    let o = run(args(&[]));
+    assert!(!o.status.success());
+    let said = common::text(&o);
+    assert!(said.contains("do not seem to be what is said"), "{said}");
+    assert!(said.contains("--accept-mismatch"), "{said}");
+    let spoken = std::fs::read_to_string(data.join("bbbf9a.txt")).unwrap();
+    let worst = said.split("worst: ").nth(1).unwrap().split(')').next().unwrap();
+    assert!(
+        worst.split(", ").any(|w| !spoken.split_whitespace().any(|s| s == w)),
+        "{worst}"
+    );
+    assert!(!out.exists());
+    assert!(std::fs::read_dir(dir.path()).unwrap().next().is_none(), "nothing left behind");
+    let o = run(args(&["--accept-mismatch"]));
+    assert!(o.status.success(), "{}", common::text(&o));
+    assert!(out.is_file());
+}

@@ -47,6 +47,10 @@ pub struct SayArgs {
     /// Extra pronunciations for the aligner (`WORD  P H O N E S` lines); may repeat.
     #[arg(long = "dict")]
     dicts: Vec<PathBuf>,
+    /// Use the words of --audio even when they do not seem to be what is said (by default
+    /// such a request is refused, naming the worst words).
+    #[arg(long)]
+    accept_mismatch: bool,
     /// Which of the living frames that join best (they open on different takes).
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -104,6 +108,7 @@ pub fn run(a: SayArgs) -> Result<()> {
         renderer: a.renderer.choice(),
         seed: a.seed,
         parts: a.parts.clone(),
+        accept_mismatch: a.accept_mismatch,
         ..SayRequest::new(speech)
     };
     let (bar, progress) = progress_bar();

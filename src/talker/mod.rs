@@ -197,6 +197,20 @@ pub enum TalkerError {
         /// The cause (boxed: the error enum travels in every result).
         source: Box<crate::align::AlignError>,
     },
+    /// A recording's words do not seem to be what is said.
+    #[error(
+        "{path}: the words do not seem to be what is said (fit {overall:+.2} nats/frame, least {least}; worst: {worst}) — fix the transcript, leave out the words to recognise the phones from the sound, or accept them anyway (--accept-mismatch)"
+    )]
+    Mismatch {
+        /// The recording.
+        path: PathBuf,
+        /// The whole recording's fit ([`crate::align::WordFit::overall`]).
+        overall: f64,
+        /// The least a matching transcript has.
+        least: f64,
+        /// The worst-fitting words, worst first.
+        worst: String,
+    },
     /// The recordings could not be made a corpus.
     #[error("the corpus of {dir}: {source}")]
     Corpus {
@@ -296,6 +310,9 @@ pub struct SayRequest {
     pub seed: u64,
     /// Also write the folder of parts here (trajectory, frames, plot, report).
     pub parts: Option<PathBuf>,
+    /// Use a recording's words even when they do not seem to be what is said
+    /// ([`crate::align::WordFit::matches`]); by default such a request is refused.
+    pub accept_mismatch: bool,
 }
 
 impl SayRequest {
@@ -308,6 +325,7 @@ impl SayRequest {
             renderer: RendererChoice::Auto,
             seed: 0,
             parts: None,
+            accept_mismatch: false,
         }
     }
 }
@@ -461,8 +479,39 @@ impl Talker {
                 }
                 (align(&wav, text)?, Some(text.clone()), Some(wav))
             }
-            Speech::Recording { audio, words } => {
+            Speech::Recording { audio, words } if request.accept_mismatch => {
                 (align(audio, words)?, Some(words.clone()), Some(audio.clone()))
+            }
+            Speech::Recording { audio, words } => {
+                let failed = |e| TalkerError::Align {
+                    path: audio.clone(),
+                    source: Box::new(e),
+                };
+                let aligner = crate::align::Aligner::load_default(&request.dicts).map_err(failed)?;
+                let lm = aligner.phone_loop(crate::align::PHONE_WEIGHT, crate::align::PHONE_PENALTY);
+                let sound = crate::audio::read(
+                    audio,
+                    crate::align::frontend::SAMPLE_RATE,
+                    crate::align::MAX_SECONDS,
+                )
+                .map_err(|e| failed(e.into()))?;
+                let (alignment, fit) = aligner
+                    .align_checked(&sound.samples, sound.rate, words, &lm)
+                    .map_err(failed)?;
+                if !fit.matches() {
+                    let worst: Vec<&str> = fit
+                        .worst(3)
+                        .iter()
+                        .map(|&k| alignment.words[k].word.as_str())
+                        .collect();
+                    return Err(TalkerError::Mismatch {
+                        path: audio.clone(),
+                        overall: fit.overall,
+                        least: crate::align::LEAST_OVERALL_FIT,
+                        worst: worst.join(", "),
+                    });
+                }
+                (alignment.segments(), Some(words.clone()), Some(audio.clone()))
             }
             Speech::Sound(audio) => {
                 let failed = |e| TalkerError::Align {
