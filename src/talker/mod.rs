@@ -459,6 +459,23 @@ impl Talker {
                     source: Box::new(e),
                 })
         };
+        // The aligner, its free phone loop and the sound of a recording, for the checks and
+        // the recognition that need all three.
+        let heard = |audio: &Path| {
+            let failed = |e| TalkerError::Align {
+                path: audio.to_path_buf(),
+                source: Box::new(e),
+            };
+            let aligner = crate::align::Aligner::load_default(&request.dicts).map_err(failed)?;
+            let lm = aligner.phone_loop(crate::align::PHONE_WEIGHT, crate::align::PHONE_PENALTY);
+            let sound = crate::audio::read(
+                audio,
+                crate::align::frontend::SAMPLE_RATE,
+                crate::align::MAX_SECONDS,
+            )
+            .map_err(|e| failed(e.into()))?;
+            Ok::<_, TalkerError>((aligner, lm, sound))
+        };
         Ok(match &request.speech {
             Speech::Text(text) => {
                 let wav = staging.join("speech.wav");
@@ -487,14 +504,7 @@ impl Talker {
                     path: audio.clone(),
                     source: Box::new(e),
                 };
-                let aligner = crate::align::Aligner::load_default(&request.dicts).map_err(failed)?;
-                let lm = aligner.phone_loop(crate::align::PHONE_WEIGHT, crate::align::PHONE_PENALTY);
-                let sound = crate::audio::read(
-                    audio,
-                    crate::align::frontend::SAMPLE_RATE,
-                    crate::align::MAX_SECONDS,
-                )
-                .map_err(|e| failed(e.into()))?;
+                let (aligner, lm, sound) = heard(audio)?;
                 let (alignment, fit) = aligner
                     .align_checked(&sound.samples, sound.rate, words, &lm)
                     .map_err(failed)?;
@@ -518,14 +528,7 @@ impl Talker {
                     path: audio.clone(),
                     source: Box::new(e),
                 };
-                let aligner = crate::align::Aligner::load_default(&request.dicts).map_err(failed)?;
-                let lm = aligner.phone_loop(crate::align::PHONE_WEIGHT, crate::align::PHONE_PENALTY);
-                let sound = crate::audio::read(
-                    audio,
-                    crate::align::frontend::SAMPLE_RATE,
-                    crate::align::MAX_SECONDS,
-                )
-                .map_err(|e| failed(e.into()))?;
+                let (aligner, lm, sound) = heard(audio)?;
                 let phones = aligner
                     .recognise(&sound.samples, sound.rate, &lm)
                     .map_err(failed)?;
