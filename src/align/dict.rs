@@ -220,10 +220,8 @@ fn parse_pron(
 ) -> Result<Vec<u8>, String> {
     let mut pron = Vec::new();
     for p in phones {
-        let name = p
-            .trim_end_matches(|c: char| c.is_ascii_digit())
-            .to_ascii_uppercase();
-        match model.ci(&name).filter(|&c| !model.is_filler(c)) {
+        let name = p.trim_end_matches(|c: char| c.is_ascii_digit());
+        match model.ci(name).filter(|&c| !model.is_filler(c)) {
             Some(c) => pron.push(c as u8),
             None => return Err(format!("{p:?} is not a phone of the acoustic model")),
         }

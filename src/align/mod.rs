@@ -168,6 +168,9 @@ pub struct Aligner {
     /// Its pronouncing dictionary with the user's additions.
     pub dict: Dictionary,
     frontend: frontend::FrontEnd,
+    /// The dictionary's phone bigram, `ln P(b | a)`, estimated when first needed
+    /// ([`PhoneLoop::log_bigram`]): it depends on the dictionary alone, not on the weights.
+    bigram: std::sync::OnceLock<Vec<Vec<f64>>>,
 }
 
 /// The committed en-us model folder.
@@ -188,6 +191,7 @@ impl Aligner {
             model,
             dict,
             frontend: frontend::FrontEnd::new(),
+            bigram: std::sync::OnceLock::new(),
         })
     }
 
@@ -218,8 +222,7 @@ impl Aligner {
         lm: &PhoneLoop,
     ) -> Result<(Alignment, WordFit), AlignError> {
         let (alignment, forced, feats) = self.search_words(samples, rate, text)?;
-        let graph = search::Graph::phone_loop(&self.model, &lm.transition);
-        let free = search::viterbi(&self.model, &graph, &feats).ok_or(AlignError::NoPath)?;
+        let (_, free) = self.free_path(&feats, lm)?;
         let frames = feats.len();
         let per_frame = |start: f64, end: f64| {
             let (a, b) = (start * 100.0, end * 100.0);
@@ -323,21 +326,32 @@ impl Aligner {
         lm: &PhoneLoop,
     ) -> Result<Vec<TimedPhone>, AlignError> {
         let feats = self.features(samples, rate)?;
-        let graph = search::Graph::phone_loop(&self.model, &lm.transition);
-        let path = search::viterbi(&self.model, &graph, &feats).ok_or(AlignError::NoPath)?;
+        let (graph, path) = self.free_path(&feats, lm)?;
         Ok(graph.phones(&self.model, &path, feats.len()))
     }
 
-    /// A phone loop weighted by a phone bigram estimated from this aligner's dictionary
-    /// ([`PhoneLoop::estimate`]).
+    /// The best path of the phone loop `lm` over `feats`, and the loop's graph.
+    fn free_path(
+        &self,
+        feats: &[[f32; frontend::FEATURE_DIM]],
+        lm: &PhoneLoop,
+    ) -> Result<(search::Graph, search::Path), AlignError> {
+        let graph = search::Graph::phone_loop(&self.model, &lm.transition);
+        let path = search::viterbi(&self.model, &graph, feats).ok_or(AlignError::NoPath)?;
+        Ok((graph, path))
+    }
+
+    /// A phone loop weighted by the phone bigram of this aligner's dictionary
+    /// ([`PhoneLoop::log_bigram`], estimated once per aligner).
     pub fn phone_loop(&self, weight: f64, penalty: f64) -> PhoneLoop {
-        PhoneLoop::estimate(
-            &self.dict.every_pronunciation(&self.model),
-            self.model.ci_names.len(),
-            self.model.sil,
-            weight,
-            penalty,
-        )
+        let bigram = self.bigram.get_or_init(|| {
+            PhoneLoop::log_bigram(
+                &self.dict.every_pronunciation(&self.model),
+                self.model.ci_names.len(),
+                self.model.sil,
+            )
+        });
+        PhoneLoop::weighted(bigram, weight, penalty)
     }
 }
 
@@ -405,17 +419,11 @@ pub struct PhoneLoop {
 }
 
 impl PhoneLoop {
-    /// The phone bigram of a pronouncing dictionary, each pronunciation once: counts within
-    /// words, silence before the first and after the last phone, and — for words spoken
-    /// without a pause between them — each word-final phone followed by the distribution of
-    /// word-initial ones (weighted as much as the pauses); add-one smoothed.
-    pub fn estimate(
-        prons: &[Vec<u8>],
-        phones: usize,
-        sil: usize,
-        weight: f64,
-        penalty: f64,
-    ) -> Self {
+    /// The phone bigram `ln P(b | a)` of a pronouncing dictionary, each pronunciation once:
+    /// counts within words, silence before the first and after the last phone, and — for
+    /// words spoken without a pause between them — each word-final phone followed by the
+    /// distribution of word-initial ones (weighted as much as the pauses); add-one smoothed.
+    pub fn log_bigram(prons: &[Vec<u8>], phones: usize, sil: usize) -> Vec<Vec<f64>> {
         let mut counts = vec![vec![1.0f64; phones]; phones];
         let (mut first, mut last) = (vec![0.0f64; phones], vec![0.0f64; phones]);
         for p in prons.iter().filter(|p| !p.is_empty()) {
@@ -434,14 +442,20 @@ impl PhoneLoop {
                 counts[a][b] += last[a] * first[b] / starts;
             }
         }
-        let transition = counts
+        counts
             .iter()
             .map(|row| {
                 let total: f64 = row.iter().sum();
-                row.iter()
-                    .map(|&c| (weight * (c / total).ln() + penalty) as f32)
-                    .collect()
+                row.iter().map(|&c| (c / total).ln()).collect()
             })
+            .collect()
+    }
+
+    /// The loop's costs from a bigram: `weight · ln P(b | a) + penalty`.
+    pub fn weighted(log_bigram: &[Vec<f64>], weight: f64, penalty: f64) -> Self {
+        let transition = log_bigram
+            .iter()
+            .map(|row| row.iter().map(|&l| (weight * l + penalty) as f32).collect())
             .collect();
         PhoneLoop { transition }
     }

@@ -226,7 +226,7 @@ impl AcousticModel {
 
     /// The CI phone id of an ARPAbet name (`AA`, `SIL`, …).
     pub fn ci(&self, name: &str) -> Option<usize> {
-        self.ci_names.iter().position(|n| n == name)
+        self.ci_names.iter().position(|n| n.eq_ignore_ascii_case(name))
     }
 
     /// Whether a CI phone is a filler (silence or noise).
