@@ -248,11 +248,27 @@ impl ShapeModel {
         pose: &Similarity,
         landmarks: &Landmarks,
     ) -> Result<Vec<f32>, ShapeError> {
+        Ok(self.pca.project(&self.unposed(pose, landmarks)?))
+    }
+
+    /// [`Self::project_at`] by a weighted least-squares projection (made with
+    /// [`crate::pca::PcaModel::weighted`] from this model's PCA), which favours some landmarks.
+    pub fn project_at_weighted(
+        &self,
+        pose: &Similarity,
+        landmarks: &Landmarks,
+        projection: &crate::pca::WeightedProjection,
+    ) -> Result<Vec<f32>, ShapeError> {
+        Ok(projection.project(&self.pca, &self.unposed(pose, landmarks)?))
+    }
+
+    /// `pose⁻¹(x)`, flat, after checking the landmark count.
+    fn unposed(&self, pose: &Similarity, landmarks: &Landmarks) -> Result<Vec<f32>, ShapeError> {
         landmarks.validate(Some(self.n_landmarks()), "landmarks")?;
         let aligned = Landmarks {
             points: pose.invert().apply_all(&landmarks.points),
         };
-        Ok(self.pca.project(&aligned.to_flat()))
+        Ok(aligned.to_flat())
     }
 
     /// Landmarks of `pose(x̄ + P_s b_s)`.

@@ -384,11 +384,9 @@ pub fn anchor(
                 })
                 .collect(),
         };
-        composite.validate(Some(n), "anchored landmarks")?;
-        let aligned = Landmarks {
-            points: pose.invert().apply_all(&composite.points),
-        };
-        let b = projection.project(&model.shape.pca, &aligned.to_flat());
+        let b = model
+            .shape
+            .project_at_weighted(&pose, &composite, &projection)?;
         let mut row = frames.values_mut();
         let mut row = row.row_mut(t);
         for (k, v) in layout.shape_range().zip(b) {
