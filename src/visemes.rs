@@ -207,17 +207,8 @@ pub fn cues(
     }
     let end = (duration * 100.0 + 1e-6).floor() as u32;
     let rest = extended.map(Shape::X);
-    let mut covered: Vec<Cue> = Vec::new();
+    let mut out: Vec<Cue> = Vec::new();
     let mut at = 0;
-    let add = |start: u32, stop: u32, shape: Shape, covered: &mut Vec<Cue>| {
-        if stop > start {
-            covered.push(Cue {
-                start,
-                end: stop,
-                shape,
-            });
-        }
-    };
     for (i, s) in segments.iter().enumerate() {
         // /hh/ breathes into the next sounding phone's shape.
         let shape = Shape::of_phone(s.phone)
@@ -229,18 +220,11 @@ pub fn cues(
             })
             .unwrap_or(Shape::C);
         let (a, b) = (centiseconds(s.start).min(end), centiseconds(s.end).min(end));
-        add(at, a, rest, &mut covered);
-        add(at.max(a), b, extended.map(shape), &mut covered);
+        join(&mut out, at, a, rest);
+        join(&mut out, at.max(a), b, extended.map(shape));
         at = at.max(b);
     }
-    add(at, end, rest, &mut covered);
-    let mut out: Vec<Cue> = Vec::with_capacity(covered.len());
-    for c in covered {
-        match out.last_mut() {
-            Some(last) if last.shape == c.shape => last.end = c.end,
-            _ => out.push(c),
-        }
-    }
+    join(&mut out, at, end, rest);
     if out.is_empty() {
         out.push(Cue {
             start: 0,
@@ -249,6 +233,18 @@ pub fn cues(
         });
     }
     Ok(out)
+}
+
+/// Appends `shape` from `start` to `end` (centiseconds) to contiguous cues, extending the last
+/// one when it has the same shape; an empty span adds nothing.
+fn join(cues: &mut Vec<Cue>, start: u32, end: u32, shape: Shape) {
+    if end <= start {
+        return;
+    }
+    match cues.last_mut() {
+        Some(last) if last.shape == shape => last.end = end,
+        _ => cues.push(Cue { start, end, shape }),
+    }
 }
 
 /// Re-chooses the degree of opening (B, C or D) of each cue from the mouth opening a talker's
@@ -272,10 +268,7 @@ pub fn open_by_face(
                 .unwrap_or(0);
             shape = [Shape::B, Shape::C, Shape::D][nearest];
         }
-        match out.last_mut() {
-            Some(last) if last.shape == shape => last.end = c.end,
-            _ => out.push(Cue { shape, ..*c }),
-        }
+        join(&mut out, c.start, c.end, shape);
     }
     out
 }
@@ -366,16 +359,16 @@ pub fn dat(
 /// The inner-mouth height of each frame's shape without its pose (iBUG 61–63 over 67–65, in
 /// the shape model's units): the opening the face makes, whatever the head does.
 pub fn openings(model: &crate::model::FaceModel, frames: &crate::facespace::Frames) -> Vec<f64> {
-    frames
-        .iter()
-        .map(|p| {
-            let points = model
-                .shape
-                .instance(&crate::shape::Similarity::IDENTITY, p.shape)
-                .points;
-            crate::eval::mouth::inner_mouth_height(&points)
-        })
-        .collect()
+    frames.iter().map(|p| opening(model, p.shape)).collect()
+}
+
+/// The opening of one shape (`b_s`) without its pose; see [`openings`].
+fn opening(model: &crate::model::FaceModel, shape: &[f32]) -> f64 {
+    let points = model
+        .shape
+        .instance(&crate::shape::Similarity::IDENTITY, shape)
+        .points;
+    crate::eval::mouth::inner_mouth_height(&points)
 }
 
 /// A talker's typical opening ([`openings`]) for B, C and D: the median, over its codebook's
@@ -396,8 +389,7 @@ pub fn face_levels(
             for g in s.segments.iter().filter(|g| g.phone == phone) {
                 let t = ((0.5 * (g.start + g.end)) * codebook.fps).round() as usize;
                 if t < s.frames.len() {
-                    let one = s.frames.slice(t..t + 1);
-                    heights.extend(openings(model, &one));
+                    heights.push(opening(model, s.frames.params(t).shape));
                 }
             }
         }
