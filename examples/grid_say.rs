@@ -21,44 +21,18 @@
 
 #[path = "common/grid.rs"]
 mod grid;
+#[path = "common/track.rs"]
+mod track;
 
 use std::path::{Path, PathBuf};
 
-use facespace::codec::{self, EncodeOptions};
 use facespace::eval::mouth::{MouthPc, inner_mouth_height, lip_motion, mouth_sharpness};
 use facespace::eval::{pearson, standard_deviation};
 use facespace::facespace::Frames;
 use facespace::render::{CpuRenderer, DEFAULT_FEATHER, Edge, Renderer};
 use facespace::synth::blend::Blend;
 use facespace::talker::{SayRequest, Speech, Talker};
-use facespace::video::Source;
 use image::RgbImage;
-
-/// Every frame of `clip` and its tracked face-space points.
-fn tracked(talker: &Talker, clip: &Path) -> (Vec<RgbImage>, Frames) {
-    let model = &talker.model;
-    let source = Source::open(clip).unwrap();
-    let fps = source.info().fps;
-    let (mut images, mut rows) = (Vec::new(), Vec::new());
-    codec::track(
-        model,
-        source,
-        &EncodeOptions::default(),
-        facespace::no_progress,
-        |image, t| {
-            let start = rows.len();
-            rows.resize(start + model.layout().dims(), 0.0);
-            model.project_into(&image, &t.landmarks, &mut rows[start..])?;
-            images.push(image);
-            Ok(())
-        },
-    )
-    .unwrap();
-    (
-        images,
-        Frames::from_rows(model.layout(), fps, rows).unwrap(),
-    )
-}
 
 struct Sentence {
     real: Frames,
@@ -103,7 +77,7 @@ fn main() {
     let mut sentences = Vec::new();
     for id in &ids {
         let clip = grid.join(format!("clips/{id}.mp4"));
-        let (real_images, real) = tracked(&talker, &clip);
+        let (real_images, real, _) = track::tracked(&talker.model, &clip);
         let staging = tempfile::tempdir().unwrap();
         // The corpus's own words: scored as given, never refused.
         let request = SayRequest {

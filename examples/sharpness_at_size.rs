@@ -6,14 +6,14 @@
 //! `cargo run --release --example sharpness_at_size -- MODEL CLIP [MODEL CLIP …]` (CLIP: a
 //! video or a folder of frames).
 
+#[path = "common/track.rs"]
+mod track;
+
 use std::path::PathBuf;
 
-use facespace::codec::{self, EncodeOptions};
 use facespace::eval::mouth::mouth_sharpness;
-use facespace::facespace::Frames;
 use facespace::model::FaceModel;
 use facespace::render::{Background, CpuRenderer, DEFAULT_FEATHER, Edge, Renderer};
-use facespace::video::Source;
 
 fn main() {
     let args: Vec<PathBuf> = std::env::args().skip(1).map(PathBuf::from).collect();
@@ -23,25 +23,7 @@ fn main() {
     println!("|---|---|---|---|---|");
     for pair in args.chunks(2) {
         let model = FaceModel::load(&pair[0]).unwrap();
-        let source = Source::open(&pair[1]).unwrap();
-        let fps = source.info().fps;
-        let (mut images, mut rows, mut marks) = (Vec::new(), Vec::new(), Vec::new());
-        codec::track(
-            &model,
-            source,
-            &EncodeOptions::default(),
-            facespace::no_progress,
-            |image, t| {
-                let start = rows.len();
-                rows.resize(start + model.layout().dims(), 0.0);
-                model.project_into(&image, &t.landmarks, &mut rows[start..])?;
-                marks.push(t.landmarks.points.clone());
-                images.push(image);
-                Ok(())
-            },
-        )
-        .unwrap();
-        let frames = Frames::from_rows(model.layout(), fps, rows).unwrap();
+        let (images, frames, marks) = track::tracked(&model, &pair[1]);
         let renderer = CpuRenderer::with_edge(&model, Edge::Articulators(DEFAULT_FEATHER));
         let size = images[0].dimensions();
         let drawn = facespace::render::images(
