@@ -263,6 +263,9 @@ pub struct Talker {
     pub codebook: Codebook,
     /// The idle footage.
     pub footage: Footage,
+    /// The aligner with the committed dictionary, loaded when first needed and kept, with the
+    /// phone bigram it estimates, for every later request without extra dictionaries.
+    aligner: std::sync::OnceLock<crate::align::Aligner>,
 }
 
 /// What the face speaks.
@@ -439,7 +442,17 @@ impl Talker {
             model,
             codebook,
             footage,
+            aligner: std::sync::OnceLock::new(),
         })
+    }
+
+    /// The talker's own aligner (the committed dictionary), loaded on first use and kept.
+    fn default_aligner(&self) -> Result<&crate::align::Aligner, crate::align::AlignError> {
+        if let Some(a) = self.aligner.get() {
+            return Ok(a);
+        }
+        let loaded = crate::align::Aligner::load_default(&[])?;
+        Ok(self.aligner.get_or_init(|| loaded))
     }
 
     /// The phones of `speech` and the sound to put under them, made in `staging` when the
@@ -450,8 +463,20 @@ impl Talker {
         staging: &Path,
         notes: &mut Vec<String>,
     ) -> Result<Heard, TalkerError> {
+        // The talker's kept aligner, or one with the request's extra dictionaries.
+        let extra = std::cell::OnceCell::new();
+        let aligner = || -> Result<&crate::align::Aligner, crate::align::AlignError> {
+            if request.dicts.is_empty() {
+                return self.default_aligner();
+            }
+            if let Some(a) = extra.get() {
+                return Ok(a);
+            }
+            let loaded = crate::align::Aligner::load_default(&request.dicts)?;
+            Ok(extra.get_or_init(|| loaded))
+        };
         let align = |sound: &Path, words: &str| {
-            crate::align::Aligner::load_default(&request.dicts)
+            aligner()
                 .and_then(|a| a.align_file(sound, words))
                 .map(|a| a.segments())
                 .map_err(|e| TalkerError::Align {
@@ -466,7 +491,7 @@ impl Talker {
                 path: audio.to_path_buf(),
                 source: Box::new(e),
             };
-            let aligner = crate::align::Aligner::load_default(&request.dicts).map_err(failed)?;
+            let aligner = aligner().map_err(failed)?;
             let lm = aligner.phone_loop(crate::align::PHONE_WEIGHT, crate::align::PHONE_PENALTY);
             let sound = crate::audio::read(
                 audio,
