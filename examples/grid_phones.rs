@@ -4,6 +4,8 @@
 //!
 //! `cargo run --release --example grid_phones -- ../shared/data/grid-s1 SPLIT [LIMIT] [WEIGHT PENALTY]…`
 //! (several WEIGHT PENALTY pairs: one row each — the grid searched on `validation`).
+//! With `STREAM=LAG+PIECE,…` in the environment, rows of the live recogniser too (20 ms
+//! chunks; lag and least piece in frames), with the longest wait of any frame for its phone.
 
 use std::path::PathBuf;
 
@@ -34,6 +36,16 @@ fn main() {
         .take(limit)
         .map(str::to_owned)
         .collect();
+    let lags: Vec<(usize, usize)> = std::env::var("STREAM")
+        .map(|l| {
+            l.split(',')
+                .map(|x| {
+                    let (a, b) = x.split_once('+').unwrap();
+                    (a.parse().unwrap(), b.parse().unwrap())
+                })
+                .collect()
+        })
+        .unwrap_or_default();
     let aligner = Aligner::load_default(&[]).unwrap();
     let clips: Vec<(Vec<f32>, f64, Vec<Phone>)> = ids
         .iter()
@@ -56,18 +68,15 @@ fn main() {
         })
         .collect();
     println!("GRID s1 {split} split (recorded), {} clips", clips.len());
-    println!("| weight | penalty | PER | viseme-class error | × real time, one core |");
-    println!("|---|---|---|---|---|");
-    for (weight, penalty) in settings {
-        let lm = aligner.phone_loop(weight, penalty);
-        let (mut errors, mut verrors, mut total, mut audio, mut spent) = (0, 0, 0, 0.0, 0.0);
+    let mut score = |label: String, recognise: &dyn Fn(&[f32]) -> (Vec<facespace::align::TimedPhone>, Vec<f64>)| {
+        let (mut errors, mut verrors, mut total, mut audio, mut spent, mut lag) =
+            (0, 0, 0, 0.0, 0.0, Vec::new());
         for (samples, seconds, reference) in &clips {
             let clock = std::time::Instant::now();
-            let phones = aligner
-                .recognise(samples, frontend::SAMPLE_RATE, &lm)
-                .unwrap();
+            let (phones, waits) = recognise(samples);
             spent += clock.elapsed().as_secs_f64();
             audio += seconds;
+            lag.extend(waits);
             let hyp: Vec<Phone> = phones
                 .iter()
                 .filter_map(|p| Phone::parse(&p.phone))
@@ -79,10 +88,49 @@ fn main() {
             total += reference.len();
         }
         println!(
-            "| {weight} | {penalty} | {:.1} % | {:.1} % | {:.0}× |",
+            "| {label} | {:.1} % | {:.1} % | {:.0}× | {} |",
             100.0 * errors as f64 / total as f64,
             100.0 * verrors as f64 / total as f64,
-            audio / spent
+            audio / spent,
+            if lag.is_empty() {
+                "—".into()
+            } else {
+                lag.sort_by(f64::total_cmp);
+                let q = |f: f64| 1000.0 * lag[((lag.len() - 1) as f64 * f) as usize];
+                format!("{:.0} / {:.0} / {:.0} ms", q(0.5), q(0.95), q(1.0))
+            }
         );
+    };
+    println!("| weight / penalty | PER | viseme-class error | × real time, one core | wait of a frame for its phone: median / 95 % / most |");
+    println!("|---|---|---|---|---|");
+    for (weight, penalty) in settings {
+        let lm = aligner.phone_loop(weight, penalty);
+        score(format!("{weight} / {penalty}"), &|samples| {
+            let phones = aligner.recognise(samples, frontend::SAMPLE_RATE, &lm).unwrap();
+            (facespace::align::merge_pieces(phones), Vec::new())
+        });
+        for &(lag, piece) in &lags {
+            score(format!("{weight} / {penalty}, live, lag {lag} + {piece}"), &|samples| {
+                let mut live = aligner
+                    .recogniser(frontend::SAMPLE_RATE, &lm)
+                    .unwrap()
+                    .with_lag(lag, piece);
+                let (mut phones, mut wait) = (Vec::new(), Vec::new());
+                for chunk in samples.chunks(320) {
+                    let new = live.push(chunk).unwrap();
+                    // Every 10 ms frame's wait from its own time to its release.
+                    for p in &new {
+                        let mut t = p.start;
+                        while t < p.end - 1e-9 {
+                            wait.push(live.seconds() - t);
+                            t += 0.01;
+                        }
+                    }
+                    phones.extend(new);
+                }
+                phones.extend(live.finish().unwrap());
+                (facespace::align::merge_pieces(phones), wait)
+            });
+        }
     }
 }

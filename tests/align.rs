@@ -611,6 +611,109 @@ fn phones_are_recognised_without_words() {
     assert!(a.recognise(&noise, rate, &lm).is_ok());
 }
 
+/// The live front end (issue 34) gives the same features however the sound is cut into
+/// chunks, and the same as the batch front end's cepstra put through a running mean (prior
+/// 40, 3, −1 worth 100 frames, frames with c0 ≥ 0 counted) and the `1s_c_d_dd` deltas.
+#[test]
+fn live_front_end_matches_the_batch_one_chunk_by_chunk() {
+    let audio = clip_audio(CLIPS[0]);
+    let pcm: Vec<f32> = audio.samples.iter().map(|&x| f32::from(audio::to_pcm16(x))).collect();
+    let fe = frontend::FrontEnd::new();
+    let mut whole = frontend::Stream::new(&fe);
+    let mut at_once = whole.push(&pcm);
+    at_once.extend(whole.finish());
+    let mut rng = common::Rng::new(11);
+    let mut chunked = frontend::Stream::new(&fe);
+    let (mut feats, mut at) = (Vec::new(), 0);
+    while at < pcm.len() {
+        let n = 1 + (rng.uniform() * 900.0) as usize;
+        let end = (at + n).min(pcm.len());
+        feats.extend(chunked.push(&pcm[at..end]));
+        at = end;
+    }
+    feats.extend(chunked.finish());
+    assert_eq!(feats, at_once);
+    let mut cepstra = fe.cepstra(&pcm);
+    assert_eq!(cepstra.len(), feats.len());
+    let (mut sum, mut n) = ([0f64; frontend::N_CEP], 100.0);
+    sum[0] = 4000.0;
+    sum[1] = 300.0;
+    sum[2] = -100.0;
+    for c in cepstra.iter_mut() {
+        if c[0] >= 0.0 {
+            sum.iter_mut().zip(c.iter()).for_each(|(s, &v)| *s += v as f64);
+            n += 1.0;
+        }
+        c.iter_mut().zip(&sum).for_each(|(v, s)| *v -= (s / n) as f32);
+    }
+    let reference = frontend::features(&cepstra);
+    for (t, (a, b)) in feats.iter().zip(&reference).enumerate() {
+        for (x, y) in a.iter().zip(b) {
+            assert!((x - y).abs() < 1e-3, "frame {t}: {x} vs {y}");
+        }
+    }
+}
+
+/// Live phone recognition (issue 34): in 20 ms chunks the phones tile the recording, every
+/// frame is given out within the bound its lag and least piece set (plus the look-ahead,
+/// the window and the chunk), and they are as near the reference as the batch recogniser's
+/// (PER under 85 %); bad input is refused as in batch.
+#[test]
+fn live_phones_arrive_within_their_lag() {
+    let a = aligner();
+    let lm = a.phone_loop(align::PHONE_WEIGHT, align::PHONE_PENALTY);
+    let bound = (align::STREAM_LAG_FRAMES + align::STREAM_LEAST_PIECE + 4) as f64 * 0.01
+        + frontend::FRAME_SIZE as f64 / 16_000.0
+        + 0.02;
+    let (mut errors, mut total) = (0, 0);
+    for id in CLIPS {
+        let audio = clip_audio(id);
+        let mut live = a.recogniser(audio.rate, &lm).unwrap();
+        let mut phones = Vec::new();
+        for chunk in audio.samples.chunks(320) {
+            for p in live.push(chunk).unwrap() {
+                assert!(live.seconds() - p.start <= bound, "{id}: {p:?} out at {}", live.seconds());
+                phones.push(p);
+            }
+        }
+        phones.extend(live.finish().unwrap());
+        assert_eq!(phones[0].start, 0.0);
+        assert!(phones.windows(2).all(|w| w[0].end == w[1].start && w[0].end > w[0].start));
+        assert!((phones.last().unwrap().end - audio.seconds()).abs() < 0.03, "{id}");
+        let merged = align::merge_pieces(phones.clone());
+        assert!(merged.len() <= phones.len());
+        assert!(merged.windows(2).all(|w| w[0].phone != w[1].phone), "{id}");
+        let hyp: Vec<Phone> = align::segments(&merged)
+            .iter()
+            .map(|s| s.phone)
+            .filter(|&p| p != Phone::SIL)
+            .collect();
+        let reference: Vec<Phone> = phonemes::read_htk(&grid().join(format!("{id}.lab")), &PhoneMap::default())
+            .unwrap()
+            .iter()
+            .map(|s| s.phone)
+            .filter(|&p| p != Phone::SIL)
+            .collect();
+        errors += facespace::eval::edit_distance(&hyp, &reference);
+        total += reference.len();
+    }
+    let per = errors as f64 / total as f64;
+    assert!(per < 0.85, "PER {per}");
+    let rate = frontend::SAMPLE_RATE;
+    assert!(matches!(a.recogniser(8_000, &lm), Err(AlignError::SampleRate(8_000))));
+    let mut live = a.recogniser(rate, &lm).unwrap();
+    live.push(&[0.1; 500]).unwrap();
+    let mut nan = vec![0.1; 100];
+    nan[3] = f32::INFINITY;
+    assert!(matches!(live.push(&nan), Err(AlignError::NotFinite { index: 503 })));
+    let live = a.recogniser(rate, &lm).unwrap();
+    assert!(matches!(live.finish(), Err(AlignError::EmptyAudio { samples: 0 })));
+    // Silence streams as silence: no error (a live microphone is quiet between turns).
+    let mut live = a.recogniser(rate, &lm).unwrap();
+    live.push(&vec![0.0; 16_000]).unwrap();
+    assert!(!live.finish().unwrap().is_empty());
+}
+
 /// Do the words match the speech? (issue 34) On the three committed clips (recorded, none
 /// used to set the thresholds) each true transcript fits and each other clip's transcript
 /// does not, its worst words among those it does not share; `align` warns about the latter.

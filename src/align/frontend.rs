@@ -178,39 +178,186 @@ impl FrontEnd {
 
     /// The mel filter energies of every frame (before noise removal).
     fn filter_energies(&self, samples: &[f32]) -> Vec<[f64; N_FILTERS]> {
-        let frames = Self::frame_count(samples.len());
-        let mut out = Vec::with_capacity(frames);
-        let mut buf = vec![Complex32::new(0.0, 0.0); FFT_SIZE];
-        let mut scratch = vec![Complex32::new(0.0, 0.0); self.fft.get_inplace_scratch_len()];
-        let mut power = [0f32; FFT_SIZE / 2 + 1];
-        for t in 0..frames {
-            let start = t * FRAME_SHIFT;
-            let len = FRAME_SIZE.min(samples.len() - start);
-            buf.iter_mut().for_each(|c| *c = Complex32::new(0.0, 0.0));
-            for k in 0..len {
-                // Pre-emphasis runs over the continuous signal (`pre_emphasis_prior`).
-                let prior = if start + k == 0 {
-                    0.0
-                } else {
-                    samples[start + k - 1]
-                };
-                let x = samples[start + k] - PRE_EMPHASIS * prior;
-                buf[k].re = x * self.window[k];
-            }
-            self.fft.process_with_scratch(&mut buf, &mut scratch);
-            for (p, c) in power.iter_mut().zip(&buf) {
-                *p = c.norm_sqr();
-            }
-            out.push(std::array::from_fn(|i| {
-                let f = &self.filters[i];
-                f.weights
-                    .iter()
-                    .zip(&power[f.start..])
-                    .map(|(&w, &p)| w as f64 * p as f64)
-                    .sum()
-            }));
+        let mut scratch = Scratch::new(self);
+        (0..Self::frame_count(samples.len()))
+            .map(|t| {
+                let start = t * FRAME_SHIFT;
+                let end = (start + FRAME_SIZE).min(samples.len());
+                let prior = start.checked_sub(1).map_or(0.0, |k| samples[k]);
+                self.frame_energies(&samples[start..end], prior, &mut scratch)
+            })
+            .collect()
+    }
+
+    /// The mel filter energies of one window (zero-padded when short), `prior` the sample
+    /// before it: pre-emphasis runs over the continuous signal (`pre_emphasis_prior`).
+    fn frame_energies(&self, window: &[f32], prior: f32, scratch: &mut Scratch) -> [f64; N_FILTERS] {
+        let buf = &mut scratch.buf;
+        buf.iter_mut().for_each(|c| *c = Complex32::new(0.0, 0.0));
+        let mut before = prior;
+        for (k, &x) in window.iter().enumerate() {
+            buf[k].re = (x - PRE_EMPHASIS * before) * self.window[k];
+            before = x;
+        }
+        self.fft.process_with_scratch(buf, &mut scratch.fft);
+        for (p, c) in scratch.power.iter_mut().zip(buf.iter()) {
+            *p = c.norm_sqr();
+        }
+        std::array::from_fn(|i| {
+            let f = &self.filters[i];
+            f.weights
+                .iter()
+                .zip(&scratch.power[f.start..])
+                .map(|(&w, &p)| w as f64 * p as f64)
+                .sum()
+        })
+    }
+}
+
+/// Buffers one frame's transform reuses.
+struct Scratch {
+    buf: Vec<Complex32>,
+    fft: Vec<Complex32>,
+    power: [f32; FFT_SIZE / 2 + 1],
+}
+
+impl Scratch {
+    fn new(frontend: &FrontEnd) -> Self {
+        Scratch {
+            buf: vec![Complex32::new(0.0, 0.0); FFT_SIZE],
+            fft: vec![Complex32::new(0.0, 0.0); frontend.fft.get_inplace_scratch_len()],
+            power: [0.0; FFT_SIZE / 2 + 1],
+        }
+    }
+}
+
+/// The front end a chunk of samples at a time, for live recognition: the same windows,
+/// filters and noise removal as [`FrontEnd::cepstra`] (its noise estimate starts from the
+/// first frame), a running CMN ([`LiveCmn`]) instead of the batch one, and each feature out
+/// as soon as the three cepstra after it exist (30 ms of look-ahead, as `1s_c_d_dd` needs).
+pub struct Stream<'f> {
+    frontend: &'f FrontEnd,
+    scratch: Scratch,
+    /// Samples not yet consumed by a full window, from the next frame's start.
+    pending: Vec<f32>,
+    /// The sample before `pending[0]` (0 at the start).
+    prior: f32,
+    /// Whether any sample arrived.
+    started: bool,
+    noise: NoiseRemoval,
+    cmn: LiveCmn,
+    /// Normalised cepstra of every frame so far (the last seven are the ones used).
+    cepstra: Vec<[f32; N_CEP]>,
+    /// Features given out.
+    emitted: usize,
+}
+
+impl<'f> Stream<'f> {
+    /// A stream with nothing in it yet.
+    pub fn new(frontend: &'f FrontEnd) -> Self {
+        Stream {
+            frontend,
+            scratch: Scratch::new(frontend),
+            pending: Vec::new(),
+            prior: 0.0,
+            started: false,
+            noise: NoiseRemoval::default(),
+            cmn: LiveCmn::default(),
+            cepstra: Vec::new(),
+            emitted: 0,
+        }
+    }
+
+    /// Takes `samples` (16 kHz, int16 units) and returns the features now complete.
+    pub fn push(&mut self, samples: &[f32]) -> Vec<[f32; FEATURE_DIM]> {
+        self.started |= !samples.is_empty();
+        self.pending.extend_from_slice(samples);
+        let mut start = 0;
+        while start + FRAME_SIZE <= self.pending.len() {
+            let prior = start.checked_sub(1).map_or(self.prior, |k| self.pending[k]);
+            let window = &self.pending[start..start + FRAME_SIZE];
+            let mut energies = self.frontend.frame_energies(window, prior, &mut self.scratch);
+            self.add_frame(&mut energies);
+            start += FRAME_SHIFT;
+        }
+        if start > 0 {
+            self.prior = self.pending[start - 1];
+            self.pending.drain(..start);
+        }
+        self.ready(false)
+    }
+
+    /// Ends the stream: the remainder as one zero-padded frame (as [`FrontEnd::frame_count`]
+    /// counts it), and the last features with the final frame replicated after them.
+    pub fn finish(&mut self) -> Vec<[f32; FEATURE_DIM]> {
+        if self.started && !self.pending.is_empty() {
+            let window = std::mem::take(&mut self.pending);
+            let mut energies = self.frontend.frame_energies(&window, self.prior, &mut self.scratch);
+            self.add_frame(&mut energies);
+        }
+        self.ready(true)
+    }
+
+    fn add_frame(&mut self, energies: &mut [f64; N_FILTERS]) {
+        self.noise.apply(energies);
+        let mut c = self.frontend.cepstrum(energies);
+        self.cmn.normalise(&mut c);
+        self.cepstra.push(c);
+    }
+
+    /// The features whose look-ahead is complete (all of them at the end).
+    fn ready(&mut self, end: bool) -> Vec<[f32; FEATURE_DIM]> {
+        let n = self.cepstra.len();
+        let upto = if end { n } else { n.saturating_sub(3) };
+        let out = (self.emitted..upto)
+            .map(|t| feature(&self.cepstra, t as isize))
+            .collect();
+        self.emitted = upto.max(self.emitted);
+        // Only the last seven cepstra are ever looked at again.
+        let keep_from = self.emitted.saturating_sub(3).min(n);
+        if keep_from > 64 {
+            self.cepstra.drain(..keep_from);
+            self.emitted -= keep_from;
         }
         out
+    }
+}
+
+/// Live CMN: the running mean of the frames so far whose c0 is not negative (the frames
+/// [`cmn`] averages), started from a prior mean worth [`LIVE_CMN_PRIOR_FRAMES`] frames, so
+/// that the first frames of a stream are normalised before its own mean is known.
+struct LiveCmn {
+    sum: [f64; N_CEP],
+    n: f64,
+}
+
+/// The prior mean of [`LiveCmn`]: pocketsphinx's `-cmninit` default (`40,3,-1`, the rest 0).
+const LIVE_CMN_PRIOR: [f64; 3] = [40.0, 3.0, -1.0];
+/// Frames the prior mean counts as.
+pub const LIVE_CMN_PRIOR_FRAMES: f64 = 100.0;
+
+impl Default for LiveCmn {
+    fn default() -> Self {
+        let mut sum = [0.0; N_CEP];
+        for (s, &p) in sum.iter_mut().zip(&LIVE_CMN_PRIOR) {
+            *s = p * LIVE_CMN_PRIOR_FRAMES;
+        }
+        LiveCmn {
+            sum,
+            n: LIVE_CMN_PRIOR_FRAMES,
+        }
+    }
+}
+
+impl LiveCmn {
+    fn normalise(&mut self, c: &mut [f32; N_CEP]) {
+        if c[0] >= 0.0 {
+            self.sum.iter_mut().zip(c.iter()).for_each(|(s, &v)| *s += v as f64);
+            self.n += 1.0;
+        }
+        for (v, s) in c.iter_mut().zip(&self.sum) {
+            *v -= (s / self.n) as f32;
+        }
     }
 }
 
@@ -235,19 +382,20 @@ pub fn cmn(cepstra: &mut [[f32; N_CEP]]) -> Option<[f32; N_CEP]> {
 
 /// `1s_c_d_dd` with the first and last frame replicated three times at the edges.
 pub fn features(cepstra: &[[f32; N_CEP]]) -> Vec<[f32; FEATURE_DIM]> {
+    (0..cepstra.len() as isize).map(|t| feature(cepstra, t)).collect()
+}
+
+/// The `1s_c_d_dd` feature of frame `t`: cepstra, deltas over ±2 frames, double deltas.
+fn feature(cepstra: &[[f32; N_CEP]], t: isize) -> [f32; FEATURE_DIM] {
     let n = cepstra.len() as isize;
     let at = |t: isize| &cepstra[t.clamp(0, n - 1) as usize];
-    (0..n)
-        .map(|t| {
-            let mut f = [0f32; FEATURE_DIM];
-            for i in 0..N_CEP {
-                f[i] = at(t)[i];
-                f[N_CEP + i] = at(t + 2)[i] - at(t - 2)[i];
-                f[2 * N_CEP + i] = (at(t + 3)[i] - at(t - 1)[i]) - (at(t + 1)[i] - at(t - 3)[i]);
-            }
-            f
-        })
-        .collect()
+    let mut f = [0f32; FEATURE_DIM];
+    for i in 0..N_CEP {
+        f[i] = at(t)[i];
+        f[N_CEP + i] = at(t + 2)[i] - at(t - 2)[i];
+        f[2 * N_CEP + i] = (at(t + 3)[i] - at(t - 1)[i]) - (at(t + 1)[i] - at(t - 3)[i]);
+    }
+    f
 }
 
 /// The noise removal of `fe_noise.c` (float build): a smoothed power, a slow lower envelope as

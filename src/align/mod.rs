@@ -341,6 +341,25 @@ impl Aligner {
         Ok((graph, path))
     }
 
+    /// A live phone recogniser over the loop `lm`: samples in as they arrive, phones out
+    /// [`STREAM_LAG_FRAMES`] after they end ([`Recogniser`]).
+    pub fn recogniser(&self, rate: u32, lm: &PhoneLoop) -> Result<Recogniser<'_>, AlignError> {
+        if rate != frontend::SAMPLE_RATE {
+            return Err(AlignError::SampleRate(rate));
+        }
+        let graph = search::Graph::phone_loop(&self.model, &lm.transition);
+        Ok(Recogniser {
+            model: &self.model,
+            decoder: search::Decoder::new(&self.model, &graph),
+            graph,
+            stream: frontend::Stream::new(&self.frontend),
+            committed: 0,
+            samples: 0,
+            lag: STREAM_LAG_FRAMES,
+            least_piece: STREAM_LEAST_PIECE,
+        })
+    }
+
     /// A phone loop weighted by the phone bigram of this aligner's dictionary
     /// ([`PhoneLoop::log_bigram`], estimated once per aligner).
     pub fn phone_loop(&self, weight: f64, penalty: f64) -> PhoneLoop {
@@ -353,6 +372,117 @@ impl Aligner {
         });
         PhoneLoop::weighted(bigram, weight, penalty)
     }
+}
+
+/// Frames a live [`Recogniser`] waits after a phone's end before giving it out, so that the
+/// next frames can still change it (chosen on GRID s1's validation split with
+/// [`STREAM_LEAST_PIECE`], BENCHMARKS "Phones without words": a frame waits 130 ms for its
+/// phone at the median, counting the features' 3-frame look-ahead and the 25.6 ms window).
+pub const STREAM_LAG_FRAMES: usize = 5;
+
+/// Frames a phone still sounding must have lasted before a piece of it is given out, so that
+/// long phones and pauses do not hold the stream back (shorter pieces are mostly guesses
+/// the next frames revise; as [`STREAM_LAG_FRAMES`]).
+pub const STREAM_LEAST_PIECE: usize = 15;
+
+/// Phone recognition as the sound arrives (the phone loop of [`Aligner::recognise`], a
+/// running CMN, fixed-lag decisions): each chunk in returns the phones of the best path so
+/// far that ended [`STREAM_LAG_FRAMES`] ago, which tile the stream from its start without
+/// gaps or overlaps; [`Recogniser::finish`] the rest. A phone still sounding then that has
+/// lasted [`STREAM_LEAST_PIECE`] frames comes in pieces: [`merge_pieces`] joins them.
+pub struct Recogniser<'a> {
+    model: &'a AcousticModel,
+    graph: search::Graph,
+    decoder: search::Decoder<'a>,
+    stream: frontend::Stream<'a>,
+    /// Frames given out: the phones so far cover `0..committed`.
+    committed: u32,
+    /// Samples taken.
+    samples: usize,
+    /// Frames between a phone's end and its release.
+    lag: usize,
+    /// Frames a phone must have lasted before a piece of it is given out.
+    least_piece: usize,
+}
+
+impl Recogniser<'_> {
+    /// Takes the next `samples` (mono, 16 kHz, −1…1) and returns the phones settled by them.
+    pub fn push(&mut self, samples: &[f32]) -> Result<Vec<TimedPhone>, AlignError> {
+        if let Some(k) = samples.iter().position(|x| !x.is_finite()) {
+            return Err(AlignError::NotFinite {
+                index: self.samples + k,
+            });
+        }
+        self.samples += samples.len();
+        let pcm: Vec<f32> = samples
+            .iter()
+            .map(|&x| f32::from(crate::audio::to_pcm16(x)))
+            .collect();
+        for feat in self.stream.push(&pcm) {
+            self.decoder.step(&self.graph, &feat).ok_or(AlignError::NoPath)?;
+        }
+        let settled = self.decoder.frames.saturating_sub(self.lag) as u32;
+        let path = self.decoder.partial();
+        Ok(self.commit(&path, settled))
+    }
+
+    /// Ends the stream: the phones not given out yet.
+    pub fn finish(mut self) -> Result<Vec<TimedPhone>, AlignError> {
+        for feat in self.stream.finish() {
+            self.decoder.step(&self.graph, &feat).ok_or(AlignError::NoPath)?;
+        }
+        if self.decoder.frames == 0 {
+            return Err(AlignError::EmptyAudio {
+                samples: self.samples,
+            });
+        }
+        let path = self.decoder.finish(&self.graph).ok_or(AlignError::NoPath)?;
+        Ok(self.commit(&path, self.decoder.frames as u32))
+    }
+
+    /// Waits `frames` (instead of [`STREAM_LAG_FRAMES`]) after a phone's end before giving
+    /// it out, and gives pieces of phones that lasted `least_piece` frames (instead of
+    /// [`STREAM_LEAST_PIECE`]): fewer answer sooner, more change their minds less.
+    pub fn with_lag(mut self, frames: usize, least_piece: usize) -> Self {
+        self.lag = frames;
+        self.least_piece = least_piece;
+        self
+    }
+
+    /// Seconds of sound taken so far.
+    pub fn seconds(&self) -> f64 {
+        self.samples as f64 / f64::from(frontend::SAMPLE_RATE)
+    }
+
+    /// Gives out the phones of `path` from where the last ones ended up to frame `until`;
+    /// a phone still sounding there is given up to `until` and its rest later, as a piece of
+    /// the same phone starting where the first ended.
+    fn commit(&mut self, path: &search::Path, until: u32) -> Vec<TimedPhone> {
+        let mut out = Vec::new();
+        for (phone, start, end) in self.graph.phone_spans(path, self.decoder.frames) {
+            let young = end > until && start + self.least_piece as u32 > until;
+            let (start, end) = (start.max(self.committed), end.min(until));
+            if start < end && !young {
+                out.push(search::timed_phone(self.model, phone, start, end));
+                self.committed = end;
+            }
+        }
+        out
+    }
+}
+
+/// Joins contiguous pieces of the same phone (as a live [`Recogniser`] gives them).
+pub fn merge_pieces(phones: Vec<TimedPhone>) -> Vec<TimedPhone> {
+    let mut out: Vec<TimedPhone> = Vec::with_capacity(phones.len());
+    for p in phones {
+        match out.last_mut() {
+            Some(last) if last.phone == p.phone && last.end == p.start && last.word == p.word => {
+                last.end = p.end;
+            }
+            _ => out.push(p),
+        }
+    }
+    out
 }
 
 /// Timed phones as label segments (`SIL` → `sil`).

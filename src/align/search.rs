@@ -86,17 +86,20 @@ impl Graph {
 
     /// The path's HMMs as phones with times (a phone loop's output).
     pub(super) fn phones(&self, model: &AcousticModel, path: &Path, frames: usize) -> Vec<TimedPhone> {
+        self.phone_spans(path, frames)
+            .into_iter()
+            .map(|(phone, start, end)| timed_phone(model, phone, start, end))
+            .collect()
+    }
+
+    /// The path's HMMs as (CI phone, first frame, end frame).
+    pub(super) fn phone_spans(&self, path: &Path, frames: usize) -> Vec<(u8, u32, u32)> {
         path.entries
             .iter()
             .enumerate()
             .map(|(k, &(node, start))| {
                 let end = path.entries.get(k + 1).map_or(frames as u32, |e| e.1);
-                TimedPhone {
-                    phone: model.ci_names[self.nodes[node as usize].phone as usize].clone(),
-                    start: start as f64 / FRAMES_PER_SECOND,
-                    end: end as f64 / FRAMES_PER_SECOND,
-                    word: None,
-                }
+                (self.nodes[node as usize].phone, start, end)
             })
             .collect()
     }
@@ -316,6 +319,16 @@ impl Graph {
     }
 }
 
+/// A phone of a phone loop's path, frames `start..end`.
+pub(super) fn timed_phone(model: &AcousticModel, phone: u8, start: u32, end: u32) -> TimedPhone {
+    TimedPhone {
+        phone: model.ci_names[phone as usize].clone(),
+        start: start as f64 / FRAMES_PER_SECOND,
+        end: end as f64 / FRAMES_PER_SECOND,
+        word: None,
+    }
+}
+
 /// The best path: (HMM, first frame) in order, and its log-likelihood.
 pub(super) struct Path {
     entries: Vec<(u32, u32)>,
@@ -351,7 +364,7 @@ impl Path {
 /// Gaussians, per senone the log-sum of weight × density over them, summed over streams.
 struct Scorer<'a> {
     model: &'a AcousticModel,
-    feat: &'a [f32; FEATURE_DIM],
+    feat: [f32; FEATURE_DIM],
     frame: u32,
     top: Vec<[(u16, f32); TOP_N]>,
     top_frame: Vec<u32>,
@@ -361,10 +374,10 @@ struct Scorer<'a> {
 }
 
 impl<'a> Scorer<'a> {
-    fn new(model: &'a AcousticModel, feat: &'a [f32; FEATURE_DIM]) -> Self {
+    fn new(model: &'a AcousticModel) -> Self {
         Scorer {
             model,
-            feat,
+            feat: [0.0; FEATURE_DIM],
             frame: NONE,
             top: vec![[(0, f32::NEG_INFINITY); TOP_N]; model.n_codebooks * STREAMS],
             top_frame: vec![NONE; model.n_codebooks * STREAMS],
@@ -374,9 +387,9 @@ impl<'a> Scorer<'a> {
         }
     }
 
-    fn set_frame(&mut self, frame: u32, feat: &'a [f32; FEATURE_DIM]) {
+    fn set_frame(&mut self, frame: u32, feat: &[f32; FEATURE_DIM]) {
         self.frame = frame;
-        self.feat = feat;
+        self.feat = *feat;
     }
 
     fn codebook(&mut self, block: usize) -> [(u16, f32); TOP_N] {
@@ -457,47 +470,88 @@ pub(super) fn viterbi(
     g: &Graph,
     feats: &[[f32; FEATURE_DIM]],
 ) -> Option<Path> {
-    let n = g.nodes.len();
-    let ninf = f32::NEG_INFINITY;
-    let mut score = vec![[ninf; STATES]; n];
-    let mut hist = vec![[NONE; STATES]; n];
-    let mut next = vec![[ninf; STATES]; n];
-    let mut next_hist = vec![[NONE; STATES]; n];
-    let mut exit = vec![(ninf, NONE); n];
-    let mut active = vec![false; n];
-    // (node, first frame, previous record, score on entry)
-    let mut records: Vec<(u32, u32, u32, f32)> = Vec::new();
-    let mut start_cost = vec![ninf; n];
-    for &(h, c) in &g.start {
-        start_cost[h as usize] = c;
+    let mut decoder = Decoder::new(model, g);
+    for feat in feats {
+        decoder.step(g, feat)?;
     }
-    let mut scorer = Scorer::new(model, &feats[0]);
-    for (t, feat) in feats.iter().enumerate() {
-        scorer.set_frame(t as u32, feat);
+    decoder.finish(g)
+}
+
+/// The Viterbi search's state between frames, so that features can arrive a few at a time
+/// (live phone recognition) as well as all at once ([`viterbi`]).
+pub(super) struct Decoder<'m> {
+    model: &'m AcousticModel,
+    scorer: Scorer<'m>,
+    score: Vec<[f32; STATES]>,
+    hist: Vec<[u32; STATES]>,
+    next: Vec<[f32; STATES]>,
+    next_hist: Vec<[u32; STATES]>,
+    exit: Vec<(f32, u32)>,
+    active: Vec<bool>,
+    /// (node, first frame, previous record, score on entry)
+    records: Vec<(u32, u32, u32, f32)>,
+    start_cost: Vec<f32>,
+    /// Frames decoded.
+    pub(super) frames: usize,
+}
+
+/// Records kept before the unreachable ones are dropped (a live stream runs for hours).
+const RECORDS_BEFORE_COMPACTION: usize = 1 << 18;
+
+impl<'m> Decoder<'m> {
+    pub(super) fn new(model: &'m AcousticModel, g: &Graph) -> Self {
+        let n = g.nodes.len();
+        let ninf = f32::NEG_INFINITY;
+        let mut start_cost = vec![ninf; n];
+        for &(h, c) in &g.start {
+            start_cost[h as usize] = c;
+        }
+        Decoder {
+            model,
+            scorer: Scorer::new(model),
+            score: vec![[ninf; STATES]; n],
+            hist: vec![[NONE; STATES]; n],
+            next: vec![[ninf; STATES]; n],
+            next_hist: vec![[NONE; STATES]; n],
+            exit: vec![(ninf, NONE); n],
+            active: vec![false; n],
+            records: Vec::new(),
+            start_cost,
+            frames: 0,
+        }
+    }
+
+    /// Decodes one more frame; `None` when the beam lost every hypothesis.
+    pub(super) fn step(&mut self, g: &Graph, feat: &[f32; FEATURE_DIM]) -> Option<()> {
+        let model = self.model;
+        let n = g.nodes.len();
+        let ninf = f32::NEG_INFINITY;
+        let t = self.frames;
+        self.scorer.set_frame(t as u32, feat);
         // Exits of the previous frame.
         for h in 0..n {
-            exit[h] = (ninf, NONE);
-            if !active[h] {
-                continue;
+            self.exit[h] = (ninf, NONE);
+            if self.active[h] {
+                self.exit[h] =
+                    best_exit(&model.tmats[g.nodes[h].tmat], &self.score[h], &self.hist[h]);
             }
-            exit[h] = best_exit(&model.tmats[g.nodes[h].tmat], &score[h], &hist[h]);
         }
         let mut best = ninf;
         for h in 0..n {
             let (mut entry, mut entry_hist) = if t == 0 {
-                (start_cost[h], NONE)
+                (self.start_cost[h], NONE)
             } else {
                 (ninf, NONE)
             };
             for &(p, c) in &g.preds[h] {
-                let v = exit[p as usize].0 + c;
+                let v = self.exit[p as usize].0 + c;
                 if v > entry {
                     entry = v;
-                    entry_hist = exit[p as usize].1;
+                    entry_hist = self.exit[p as usize].1;
                 }
             }
-            if !active[h] && entry == ninf {
-                next[h] = [ninf; STATES];
+            if !self.active[h] && entry == ninf {
+                self.next[h] = [ninf; STATES];
                 continue;
             }
             let node = &g.nodes[h];
@@ -505,22 +559,22 @@ pub(super) fn viterbi(
             for j in 0..STATES {
                 let (mut v, mut from) = (ninf, NONE);
                 for i in 0..=j {
-                    let s = score[h][i] + a[i][j];
+                    let s = self.score[h][i] + a[i][j];
                     if s > v {
                         v = s;
-                        from = hist[h][i];
+                        from = self.hist[h][i];
                     }
                 }
                 if j == 0 && entry > v {
                     v = entry;
-                    records.push((h as u32, t as u32, entry_hist, entry));
-                    from = (records.len() - 1) as u32;
+                    self.records.push((h as u32, t as u32, entry_hist, entry));
+                    from = (self.records.len() - 1) as u32;
                 }
                 if v > ninf {
-                    v += scorer.score(node.senones[j]);
+                    v += self.scorer.score(node.senones[j]);
                 }
-                next[h][j] = v;
-                next_hist[h][j] = from;
+                self.next[h][j] = v;
+                self.next_hist[h][j] = from;
                 best = best.max(v);
             }
         }
@@ -530,41 +584,105 @@ pub(super) fn viterbi(
         let threshold = best - BEAM;
         for h in 0..n {
             let mut any = false;
-            for v in next[h].iter_mut() {
+            for v in self.next[h].iter_mut() {
                 if *v < threshold {
                     *v = ninf;
                 } else {
                     any = true;
                 }
             }
-            active[h] = any;
+            self.active[h] = any;
         }
-        std::mem::swap(&mut score, &mut next);
-        std::mem::swap(&mut hist, &mut next_hist);
+        std::mem::swap(&mut self.score, &mut self.next);
+        std::mem::swap(&mut self.hist, &mut self.next_hist);
+        self.frames += 1;
+        if self.records.len() > RECORDS_BEFORE_COMPACTION {
+            self.compact();
+        }
+        Some(())
     }
-    let (mut best, mut at) = (ninf, NONE);
-    for &h in &g.finals {
-        let h = h as usize;
-        let (v, from) = best_exit(&model.tmats[g.nodes[h].tmat], &score[h], &hist[h]);
-        if v > best {
-            (best, at) = (v, from);
+
+    /// The best path so far, ending in whichever state scores best now (not necessarily at
+    /// an HMM's exit): what a live stream commits from.
+    pub(super) fn partial(&self) -> Path {
+        let (mut best, mut at) = (f32::NEG_INFINITY, NONE);
+        for (h, (score, hist)) in self.score.iter().zip(&self.hist).enumerate() {
+            if !self.active[h] {
+                continue;
+            }
+            for (&v, &from) in score.iter().zip(hist) {
+                if v > best {
+                    (best, at) = (v, from);
+                }
+            }
+        }
+        self.trace(at, best)
+    }
+
+    /// The best path through the graph's final HMMs after the last frame.
+    pub(super) fn finish(&self, g: &Graph) -> Option<Path> {
+        let (mut best, mut at) = (f32::NEG_INFINITY, NONE);
+        for &h in &g.finals {
+            let h = h as usize;
+            let (v, from) =
+                best_exit(&self.model.tmats[g.nodes[h].tmat], &self.score[h], &self.hist[h]);
+            if v > best {
+                (best, at) = (v, from);
+            }
+        }
+        (at != NONE).then(|| self.trace(at, best))
+    }
+
+    fn trace(&self, mut at: u32, score: f32) -> Path {
+        let (mut entries, mut entry_scores) = (Vec::new(), Vec::new());
+        while at != NONE {
+            let (node, start, prev, entered) = self.records[at as usize];
+            entries.push((node, start));
+            entry_scores.push(f64::from(entered));
+            at = prev;
+        }
+        entries.reverse();
+        entry_scores.reverse();
+        Path {
+            entries,
+            entry_scores,
+            score: f64::from(score),
         }
     }
-    if at == NONE {
-        return None;
+
+    /// Drops the records no live hypothesis leads back to, renumbering the rest.
+    fn compact(&mut self) {
+        let mut keep = vec![false; self.records.len()];
+        let mut stack: Vec<u32> = self
+            .hist
+            .iter()
+            .zip(&self.active)
+            .filter(|(_, a)| **a)
+            .flat_map(|(h, _)| h.iter().copied())
+            .filter(|&r| r != NONE)
+            .collect();
+        while let Some(r) = stack.pop() {
+            if !std::mem::replace(&mut keep[r as usize], true) {
+                let prev = self.records[r as usize].2;
+                if prev != NONE {
+                    stack.push(prev);
+                }
+            }
+        }
+        let mut new_index = vec![NONE; self.records.len()];
+        let mut kept = Vec::with_capacity(keep.iter().filter(|&&k| k).count());
+        for (r, record) in self.records.iter().enumerate() {
+            if keep[r] {
+                new_index[r] = kept.len() as u32;
+                let prev = if record.2 == NONE { NONE } else { new_index[record.2 as usize] };
+                kept.push((record.0, record.1, prev, record.3));
+            }
+        }
+        self.records = kept;
+        for (h, active) in self.hist.iter_mut().zip(&self.active) {
+            for r in h.iter_mut() {
+                *r = if *active && *r != NONE { new_index[*r as usize] } else { NONE };
+            }
+        }
     }
-    let (mut entries, mut entry_scores) = (Vec::new(), Vec::new());
-    while at != NONE {
-        let (node, start, prev, entered) = records[at as usize];
-        entries.push((node, start));
-        entry_scores.push(f64::from(entered));
-        at = prev;
-    }
-    entries.reverse();
-    entry_scores.reverse();
-    Some(Path {
-        entries,
-        entry_scores,
-        score: best as f64,
-    })
 }
