@@ -708,6 +708,31 @@ fn live_phones_arrive_within_their_lag() {
     assert!(matches!(live.push(&nan), Err(AlignError::NotFinite { index: 503 })));
     let live = a.recogniser(rate, &lm).unwrap();
     assert!(matches!(live.finish(), Err(AlignError::EmptyAudio { samples: 0 })));
+    // A stream longer than the records kept between compactions (75 s: 2¹⁸ records are
+    // about 65 s of a 40-phone loop) still tiles, and its last clip's phones are the first's.
+    let audio = clip_audio(CLIPS[1]);
+    let mut live = a.recogniser(rate, &lm).unwrap();
+    let mut phones = Vec::new();
+    for _ in 0..25 {
+        for chunk in audio.samples.chunks(16_000) {
+            phones.extend(live.push(chunk).unwrap());
+        }
+    }
+    phones.extend(live.finish().unwrap());
+    assert!(phones.windows(2).all(|w| w[0].end == w[1].start && w[0].end > w[0].start));
+    assert!((phones.last().unwrap().end - 25.0 * audio.seconds()).abs() < 0.03);
+    let during = |from: f64, to: f64| -> Vec<String> {
+        let mut v: Vec<String> = align::merge_pieces(phones.clone())
+            .into_iter()
+            .filter(|p| p.start >= from + 0.5 && p.end <= to - 0.5 && p.phone != "SIL")
+            .map(|p| p.phone)
+            .collect();
+        v.dedup();
+        v
+    };
+    let d = audio.seconds();
+    let (second, last) = (during(d, 2.0 * d), during(24.0 * d, 25.0 * d));
+    assert!(facespace::eval::edit_distance(&second, &last) * 4 <= second.len(), "{second:?} vs {last:?}");
     // Silence streams as silence: no error (a live microphone is quiet between turns).
     let mut live = a.recogniser(rate, &lm).unwrap();
     live.push(&vec![0.0; 16_000]).unwrap();
