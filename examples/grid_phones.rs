@@ -1,16 +1,25 @@
 //! Phones recognised without words (issue 34) against GRID s1's `phones/` labels: phone error
-//! rate (edit distance over the reference's phones, silences left out) and viseme-class error
-//! (the same over the phones' viseme classes), and the speed on one core.
+//! rate (edit distance over the reference's phones, silences left out), viseme-class error
+//! (the same over the phones' 22 viseme classes) and Rhubarb-shape error (over the phones'
+//! mouth shapes A–H, /hh/ left out and repeats joined: what a 2D rig shows), and the speed on
+//! one core.
 //!
 //! `cargo run --release --example grid_phones -- ../shared/data/grid-s1 SPLIT [LIMIT] [WEIGHT PENALTY]…`
 //! (several WEIGHT PENALTY pairs: one row each — the grid searched on `validation`).
 //! With `STREAM=LAG+PIECE,…` in the environment, rows of the live recogniser too (20 ms
-//! chunks; lag and least piece in frames), with the longest wait of any frame for its phone.
+//! chunks; lag and least piece in frames), with the wait of each frame for its phone.
+//! With `ANCHORS=DIR`, pocketsphinx's rows on the same clips: the first run writes the clips'
+//! sound to `DIR/wav/`, `python3 tests/reference/pocketsphinx_phones.py DIR` recognises them,
+//! and the next run scores its `allphone.tsv` and `words.tsv` beside ours.
 
 use std::path::PathBuf;
 
 use facespace::align::{Aligner, PHONE_PENALTY, PHONE_WEIGHT, frontend};
 use facespace::phonemes::{Phone, PhoneMap, read_htk};
+use facespace::visemes::Shape;
+
+/// Phones, each frame's wait for its phone (live only), the seconds taken when timed elsewhere.
+type Recognised = (Vec<facespace::align::TimedPhone>, Vec<f64>, Option<f64>);
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -68,13 +77,25 @@ fn main() {
         })
         .collect();
     println!("GRID s1 {split} split (recorded), {} clips", clips.len());
-    let mut score = |label: String, recognise: &dyn Fn(&[f32]) -> (Vec<facespace::align::TimedPhone>, Vec<f64>)| {
+    let anchors = std::env::var("ANCHORS").ok().map(PathBuf::from);
+    if let Some(dir) = &anchors {
+        std::fs::create_dir_all(dir.join("wav")).unwrap();
+        for (id, (samples, _, _)) in ids.iter().zip(&clips) {
+            let audio = facespace::audio::Audio {
+                samples: samples.clone(),
+                rate: frontend::SAMPLE_RATE,
+            };
+            facespace::audio::write_wav(&dir.join(format!("wav/{id}.wav")), &audio).unwrap();
+        }
+    }
+    let score = |label: String, recognise: &dyn Fn(usize, &[f32]) -> Recognised| {
         let (mut errors, mut verrors, mut total, mut audio, mut spent, mut lag) =
             (0, 0, 0, 0.0, 0.0, Vec::new());
-        for (samples, seconds, reference) in &clips {
+        let (mut serrors, mut stotal) = (0, 0);
+        for (k, (samples, seconds, reference)) in clips.iter().enumerate() {
             let clock = std::time::Instant::now();
-            let (phones, waits) = recognise(samples);
-            spent += clock.elapsed().as_secs_f64();
+            let (phones, waits, took) = recognise(k, samples);
+            spent += took.unwrap_or(clock.elapsed().as_secs_f64());
             audio += seconds;
             lag.extend(waits);
             let hyp: Vec<Phone> = phones
@@ -86,11 +107,19 @@ fn main() {
             let v = |s: &[Phone]| s.iter().map(|p| p.viseme()).collect::<Vec<_>>();
             verrors += facespace::eval::edit_distance(&v(&hyp), &v(reference));
             total += reference.len();
+            let shapes = |s: &[Phone]| {
+                let mut v: Vec<Shape> = s.iter().filter_map(|&p| Shape::of_phone(p)).collect();
+                v.dedup();
+                v
+            };
+            serrors += facespace::eval::edit_distance(&shapes(&hyp), &shapes(reference));
+            stotal += shapes(reference).len();
         }
         println!(
-            "| {label} | {:.1} % | {:.1} % | {:.0}× | {} |",
+            "| {label} | {:.1} % | {:.1} % | {:.1} % | {:.0}× | {} |",
             100.0 * errors as f64 / total as f64,
             100.0 * verrors as f64 / total as f64,
+            100.0 * serrors as f64 / stotal as f64,
             audio / spent,
             if lag.is_empty() {
                 "—".into()
@@ -101,16 +130,48 @@ fn main() {
             }
         );
     };
-    println!("| weight / penalty | PER | viseme-class error | × real time, one core | wait of a frame for its phone: median / 95 % / most |");
-    println!("|---|---|---|---|---|");
+    println!("| weight / penalty | PER | viseme-class error | Rhubarb-shape error | × real time, one core | wait of a frame for its phone: median / 95 % / most |");
+    println!("|---|---|---|---|---|---|");
+    if let Some(dir) = &anchors {
+        for route in ["allphone", "words"] {
+            let Ok(table) = std::fs::read_to_string(dir.join(format!("{route}.tsv"))) else {
+                println!("(no {route}.tsv yet: run tests/reference/pocketsphinx_phones.py)");
+                continue;
+            };
+            let rows: std::collections::HashMap<&str, (f64, Vec<facespace::align::TimedPhone>)> = table
+                .lines()
+                .map(|line| {
+                    let mut f = line.splitn(3, '\t');
+                    let id = f.next().unwrap();
+                    let seconds: f64 = f.next().unwrap().parse().unwrap();
+                    let phones = f
+                        .next()
+                        .unwrap_or("")
+                        .split_whitespace()
+                        .map(|p| facespace::align::TimedPhone {
+                            phone: p.to_owned(),
+                            start: 0.0,
+                            end: 0.0,
+                            word: None,
+                        })
+                        .collect();
+                    (id, (seconds, phones))
+                })
+                .collect();
+            score(format!("pocketsphinx {route}"), &|k, _| {
+                let (took, phones) = &rows[ids[k].as_str()];
+                (phones.clone(), Vec::new(), Some(*took))
+            });
+        }
+    }
     for (weight, penalty) in settings {
         let lm = aligner.phone_loop(weight, penalty);
-        score(format!("{weight} / {penalty}"), &|samples| {
+        score(format!("{weight} / {penalty}"), &|_, samples| {
             let phones = aligner.recognise(samples, frontend::SAMPLE_RATE, &lm).unwrap();
-            (facespace::align::merge_pieces(phones), Vec::new())
+            (facespace::align::merge_pieces(phones), Vec::new(), None)
         });
         for &(lag, piece) in &lags {
-            score(format!("{weight} / {penalty}, live, lag {lag} + {piece}"), &|samples| {
+            score(format!("{weight} / {penalty}, live, lag {lag} + {piece}"), &|_, samples| {
                 let mut live = aligner
                     .recogniser(frontend::SAMPLE_RATE, &lm)
                     .unwrap()
@@ -129,7 +190,7 @@ fn main() {
                     phones.extend(new);
                 }
                 phones.extend(live.finish().unwrap());
-                (facespace::align::merge_pieces(phones), wait)
+                (facespace::align::merge_pieces(phones), wait, None)
             });
         }
     }
