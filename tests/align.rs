@@ -605,10 +605,70 @@ fn phones_are_recognised_without_words() {
     let long = vec![0.0; (align::MAX_SECONDS as usize + 1) * rate as usize];
     assert!(matches!(a.recognise(&long, rate, &lm), Err(AlignError::TooLong { .. })));
     assert!(matches!(a.recognise(&nan, 8_000, &lm), Err(AlignError::SampleRate(8_000))));
-    // Noise is not speech, but it is no error either: some phones, no panic.
+    // Noise, tones and music are not speech: each is refused with what was heard; speech
+    // under noise is still speech.
+    for (name, sound) in not_speech() {
+        match a.recognise(&sound, rate, &lm) {
+            Err(e @ AlignError::NoSpeech { .. }) => assert!(e.to_string().contains("no speech"), "{name}: {e}"),
+            other => panic!("{name}: {other:?}"),
+        }
+    }
+    let mut rng = common::Rng::new(6);
+    for id in CLIPS {
+        let noisy: Vec<f32> = clip_audio(id).samples.iter().map(|&x| x + 0.02 * rng.normal() as f32).collect();
+        assert!(a.recognise(&noisy, rate, &lm).is_ok(), "{id} with noise");
+    }
+}
+
+/// Three seconds each (16 kHz) of sounds that are not speech: white and brown noise, a pure
+/// tone, plucked notes with their harmonics, sustained organ chords, and drums over a bass.
+pub fn not_speech() -> Vec<(&'static str, Vec<f32>)> {
+    let n = 48_000;
     let mut rng = common::Rng::new(5);
-    let noise: Vec<f32> = (0..32_000).map(|_| (rng.normal() * 0.1) as f32).collect();
-    assert!(a.recognise(&noise, rate, &lm).is_ok());
+    let time = |i: usize| i as f32 / 16_000.0;
+    let tone = |f: f32, t: f32| (std::f32::consts::TAU * f * t).sin();
+    let harmonics = |f: f32, t: f32, k: usize| (1..=k).map(|h| tone(f * h as f32, t) / h as f32).sum::<f32>();
+    let white: Vec<f32> = (0..n).map(|_| 0.1 * rng.normal() as f32).collect();
+    let mut y = 0.0f32;
+    let brown: Vec<f32> = (0..n)
+        .map(|_| {
+            y = 0.98 * y + 0.05 * rng.normal() as f32;
+            y
+        })
+        .collect();
+    let notes = [220.0, 277.2, 329.6, 440.0, 392.0, 349.2, 261.6, 293.7];
+    let plucked: Vec<f32> = (0..n)
+        .map(|i| {
+            let t = time(i);
+            let f = notes[(t / 0.25) as usize % notes.len()];
+            0.2 * harmonics(f, t, 5) * (-(t % 0.25) * 6.0).exp()
+        })
+        .collect();
+    let chords = [[220.0f32, 277.2, 329.6], [196.0, 246.9, 293.7], [174.6, 220.0, 261.6]];
+    let organ: Vec<f32> = (0..n)
+        .map(|i| {
+            let t = time(i);
+            0.1 * chords[t as usize % 3].iter().map(|&f| harmonics(f, t, 3)).sum::<f32>()
+        })
+        .collect();
+    let drums: Vec<f32> = (0..n)
+        .map(|i| {
+            let t = time(i);
+            let beat = t % 0.5;
+            let kick = tone(60.0, beat) * (-beat * 20.0).exp();
+            let hat = if t % 0.25 < 0.03 { 0.3 * rng.normal() as f32 } else { 0.0 };
+            0.5 * kick + hat + 0.2 * tone([55.0, 73.4, 82.4, 65.4][(t / 0.5) as usize % 4], t)
+        })
+        .collect();
+    let pure: Vec<f32> = (0..n).map(|i| 0.3 * tone(440.0, time(i))).collect();
+    vec![
+        ("white noise", white),
+        ("brown noise", brown),
+        ("a 440 Hz tone", pure),
+        ("plucked notes", plucked),
+        ("organ chords", organ),
+        ("drums and bass", drums),
+    ]
 }
 
 /// The live front end (issue 34) gives the same features however the sound is cut into

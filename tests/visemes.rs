@@ -257,7 +257,8 @@ fn the_face_chooses_how_far_the_mouth_opens() {
 }
 
 /// `facespace visemes`: a committed recording and its words → each format; without words the
-/// phones recognised from the sound, with a note; a missing file named, never a panic.
+/// phones recognised from the sound, with a note; music refused as no speech; a missing file
+/// named, never a panic.
 #[test]
 fn the_visemes_command_writes_each_format() {
     let dir = tempfile::tempdir().unwrap();
@@ -297,6 +298,14 @@ fn the_visemes_command_writes_each_format() {
     assert!(o.status.success(), "{}", common::text(&o));
     assert!(common::text(&o).contains("recognised"), "{}", common::text(&o));
     assert!(String::from_utf8_lossy(&o.stdout).starts_with("0.00\t"));
+    // Music is not speech: refused, with what was heard.
+    let (_, music) = crate::align::not_speech().remove(3);
+    let path = dir.path().join("music.wav");
+    facespace::audio::write_wav(&path, &facespace::audio::Audio { samples: music, rate: 16_000 }).unwrap();
+    let o = common::facespace(&["visemes", path.to_str().unwrap()]);
+    assert!(!o.status.success());
+    assert!(common::text(&o).contains("no speech found"), "{}", common::text(&o));
+    assert!(!common::text(&o).contains("panicked"));
     let o = common::facespace(&["visemes", "no-such.wav", "--text", "hi"]);
     assert!(!o.status.success());
     assert!(

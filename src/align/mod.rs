@@ -97,6 +97,17 @@ pub enum AlignError {
         "no alignment reaches the end of the words at the end of the audio: is this the right transcript?"
     )]
     NoPath,
+    /// The sound holds too little speech for lip sync: silence, noise, tones or music.
+    #[error(
+        "no speech found: speech sounds cover {:.0} % of the audio and noise or music {:.0} %; lip sync needs speech (is this the right file?)",
+        100.0 * .speech, 100.0 * .noise
+    )]
+    NoSpeech {
+        /// Fraction of the frames recognised as speech sounds.
+        speech: f64,
+        /// Fraction recognised as noise (the model's filler sounds).
+        noise: f64,
+    },
     /// Audio longer than [`MAX_SECONDS`].
     #[error(
         "the audio lasts {seconds:.0} s; at most {max:.0} s are aligned at once: split it at pauses"
@@ -318,7 +329,9 @@ impl Aligner {
 
     /// Phone recognition without words: the best path through a loop of the acoustic model's
     /// context-independent phones weighted by `lm` (pocketsphinx's allphone search) — the
-    /// mouth needs the right shapes, not the right words. Silences come out as `SIL`.
+    /// mouth needs the right shapes, not the right words. Silences and noises come out as
+    /// `SIL`; sound with too little speech ([`LEAST_SPEECH`], [`MOST_NOISE_PER_SPEECH`]) is
+    /// refused.
     pub fn recognise(
         &self,
         samples: &[f32],
@@ -327,7 +340,23 @@ impl Aligner {
     ) -> Result<Vec<TimedPhone>, AlignError> {
         let feats = self.features(samples, rate)?;
         let (graph, path) = self.free_path(&feats, lm)?;
-        Ok(graph.phones(&self.model, &path, feats.len()))
+        let (mut speech, mut noise) = (0u32, 0u32);
+        for (phone, start, end) in graph.phone_spans(&path, feats.len()) {
+            if usize::from(phone) == self.model.sil {
+                continue;
+            }
+            if self.model.is_filler(phone.into()) {
+                noise += end - start;
+            } else {
+                speech += end - start;
+            }
+        }
+        let frames = feats.len() as f64;
+        let (speech, noise) = (f64::from(speech) / frames, f64::from(noise) / frames);
+        if speech < LEAST_SPEECH || noise > MOST_NOISE_PER_SPEECH * speech {
+            return Err(AlignError::NoSpeech { speech, noise });
+        }
+        Ok(merge_pieces(graph.phones(&self.model, &path, feats.len())))
     }
 
     /// The best path of the phone loop `lm` over `feats`, and the loop's graph.
@@ -532,6 +561,15 @@ impl WordFit {
         order
     }
 }
+
+/// Least fraction of a recording's frames recognised as speech sounds (not silence or noise)
+/// for [`Aligner::recognise`] to go on: stationary noise and drums come out as silence
+/// (BENCHMARKS "Phones without words": GRID clips 0.4–0.6, with noise added 0.34).
+pub const LEAST_SPEECH: f64 = 0.1;
+
+/// Most frames of noise (the model's filler sounds, which take tones and chords) per frame of
+/// speech sounds in a recording [`Aligner::recognise`] takes: speech has none, music much.
+pub const MOST_NOISE_PER_SPEECH: f64 = 0.25;
 
 /// Language weight of the phone bigram in [`Aligner::recognise`] (chosen on GRID s1's
 /// validation split, BENCHMARKS "Phones without words").

@@ -52,8 +52,9 @@ struct WordEnds {
 }
 
 impl Graph {
-    /// A phone loop: every context-independent phone (fillers other than silence left out),
-    /// each reachable from each with the cost `transition[from][to]` (`from` = the previous
+    /// A phone loop: every context-independent phone, fillers included (they take the
+    /// noises and tones no phone explains, so that music is not read as speech), each
+    /// reachable from each with the cost `transition[from][to]` (`from` = the previous
     /// phone's id; the utterance starts as if after silence), entering and leaving anywhere.
     pub(super) fn phone_loop(model: &AcousticModel, transition: &[Vec<f32>]) -> Graph {
         let mut g = Graph {
@@ -62,10 +63,9 @@ impl Graph {
             start: Vec::new(),
             finals: Vec::new(),
         };
-        let units: Vec<usize> = (0..model.ci_names.len())
-            .filter(|&c| c == model.sil || !model.is_filler(c))
-            .collect();
-        for &c in &units {
+        // Node `c` is CI phone `c`.
+        let phones = model.ci_names.len();
+        for c in 0..phones {
             let (senones, tmat) = model.context_independent(c);
             let h = g.add(Node {
                 senones,
@@ -76,9 +76,9 @@ impl Graph {
             g.start.push((h, transition[model.sil][c]));
             g.finals.push(h);
         }
-        for (to, &b) in units.iter().enumerate() {
-            for (from, &a) in units.iter().enumerate() {
-                g.edge(from as u32, to as u32, transition[a][b]);
+        for b in 0..phones {
+            for a in 0..phones {
+                g.edge(a as u32, b as u32, transition[a][b]);
             }
         }
         g
@@ -319,10 +319,11 @@ impl Graph {
     }
 }
 
-/// A phone of a phone loop's path, frames `start..end`.
+/// A phone of a phone loop's path, frames `start..end`; fillers (noises) come out as `SIL`.
 pub(super) fn timed_phone(model: &AcousticModel, phone: u8, start: u32, end: u32) -> TimedPhone {
+    let phone = if model.is_filler(phone as usize) { model.sil } else { phone as usize };
     TimedPhone {
-        phone: model.ci_names[phone as usize].clone(),
+        phone: model.ci_names[phone].clone(),
         start: start as f64 / FRAMES_PER_SECOND,
         end: end as f64 / FRAMES_PER_SECOND,
         word: None,
