@@ -4,7 +4,7 @@
 
 use crate::common;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use facespace::align::{self, AlignError, Aligner, frontend};
@@ -493,6 +493,30 @@ fn corpus_from_videos_aligns_transcripts() {
         cut_phones.len()
     );
     assert!(out.join("take1.npy").is_file());
+    // Another sentence's words (three of six differ) are not aligned to it: the recording is
+    // named with the words that were not said, and `--accept-mismatch` takes them.
+    std::fs::write(input.join("take1.txt"), transcript("bbwtzp")).unwrap();
+    let init = clip.join("01000.pts");
+    let run = |out: &Path, extra: &[&str]| {
+        let mut args = vec![
+            "corpus",
+            "from-videos",
+            input.to_str().unwrap(),
+            "--init",
+            init.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        common::facespace(&args)
+    };
+    let o = run(&dir.path().join("wrong"), &[]);
+    let said = common::text(&o);
+    assert!(!o.status.success(), "{said}");
+    assert!(said.contains("take1") && said.contains("do not seem to be what is said"), "{said}");
+    assert!(said.contains("worst: ") && said.contains("--accept-mismatch"), "{said}");
+    let o = run(&dir.path().join("accepted"), &["--accept-mismatch"]);
+    assert!(o.status.success(), "{}", common::text(&o));
 }
 
 /// `facespace align` writes a TextGrid and names what it found.

@@ -230,6 +230,36 @@ fn wav_speech_is_encoded_and_in_sync() {
     assert!(report.contains("seven"));
 }
 
+/// `synth --audio` (issue 34): another sentence's words are refused, naming the recording
+/// and the words that were not said; `--accept-mismatch` takes them; without words the
+/// phones are recognised from the sound, with a note.
+#[test]
+fn synth_refuses_words_that_were_not_said() {
+    let dir = tempfile::tempdir().unwrap();
+    let cb = codebook();
+    let wav = grid("bbbs7a.wav");
+    let run = |extra: &[&str], out: &str| {
+        let out = dir.path().join(out);
+        let mut all = vec!["synth", "--codebook", cb.to_str().unwrap(), "--audio", wav.to_str().unwrap()];
+        all.extend_from_slice(extra);
+        all.extend_from_slice(&["-o", out.to_str().unwrap()]);
+        common::facespace(&all)
+    };
+    let wrong = ["--text", "place green at x four now"];
+    let o = run(&wrong, "wrong");
+    let said = common::text(&o);
+    assert!(!o.status.success(), "{said}");
+    assert!(said.contains("bbbs7a.wav") && said.contains("do not seem to be what is said"), "{said}");
+    assert!(said.contains("worst: ") && said.contains("--accept-mismatch") && !said.contains("panicked"), "{said}");
+    assert!(!dir.path().join("wrong").exists());
+    let o = run(&[&wrong[..], &["--accept-mismatch"]].concat(), "accepted");
+    assert!(o.status.success(), "{}", common::text(&o));
+    let o = run(&[], "recognised");
+    assert!(o.status.success(), "{}", common::text(&o));
+    assert!(common::text(&o).contains("recognised from the sound"), "{}", common::text(&o));
+    assert!(dir.path().join("recognised/video.mp4").is_file());
+}
+
 /// `--say`: with an engine installed its speech is aligned, drives the face and plays in the
 /// MP4; without one (PATH emptied of engines) the error gives the install line.
 #[test]

@@ -97,6 +97,18 @@ pub enum AlignError {
         "no alignment reaches the end of the words at the end of the audio: is this the right transcript?"
     )]
     NoPath,
+    /// A transcript that does not fit its recording ([`WordFit::matches`]).
+    #[error(
+        "the words do not seem to be what is said (fit {overall:+.2} nats/frame, least {least}; worst: {worst}) — fix the transcript, leave out the words to recognise the phones from the sound, or accept them anyway (--accept-mismatch)"
+    )]
+    WordsDoNotMatch {
+        /// The whole recording's fit ([`WordFit::overall`]).
+        overall: f64,
+        /// The least a matching transcript has ([`LEAST_OVERALL_FIT`]).
+        least: f64,
+        /// The worst-fitting words, worst first.
+        worst: String,
+    },
     /// The sound holds too little speech for lip sync: silence, noise, tones or music.
     #[error(
         "no speech found: speech sounds cover {:.0} % of the audio and noise or music {:.0} %; lip sync needs speech (is this the right file?)",
@@ -248,6 +260,40 @@ impl Aligner {
             .collect();
         let overall = per_frame(0.0, frames as f64 / 100.0);
         Ok((alignment, WordFit { words, overall }))
+    }
+
+    /// The phones of a recording, the way every command takes one: with `words`, aligned to
+    /// them and — unless `accept_mismatch` — refused when they do not fit the sound
+    /// ([`AlignError::WordsDoNotMatch`] naming the worst words); without, recognised from the
+    /// sound alone ([`Aligner::recognise`]).
+    pub fn hear(
+        &self,
+        samples: &[f32],
+        rate: u32,
+        words: Option<&str>,
+        accept_mismatch: bool,
+    ) -> Result<Vec<TimedPhone>, AlignError> {
+        let lm = || self.phone_loop(PHONE_WEIGHT, PHONE_PENALTY);
+        let Some(words) = words else {
+            return self.recognise(samples, rate, &lm());
+        };
+        if accept_mismatch {
+            return Ok(self.align(samples, rate, words)?.phones);
+        }
+        let (alignment, fit) = self.align_checked(samples, rate, words, &lm())?;
+        if !fit.matches() {
+            let worst: Vec<&str> = fit
+                .worst(3)
+                .iter()
+                .map(|&k| alignment.words[k].word.as_str())
+                .collect();
+            return Err(AlignError::WordsDoNotMatch {
+                overall: fit.overall,
+                least: LEAST_OVERALL_FIT,
+                worst: worst.join(", "),
+            });
+        }
+        Ok(alignment.phones)
     }
 
     /// The words' search: the alignment, its best path and the features it ran over.

@@ -69,6 +69,10 @@ pub struct FromVideosArgs {
     /// order is K modulo N — one task of a job array (`corpus merge` joins the parts).
     #[arg(long, default_value = "0/1")]
     shard: facespace::corpus::Shard,
+    /// Align transcripts even when their words do not seem to be what is said (by default
+    /// such a recording is left out, naming its worst words).
+    #[arg(long)]
+    accept_mismatch: bool,
     /// Output corpus folder.
     #[arg(short, long)]
     output: PathBuf,
@@ -226,11 +230,14 @@ fn from_videos(a: FromVideosArgs) -> Result<()> {
         &a.dir,
         &a.output,
         &options,
-        a.tier.as_deref(),
-        &map,
-        a.max_failed,
-        a.tolerance,
-        a.shard,
+        &facespace::corpus::Reading {
+            tier: a.tier.clone(),
+            map,
+            max_failed: a.max_failed,
+            tolerance: a.tolerance,
+            shard: a.shard,
+            accept_mismatch: a.accept_mismatch,
+        },
         progress,
     )
     .with_context(|| format!("making a corpus of {}", a.dir.display()))?;

@@ -15,7 +15,7 @@ use facespace::synth::graph::Graph;
 use facespace::synth::output::{self, OutputOptions};
 use facespace::synth::unit::{UnitSelection, WeightsFile};
 use facespace::synth::{self, DEFAULT_SMOOTHING, Pose, Request, Smoothing, synthesise};
-use facespace::{corpus, video};
+use facespace::{align, audio, corpus, video};
 
 /// Whether a background path is a single image (else a video or frame folder).
 fn is_image(path: &std::path::Path) -> bool {
@@ -72,7 +72,7 @@ pub struct SynthArgs {
     #[arg(long)]
     codebook: Option<PathBuf>,
     /// Phone timings (.lab, .TextGrid, .tsv).
-    #[arg(long, conflicts_with_all = ["text", "transcript", "say"], required_unless_present_any = ["text", "transcript", "say"])]
+    #[arg(long, conflicts_with_all = ["text", "transcript", "say"], required_unless_present_any = ["text", "transcript", "say", "audio"])]
     labels: Option<PathBuf>,
     /// Text to speak. With --audio, the words of that recording, aligned to it; alone, phone
     /// durations come from the codebook (CMU dictionary).
@@ -156,10 +156,14 @@ pub struct SynthArgs {
     #[arg(long, requires = "background")]
     beside_background: bool,
     /// Speech to drive the face and mux into the MP4s: WAV or MP4/M4A (AAC), other formats
-    /// through a system ffmpeg. With --text or --transcript it is aligned to those words;
-    /// with --labels the labels time the face.
+    /// through a system ffmpeg. With --text or --transcript it is aligned to those words
+    /// (refused when they do not seem to be what is said); with --labels the labels time the
+    /// face; alone, its phones are recognised from the sound.
     #[arg(long)]
     audio: Option<PathBuf>,
+    /// Use the words of --audio even when they do not seem to be what is said.
+    #[arg(long, requires = "audio")]
+    accept_mismatch: bool,
     /// Output folder (written whole, never over a folder facespace did not write).
     #[arg(short, long)]
     output: PathBuf,
@@ -286,14 +290,20 @@ pub fn run(mut a: SynthArgs) -> Result<()> {
             };
             phonemes::read_labels(path, a.tier.as_deref(), &map)?
         }
-        (None, Some(words), Some(sound)) => {
+        (None, words, Some(sound)) => {
             let aligner = facespace::align::Aligner::load_default(&a.dicts)?;
-            let alignment = aligner
-                .align_file(sound, words)
-                .with_context(|| format!("aligning the speech {}", sound.display()))?;
-            alignment.segments()
+            let heard = audio::read(sound, align::frontend::SAMPLE_RATE, align::MAX_SECONDS)
+                .map_err(align::AlignError::from)
+                .and_then(|s| {
+                    aligner.hear(&s.samples, s.rate, words.as_deref(), a.accept_mismatch || a.say.is_some())
+                })
+                .with_context(|| format!("the speech {}", sound.display()))?;
+            if words.is_none() {
+                eprintln!("note: no words given: the phones were recognised from the sound alone (give --text or --transcript for aligned phones and a closer lip sync)");
+            }
+            align::segments(&heard)
         }
-        (None, None, _) => match &a.text {
+        (None, None, None) => match &a.text {
             Some(text) => phonemes::text_to_segments(text, &cb.mean_durations())?,
             None => anyhow::bail!("give --labels, --text, --transcript or --say"),
         },
@@ -304,6 +314,7 @@ pub fn run(mut a: SynthArgs) -> Result<()> {
         (Some(p), ..) => p.display().to_string(),
         (None, Some(_), _) => "--say".to_owned(),
         (None, None, Some(s)) if words.is_some() => format!("the alignment of {}", s.display()),
+        (None, None, Some(s)) => format!("the phones recognised in {}", s.display()),
         _ => "--text".to_owned(),
     };
     let fps = match (a.fps, &a.background) {

@@ -7,7 +7,7 @@ pub mod demo;
 mod recordings;
 
 pub use recordings::{
-    DEFAULT_MAX_FAILED, Recorded, RecordedCorpus, Shard, Skipped, VIDEO_EXTENSIONS, from_recordings,
+    DEFAULT_MAX_FAILED, Reading, Recorded, RecordedCorpus, Shard, Skipped, VIDEO_EXTENSIONS, from_recordings,
     merge,
 };
 

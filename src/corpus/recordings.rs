@@ -19,6 +19,7 @@ fn align_transcript(
     aligner: &align::Aligner,
     video: &Path,
     transcript: &Path,
+    accept_mismatch: bool,
 ) -> Result<Vec<phonemes::Segment>, CorpusError> {
     let fail = |reason: String| CorpusError::Align {
         path: video.to_owned(),
@@ -38,10 +39,10 @@ fn align_transcript(
     let sound = beside.as_deref().unwrap_or(video);
     let speech = audio::read(sound, align::frontend::SAMPLE_RATE, align::MAX_SECONDS)
         .map_err(|e| fail(e.to_string()))?;
-    let alignment = aligner
-        .align(&speech.samples, speech.rate, &text)
+    let phones = aligner
+        .hear(&speech.samples, speech.rate, Some(&text), accept_mismatch)
         .map_err(|e| fail(format!("aligning {}: {e}", transcript.display())))?;
-    Ok(alignment.segments())
+    Ok(align::segments(&phones))
 }
 
 /// Video file extensions looked for (frame folders count too).
@@ -182,28 +183,63 @@ impl std::str::FromStr for Shard {
 /// Share of recordings that may fail before the whole corpus is refused (`--max-failed`).
 pub const DEFAULT_MAX_FAILED: f64 = 0.10;
 
+/// How [`from_recordings`] reads the recordings' timings, and how much failure it takes.
+#[derive(Clone, Debug)]
+pub struct Reading {
+    /// TextGrid tier of the label files (default: "phones" or "phonemes").
+    pub tier: Option<String>,
+    /// Another phone set's labels to ARPAbet.
+    pub map: PhoneMap,
+    /// Share of recordings that may fail before the whole corpus is refused.
+    pub max_failed: f64,
+    /// Seconds the labels may end from the video's end.
+    pub tolerance: f64,
+    /// Which part of the recordings to make.
+    pub shard: Shard,
+    /// Align transcripts even when they do not seem to be what is said (by default such a
+    /// recording fails, naming its worst words).
+    pub accept_mismatch: bool,
+}
+
+impl Default for Reading {
+    fn default() -> Self {
+        Reading {
+            tier: None,
+            map: PhoneMap::default(),
+            max_failed: DEFAULT_MAX_FAILED,
+            tolerance: super::DEFAULT_TOLERANCE,
+            shard: Shard::default(),
+            accept_mismatch: false,
+        }
+    }
+}
+
 /// Tracks and projects every recording in `dir` with `model` (videos in parallel) and writes
 /// the corpus folder `out` atomically: `NAME.npy`, the label file, `NAME.m4a` when the video
-/// has sound, and `corpus.json` with the frame rate. Labels must end within `tolerance`
+/// has sound, and `corpus.json` with the frame rate. Labels must end within `reading.tolerance`
 /// seconds of the video's duration; every video must have the same frame rate (a codebook
 /// has one). A recording that cannot be used (damaged
-/// frames, a face lost, labels that do not fit) is left out and named in the result, unless
-/// more than `max_failed` of them fail: then nothing is written and every failure is named.
-/// With a `shard` other than the whole, only that part of the recordings is made (the share
+/// frames, a face lost, labels that do not fit, a transcript whose words do not fit the sound) is left out and named in the result, unless
+/// more than `reading.max_failed` of them fail: then nothing is written and every failure is named.
+/// With a `reading.shard` other than the whole, only that part of the recordings is made (the share
 /// that may fail counts within it).
-#[allow(clippy::too_many_arguments)]
 pub fn from_recordings(
     model: &FaceModel,
     dir: &Path,
     out: &Path,
     options: &EncodeOptions,
-    tier: Option<&str>,
-    map: &PhoneMap,
-    max_failed: f64,
-    tolerance: f64,
-    shard: Shard,
+    reading: &Reading,
     progress: impl FnMut(Progress) + Send,
 ) -> Result<RecordedCorpus, CorpusError> {
+    let Reading {
+        tier,
+        map,
+        max_failed,
+        tolerance,
+        shard,
+        accept_mismatch,
+    } = reading;
+    let (tier, max_failed, tolerance, shard) = (tier.as_deref(), *max_failed, *tolerance, *shard);
     let found: Vec<_> = recordings(dir)?
         .into_iter()
         .enumerate()
@@ -242,7 +278,7 @@ pub fn from_recordings(
                 Timings::Labels(path) => phonemes::read_labels(path, tier, map)?,
                 Timings::Transcript(path) => {
                     let aligner = aligner.as_ref().expect("loaded for transcripts");
-                    align_transcript(aligner, video, path)?
+                    align_transcript(aligner, video, path, *accept_mismatch)?
                 }
             };
             let fps = clip.frames.fps();

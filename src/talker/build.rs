@@ -141,11 +141,7 @@ pub fn parts_from_recordings(
                 &recordings.dir,
                 &corpus,
                 &crate::codec::EncodeOptions::default(),
-                None,
-                &crate::phonemes::PhoneMap::default(),
-                crate::corpus::DEFAULT_MAX_FAILED,
-                crate::corpus::DEFAULT_TOLERANCE,
-                crate::corpus::Shard::default(),
+                &crate::corpus::Reading::default(),
                 &mut progress,
             )
             .map_err(corpus_error)?;

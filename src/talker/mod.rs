@@ -197,20 +197,6 @@ pub enum TalkerError {
         /// The cause (boxed: the error enum travels in every result).
         source: Box<crate::align::AlignError>,
     },
-    /// A recording's words do not seem to be what is said.
-    #[error(
-        "{path}: the words do not seem to be what is said (fit {overall:+.2} nats/frame, least {least}; worst: {worst}) — fix the transcript, leave out the words to recognise the phones from the sound, or accept them anyway (--accept-mismatch)"
-    )]
-    Mismatch {
-        /// The recording.
-        path: PathBuf,
-        /// The whole recording's fit ([`crate::align::WordFit::overall`]).
-        overall: f64,
-        /// The least a matching transcript has.
-        least: f64,
-        /// The worst-fitting words, worst first.
-        worst: String,
-    },
     /// The recordings could not be made a corpus.
     #[error("the corpus of {dir}: {source}")]
     Corpus {
@@ -484,22 +470,22 @@ impl Talker {
                     source: Box::new(e),
                 })
         };
-        // The aligner, its free phone loop and the sound of a recording, for the checks and
-        // the recognition that need all three.
-        let heard = |audio: &Path| {
+        // A recording's phones: its words aligned and checked, or recognised without them.
+        let hear = |audio: &Path, words: Option<&str>| {
             let failed = |e| TalkerError::Align {
                 path: audio.to_path_buf(),
                 source: Box::new(e),
             };
-            let aligner = aligner().map_err(failed)?;
-            let lm = aligner.phone_loop(crate::align::PHONE_WEIGHT, crate::align::PHONE_PENALTY);
             let sound = crate::audio::read(
                 audio,
                 crate::align::frontend::SAMPLE_RATE,
                 crate::align::MAX_SECONDS,
             )
             .map_err(|e| failed(e.into()))?;
-            Ok::<_, TalkerError>((aligner, lm, sound))
+            aligner()
+                .and_then(|a| a.hear(&sound.samples, sound.rate, words, request.accept_mismatch))
+                .map(|phones| crate::align::segments(&phones))
+                .map_err(failed)
         };
         Ok(match &request.speech {
             Speech::Text(text) => {
@@ -521,46 +507,15 @@ impl Talker {
                 }
                 (align(&wav, text)?, Some(text.clone()), Some(wav))
             }
-            Speech::Recording { audio, words } if request.accept_mismatch => {
-                (align(audio, words)?, Some(words.clone()), Some(audio.clone()))
-            }
             Speech::Recording { audio, words } => {
-                let failed = |e| TalkerError::Align {
-                    path: audio.clone(),
-                    source: Box::new(e),
-                };
-                let (aligner, lm, sound) = heard(audio)?;
-                let (alignment, fit) = aligner
-                    .align_checked(&sound.samples, sound.rate, words, &lm)
-                    .map_err(failed)?;
-                if !fit.matches() {
-                    let worst: Vec<&str> = fit
-                        .worst(3)
-                        .iter()
-                        .map(|&k| alignment.words[k].word.as_str())
-                        .collect();
-                    return Err(TalkerError::Mismatch {
-                        path: audio.clone(),
-                        overall: fit.overall,
-                        least: crate::align::LEAST_OVERALL_FIT,
-                        worst: worst.join(", "),
-                    });
-                }
-                (alignment.segments(), Some(words.clone()), Some(audio.clone()))
+                (hear(audio, Some(words))?, Some(words.clone()), Some(audio.clone()))
             }
             Speech::Sound(audio) => {
-                let failed = |e| TalkerError::Align {
-                    path: audio.clone(),
-                    source: Box::new(e),
-                };
-                let (aligner, lm, sound) = heard(audio)?;
-                let phones = aligner
-                    .recognise(&sound.samples, sound.rate, &lm)
-                    .map_err(failed)?;
+                let phones = hear(audio, None)?;
                 notes.push(
                     "no words given: the phones were recognised from the sound alone (give the words for aligned phones and a closer lip sync)".into(),
                 );
-                (crate::align::segments(&phones), None, Some(audio.clone()))
+                (phones, None, Some(audio.clone()))
             }
             Speech::Labels {
                 labels,
