@@ -257,8 +257,8 @@ fn the_face_chooses_how_far_the_mouth_opens() {
 }
 
 /// `facespace visemes`: a committed recording and its words → each format; without words the
-/// phones recognised from the sound, with a note; music refused as no speech; a missing file
-/// named, never a panic.
+/// phones recognised from the sound, with a note; words not said and music refused; a missing
+/// file named, never a panic.
 #[test]
 fn the_visemes_command_writes_each_format() {
     let dir = tempfile::tempdir().unwrap();
@@ -298,6 +298,12 @@ fn the_visemes_command_writes_each_format() {
     assert!(o.status.success(), "{}", common::text(&o));
     assert!(common::text(&o).contains("recognised"), "{}", common::text(&o));
     assert!(String::from_utf8_lossy(&o.stdout).starts_with("0.00\t"));
+    // Words that were not said are refused, naming them; --accept-mismatch takes them.
+    let o = common::facespace(&["visemes", wav.to_str().unwrap(), "--text", "place green at x four now"]);
+    assert!(!o.status.success());
+    assert!(common::text(&o).contains("worst: "), "{}", common::text(&o));
+    let o = common::facespace(&["visemes", wav.to_str().unwrap(), "--text", "place green at x four now", "--accept-mismatch"]);
+    assert!(o.status.success(), "{}", common::text(&o));
     // Music is not speech: refused, with what was heard.
     let (_, music) = crate::align::not_speech().remove(3);
     let path = dir.path().join("music.wav");

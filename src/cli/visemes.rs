@@ -33,6 +33,9 @@ pub struct VisemesArgs {
     /// Phone timings of the recording instead of words (.lab, .TextGrid, .tsv).
     #[arg(long)]
     labels: Option<PathBuf>,
+    /// Use the words even when they do not seem to be what is said.
+    #[arg(long)]
+    accept_mismatch: bool,
     /// A talker folder: its face, synthesised for this speech, chooses how far each open
     /// shape opens (B, C or D by the nearest of its typical /iy/, /eh/, /aa/ openings).
     #[arg(long)]
@@ -67,21 +70,17 @@ pub fn run(a: VisemesArgs) -> Result<()> {
         (None, None) => None,
     };
     let segments = match (&words, &a.labels) {
-        (Some(w), _) => align::Aligner::load_default(&[])?
-            .align(&speech.samples, speech.rate, w)
-            .with_context(|| format!("aligning {}", a.audio.display()))?
-            .segments(),
         (None, Some(l)) => read_labels(l, None, &PhoneMap::default())
             .with_context(|| format!("reading {}", l.display()))?,
-        (None, None) => {
-            let aligner = align::Aligner::load_default(&[])?;
-            let lm = aligner.phone_loop(align::PHONE_WEIGHT, align::PHONE_PENALTY);
-            let phones = aligner
-                .recognise(&speech.samples, speech.rate, &lm)
-                .with_context(|| format!("recognising the phones of {}", a.audio.display()))?;
-            eprintln!(
-                "no words given: phones recognised from the sound alone (about 1 in 3 right on GRID s1; give --text or --transcript for aligned phones)"
-            );
+        (words, _) => {
+            let phones = align::Aligner::load_default(&[])?
+                .hear(&speech.samples, speech.rate, words.as_deref(), a.accept_mismatch)
+                .with_context(|| format!("the speech {}", a.audio.display()))?;
+            if words.is_none() {
+                eprintln!(
+                    "no words given: phones recognised from the sound alone (about 1 in 3 right on GRID s1; give --text or --transcript for aligned phones)"
+                );
+            }
             align::segments(&phones)
         }
     };
