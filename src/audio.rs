@@ -471,33 +471,94 @@ pub fn resample(audio: &Audio, rate: u32) -> Audio {
             rate,
         };
     }
-    let ratio = rate as f64 / audio.rate as f64;
-    // Cut-off relative to the input rate, and the kernel's half-width in input samples.
-    let cutoff = 0.95 * ratio.min(1.0);
-    let half = SINC_HALF_WIDTH / cutoff;
-    let n_out = (audio.samples.len() as f64 * ratio).round() as usize;
-    let x = &audio.samples;
-    let samples = (0..n_out)
-        .map(|k| {
-            let centre = k as f64 / ratio;
-            let lo = ((centre - half).ceil().max(0.0)) as usize;
-            let hi = ((centre + half).floor() as usize).min(x.len() - 1);
-            let mut acc = 0.0;
-            for (i, &v) in x.iter().enumerate().take(hi + 1).skip(lo) {
-                let d = i as f64 - centre;
-                let arg = std::f64::consts::PI * cutoff * d;
-                let sinc = if arg.abs() < 1e-12 {
-                    1.0
-                } else {
-                    arg.sin() / arg
-                };
-                let window = 0.5 + 0.5 * (std::f64::consts::PI * d / half).cos();
-                acc += v as f64 * cutoff * sinc * window;
-            }
-            acc as f32
-        })
-        .collect();
+    let mut stream = Resampler::new(audio.rate, rate);
+    let mut samples = stream.push(&audio.samples);
+    samples.extend(stream.finish());
     Audio { samples, rate }
+}
+
+/// [`resample`] a chunk at a time (live sound): each output sample leaves as soon as the
+/// input its kernel spans has arrived, so the chunks' outputs joined are the whole's.
+#[derive(Clone, Debug)]
+pub struct Resampler {
+    /// Output over input rate.
+    ratio: f64,
+    /// Cut-off relative to the input rate.
+    cutoff: f64,
+    /// The kernel's half-width, input samples.
+    half: f64,
+    /// Input samples kept, the first of them input sample `first`.
+    kept: Vec<f32>,
+    first: usize,
+    /// Input samples taken.
+    taken: usize,
+    /// Output samples given.
+    given: usize,
+}
+
+impl Resampler {
+    /// From `from` Hz to `to` Hz (both positive).
+    pub fn new(from: u32, to: u32) -> Self {
+        let ratio = to as f64 / from as f64;
+        let cutoff = 0.95 * ratio.min(1.0);
+        Resampler {
+            ratio,
+            cutoff,
+            half: SINC_HALF_WIDTH / cutoff,
+            kept: Vec::new(),
+            first: 0,
+            taken: 0,
+            given: 0,
+        }
+    }
+
+    /// Takes `samples` and returns the output samples now complete.
+    pub fn push(&mut self, samples: &[f32]) -> Vec<f32> {
+        if (self.ratio - 1.0).abs() < 1e-12 {
+            return samples.to_vec();
+        }
+        self.kept.extend_from_slice(samples);
+        self.taken += samples.len();
+        let mut out = Vec::new();
+        // Output k needs input up to ⌊k / ratio + half⌋.
+        while ((self.given as f64 / self.ratio + self.half).floor() as usize) < self.taken {
+            out.push(self.sample(self.given, self.taken - 1));
+            self.given += 1;
+        }
+        let needed = (self.given as f64 / self.ratio - self.half).ceil().max(0.0) as usize;
+        if needed > self.first + 4096 {
+            self.kept.drain(..needed - self.first);
+            self.first = needed;
+        }
+        out
+    }
+
+    /// Ends the stream: the last output samples, their kernels cut at the last input.
+    pub fn finish(&mut self) -> Vec<f32> {
+        if (self.ratio - 1.0).abs() < 1e-12 || self.taken == 0 {
+            return Vec::new();
+        }
+        let total = (self.taken as f64 * self.ratio).round() as usize;
+        let out = (self.given..total).map(|k| self.sample(k, self.taken - 1)).collect();
+        self.given = total.max(self.given);
+        out
+    }
+
+    /// Output sample `k` from the kept input, the kernel cut at input `last`.
+    fn sample(&self, k: usize, last: usize) -> f32 {
+        let centre = k as f64 / self.ratio;
+        let lo = ((centre - self.half).ceil().max(0.0)) as usize;
+        let hi = ((centre + self.half).floor() as usize).min(last);
+        let mut acc = 0.0;
+        for i in lo.max(self.first)..=hi {
+            let d = i as f64 - centre;
+            let arg = std::f64::consts::PI * self.cutoff * d;
+            let sinc = if arg.abs() < 1e-12 { 1.0 } else { arg.sin() / arg };
+            let window = 0.5 + 0.5 * (std::f64::consts::PI * d / self.half).cos();
+            acc += self.kept[i - self.first] as f64 * self.cutoff * sinc * window;
+        }
+        acc as f32
+    }
 }
 
 /// A sample in −1…1 as a 16-bit PCM value (rounded, clipped at full scale).
