@@ -111,6 +111,7 @@ pub mod facespace;
 pub mod fit;
 pub mod http;
 pub mod manifest;
+pub mod live;
 pub mod mesh;
 pub mod model;
 pub mod npy;

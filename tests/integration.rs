@@ -22,6 +22,7 @@ mod gpu;
 mod grid_demo;
 mod hostile;
 mod kill;
+mod live;
 mod model;
 mod pca;
 mod phonemes;

@@ -441,6 +441,13 @@ impl Talker {
         Ok(self.aligner.get_or_init(|| loaded))
     }
 
+    /// A live phone recogniser on the talker's kept aligner (16 kHz sound).
+    pub fn live_recogniser(&self) -> Result<crate::align::Recogniser<'_>, crate::align::AlignError> {
+        let aligner = self.default_aligner()?;
+        let lm = aligner.phone_loop(crate::align::PHONE_WEIGHT, crate::align::PHONE_PENALTY);
+        aligner.recogniser(crate::align::frontend::SAMPLE_RATE, &lm)
+    }
+
     /// The phones of `speech` and the sound to put under them, made in `staging` when the
     /// speech is text.
     fn phones(

@@ -1,0 +1,159 @@
+//! Live synthesis against offline (issue 35) on GRID s1's test split: each clip's sound in
+//! 20 ms chunks at 48 kHz through a live session on the committed talker — phones recognised
+//! as the sound comes, or the clip's aligned phones given ahead as a text-to-speech engine
+//! gives its timings — against the offline synthesis of the same phones (recognised from the
+//! whole clip, or aligned) with the same settings; both at the codebook's median pose, neither
+//! anchored to footage, scored against the clip tracked with the talker's model: mouth r_pca
+//! (eq. 16 of \[unitsel\]) and inner-mouth r_h. Also the wait of each frame: the sound's time
+//! when the frame leaves the session minus the frame's own time (the sound's arrival; the
+//! computing time is the benchmark's).
+//!
+//! `cargo run --release --example grid_live -- ../shared/data/grid-s1 [LIMIT|all] [SPLIT]`
+
+#[path = "common/grid.rs"]
+mod grid;
+#[path = "common/track.rs"]
+mod track;
+
+use std::path::{Path, PathBuf};
+
+use facespace::align::frontend::SAMPLE_RATE;
+use facespace::eval::mouth::{MouthPc, inner_mouth_height};
+use facespace::eval::pearson;
+use facespace::facespace::Frames;
+use facespace::live::{LiveFrame, Session};
+use facespace::phonemes::Segment;
+use facespace::synth::{Request, Smoothing};
+use facespace::talker::Talker;
+
+const CHUNK_RATE: u32 = 48_000;
+const CHUNK: usize = 960;
+
+fn main() {
+    let mut args = std::env::args().skip(1);
+    let grid = PathBuf::from(args.next().expect("the GRID s1 folder"));
+    let limit: usize = args
+        .next()
+        .map_or(usize::MAX, |n| n.parse().unwrap_or(usize::MAX));
+    let split = args.next().unwrap_or_else(|| "test".into());
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let talker = Talker::load(&root.join("models/grid")).unwrap();
+    let damaged = std::fs::read_to_string(grid.join("damaged.txt")).unwrap_or_default();
+    let ids: Vec<String> = std::fs::read_to_string(grid.join(format!("{split}.txt")))
+        .unwrap()
+        .split_whitespace()
+        .filter(|id| !damaged.split_whitespace().any(|d| d == *id))
+        .take(limit)
+        .map(str::to_owned)
+        .collect();
+    let aligner = facespace::align::Aligner::load_default(&[]).unwrap();
+    let lm = aligner.phone_loop(
+        facespace::align::PHONE_WEIGHT,
+        facespace::align::PHONE_PENALTY,
+    );
+    let settings = &talker.manifest.settings;
+    let synthesiser = settings.synthesiser();
+    let layout = talker.model.layout();
+    let fps = talker.footage.fps;
+    let offline = |target: &[Segment]| -> Frames {
+        let req = Request::new(target.to_vec(), fps, Smoothing::On(settings.smoothing));
+        let u = facespace::synth::synthesise(synthesiser.as_ref(), &talker.codebook, req).unwrap();
+        u.variants()[0].1.clone()
+    };
+    let as_frames = |frames: &[LiveFrame]| -> Frames {
+        assert!(frames.iter().enumerate().all(|(i, f)| f.index == i));
+        Frames::from_rows(
+            layout,
+            fps,
+            frames.iter().flat_map(|f| f.values.iter().copied()).collect(),
+        )
+        .unwrap()
+    };
+    let systems = [
+        "offline, aligned words",
+        "live, aligned words given ahead",
+        "offline, phones recognised from the whole clip",
+        "live, phones recognised as the sound comes",
+    ];
+    let (mut reals, mut rows) = (Vec::new(), Vec::new());
+    let mut waits: Vec<f64> = Vec::new();
+    let (mut spent, mut sound) = (0.0, 0.0);
+    for id in &ids {
+        let clip = grid.join(format!("clips/{id}.mp4"));
+        let (_, real, _) = track::tracked(&talker.model, &clip);
+        let audio = facespace::audio::read(&clip, CHUNK_RATE, 600.0).unwrap();
+        let speech16 = facespace::audio::resample(&audio, SAMPLE_RATE);
+        let aligned = aligner
+            .align(&speech16.samples, SAMPLE_RATE, &grid::words(&grid, id))
+            .unwrap()
+            .segments();
+        let recognised =
+            facespace::align::segments(&aligner.recognise(&speech16.samples, SAMPLE_RATE, &lm).unwrap());
+        let live = |given: Option<&[Segment]>, waits: &mut Vec<f64>| -> (Frames, f64) {
+            let clock = std::time::Instant::now();
+            let mut session = match given {
+                Some(phones) => {
+                    let mut s = Session::with_given_phones(&talker);
+                    s.push_phones(phones).unwrap();
+                    s
+                }
+                None => Session::new(&talker),
+            };
+            let mut frames = Vec::new();
+            for chunk in audio.samples.chunks(CHUNK) {
+                session.push_audio(chunk, CHUNK_RATE).unwrap();
+                for f in session.pull().unwrap() {
+                    waits.push(session.seconds() - f.time);
+                    frames.push(f);
+                }
+            }
+            frames.extend(session.finish().unwrap());
+            (as_frames(&frames), clock.elapsed().as_secs_f64())
+        };
+        let (given, _) = live(Some(&aligned), &mut Vec::new());
+        let (heard, took) = live(None, &mut waits);
+        spent += took;
+        sound += audio.seconds();
+        rows.push([offline(&aligned), given, offline(&recognised), heard]);
+        reals.push(real);
+        eprint!(".");
+    }
+    eprintln!();
+    let real_refs: Vec<&Frames> = reals.iter().collect();
+    let pc = MouthPc::fit(&talker.model, &real_refs).expect("a 68-point model");
+    let height = |f: &Frames| -> Vec<f64> {
+        facespace::eval::landmarks(&talker.model, f)
+            .iter()
+            .map(|p| inner_mouth_height(p))
+            .collect()
+    };
+    println!(
+        "GRID s1 {split} split (recorded), {} sentences, the talker's settings (blend N={}, C={}, λ={:e}):\n",
+        ids.len(),
+        settings.top_n,
+        settings.context,
+        settings.smoothing
+    );
+    println!("| system | r_pca eq. 16 | r_h inner |");
+    println!("|---|---|---|");
+    for (k, name) in systems.iter().enumerate() {
+        let (mut r_pca, mut r_h) = (0.0, 0.0);
+        for (row, real) in rows.iter().zip(&reals) {
+            let n = row[k].len().min(real.len());
+            let (a, b) = (row[k].slice(0..n), real.slice(0..n));
+            r_pca += pearson(&pc.series(&a), &pc.series(&b));
+            r_h += pearson(&height(&a), &height(&b));
+        }
+        let m = rows.len() as f64;
+        println!("| {name} | {:.3} | {:.3} |", r_pca / m, r_h / m);
+    }
+    waits.sort_by(f64::total_cmp);
+    let q = |f: f64| 1000.0 * waits[((waits.len() - 1) as f64 * f) as usize];
+    println!(
+        "\nlive from sound: a frame leaves {:.0} ms (median) / {:.0} ms (95 %) / {:.0} ms (most) of sound after its own time; the session computes at {:.0}× real time (one thread)",
+        q(0.5),
+        q(0.95),
+        q(1.0),
+        sound / spent
+    );
+}

@@ -1,0 +1,327 @@
+//! Live synthesis (issue 35): a session on a talker takes speech as it arrives — sound a chunk
+//! at a time, and the phones with their times when a text-to-speech engine supplies them —
+//! and gives out face-space frames at the video rate as soon as they are settled.
+//!
+//! The phones are recognised from the sound as it comes ([`crate::align::Recogniser`]) unless
+//! they are given. A frame is settled once the phone after its own has ended (the blend's
+//! right context, C = 1, needs that phone; wider contexts wait for more), and it is made by the
+//! same synthesis as an offline utterance ([`crate::synth::synthesise`] with the talker's
+//! settings) run over a window of the latest phones: the smoothing spline over the window is
+//! the fixed-lag smoother, the frames near its end leave before later speech can pull them.
+
+use thiserror::Error;
+
+use crate::align::{AlignError, Recogniser, TimedPhone};
+use crate::audio::Resampler;
+use crate::facespace::Frames;
+use crate::phonemes::{Phone, Segment};
+use crate::synth::{Request, SynthError, Synthesiser, Smoothing};
+use crate::talker::Talker;
+
+/// Seconds of settled phones before the next frame that each synthesis window reaches back
+/// over, so that the spline and the blend's left context see what came before.
+pub const WINDOW_BEFORE: f64 = 1.0;
+
+/// Sample rates a session takes, Hz (the sound is resampled to the recogniser's 16 kHz).
+pub const RATES: [u32; 5] = [8_000, 16_000, 22_050, 24_000, 48_000];
+
+/// What can go wrong in a live session.
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum LiveError {
+    /// A sample rate the session does not take.
+    #[error("audio at {0} Hz: a live session takes 8 000, 16 000, 22 050, 24 000 or 48 000 Hz")]
+    SampleRate(u32),
+    /// A chunk of sound could not be used (NaN samples, say).
+    #[error(transparent)]
+    Speech(#[from] AlignError),
+    /// Given phones that overlap or go back in time.
+    #[error("phone {index} ({phone}) starts at {start:.3} s, before the {previous:.3} s where the last one ended")]
+    PhonesOutOfOrder {
+        /// Its place among the phones given in that call.
+        index: usize,
+        /// The phone.
+        phone: Phone,
+        /// Its start, session seconds.
+        start: f64,
+        /// Where the session's phones had reached.
+        previous: f64,
+    },
+    /// The synthesis failed.
+    #[error(transparent)]
+    Synth(#[from] SynthError),
+}
+
+/// One frame of a live session: face-space values in the talker model's layout
+/// (pose ‖ shape ‖ appearance, the pose the codebook's median) and when it is shown.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LiveFrame {
+    /// Frame number since the session began; shown at `index / fps` seconds of its sound.
+    pub index: usize,
+    /// Its presentation time, seconds of the session's sound.
+    pub time: f64,
+    /// The face-space point.
+    pub values: Vec<f32>,
+    /// Whether a phone (not silence) is spoken at it.
+    pub speaking: bool,
+}
+
+/// Where a session's phones come from.
+enum Phones<'t> {
+    /// Recognised from the sound; the recogniser starts at `offset` session seconds.
+    Heard {
+        recogniser: Option<Recogniser<'t>>,
+        offset: f64,
+    },
+    /// Given with their times (a text-to-speech engine's).
+    Given,
+}
+
+/// A live session on a talker (module docs).
+pub struct Session<'t> {
+    talker: &'t Talker,
+    synthesiser: Box<dyn Synthesiser>,
+    fps: f64,
+    source: Phones<'t>,
+    /// The sound's rate and its resampler to 16 kHz.
+    resampler: Option<(u32, Resampler)>,
+    /// Seconds of sound taken.
+    heard: f64,
+    /// The phones so far since `origin`, session seconds, contiguous.
+    phones: Vec<Segment>,
+    /// Where the phones begin: the session's start or its last [`Session::clear`] (on the
+    /// frame grid; no synthesis window reaches before it).
+    origin: f64,
+    /// Frames given out.
+    given: usize,
+}
+
+impl<'t> Session<'t> {
+    /// A session whose phones are recognised from its sound.
+    pub fn new(talker: &'t Talker) -> Self {
+        Self::with_source(
+            talker,
+            Phones::Heard {
+                recogniser: None,
+                offset: 0.0,
+            },
+        )
+    }
+
+    /// A session whose phones are given ([`Session::push_phones`]); its sound only keeps time.
+    pub fn with_given_phones(talker: &'t Talker) -> Self {
+        Self::with_source(talker, Phones::Given)
+    }
+
+    fn with_source(talker: &'t Talker, source: Phones<'t>) -> Self {
+        Session {
+            talker,
+            synthesiser: talker.manifest.settings.synthesiser(),
+            fps: talker.footage.fps,
+            source,
+            resampler: None,
+            heard: 0.0,
+            phones: Vec::new(),
+            origin: 0.0,
+            given: 0,
+        }
+    }
+
+    /// Frames per second of the session's video.
+    pub fn fps(&self) -> f64 {
+        self.fps
+    }
+
+    /// Seconds of sound taken.
+    pub fn seconds(&self) -> f64 {
+        self.heard
+    }
+
+    /// Takes the next chunk of sound (mono, −1…1, at `rate` — the same rate every call).
+    pub fn push_audio(&mut self, samples: &[f32], rate: u32) -> Result<(), LiveError> {
+        if !RATES.contains(&rate) || self.resampler.as_ref().is_some_and(|(r, _)| *r != rate) {
+            return Err(LiveError::SampleRate(rate));
+        }
+        if let Some(index) = samples.iter().position(|x| !x.is_finite()) {
+            return Err(AlignError::NotFinite { index }.into());
+        }
+        let (_, resampler) = self
+            .resampler
+            .get_or_insert_with(|| (rate, Resampler::new(rate, crate::align::frontend::SAMPLE_RATE)));
+        let speech = resampler.push(samples);
+        self.heard += samples.len() as f64 / f64::from(rate);
+        match &mut self.source {
+            Phones::Heard { recogniser, offset } => {
+                let recogniser = match recogniser {
+                    Some(r) => r,
+                    None => recogniser.insert(self.talker.live_recogniser()?),
+                };
+                let heard = recogniser.push(&speech)?;
+                let offset = *offset;
+                self.extend(&heard, offset);
+            }
+            // Sound beyond the given phones is silence: the face rests while it plays.
+            Phones::Given => {
+                let end = self.phones.last().map_or(self.origin, |p| p.end);
+                if end < self.heard {
+                    self.append(Segment {
+                        start: end,
+                        end: self.heard,
+                        phone: Phone::SIL,
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Takes phones with their times (session seconds), in order from where the last ended;
+    /// they must come before their sound (sound beyond the phones is taken as silence).
+    pub fn push_phones(&mut self, phones: &[Segment]) -> Result<(), LiveError> {
+        let mut end = self.phones.last().map_or(self.origin, |p| p.end);
+        for (index, p) in phones.iter().enumerate() {
+            if !(p.start.is_finite() && p.end.is_finite()) || p.start < end - 1e-6 || p.end < p.start {
+                return Err(LiveError::PhonesOutOfOrder {
+                    index,
+                    phone: p.phone,
+                    start: p.start,
+                    previous: end,
+                });
+            }
+            end = p.end;
+        }
+        for p in phones {
+            self.append(*p);
+        }
+        Ok(())
+    }
+
+    /// The recognised phones `heard` (recogniser seconds, from `offset`) added to the phones.
+    fn extend(&mut self, heard: &[TimedPhone], offset: f64) {
+        for p in crate::align::segments(heard) {
+            self.append(Segment {
+                start: p.start + offset,
+                end: p.end + offset,
+                phone: p.phone,
+            });
+        }
+    }
+
+    /// Adds a phone, joining it to the last when it continues it; a gap becomes silence.
+    fn append(&mut self, p: Segment) {
+        let end = self.phones.last().map_or(self.origin, |l| l.end);
+        if p.start > end + 1e-6 {
+            self.append(Segment {
+                start: end,
+                end: p.start,
+                phone: Phone::SIL,
+            });
+        }
+        let p = Segment {
+            start: p.start.max(end),
+            ..p
+        };
+        match self.phones.last_mut() {
+            Some(last) if last.phone == p.phone => last.end = last.end.max(p.end),
+            _ if p.end > p.start => self.phones.push(p),
+            _ => {}
+        }
+    }
+
+    /// The frames settled since the last call, in order.
+    pub fn pull(&mut self) -> Result<Vec<LiveFrame>, LiveError> {
+        let context = self.talker.manifest.settings.context.max(1);
+        let settled = match self.phones.len().checked_sub(1 + context) {
+            Some(k) => self.phones[k].end,
+            None => return Ok(Vec::new()),
+        };
+        // Never ahead of the sound: an interruption takes back nothing already shown.
+        self.frames_until(settled.min(self.heard))
+    }
+
+    /// Ends the speech: every frame up to the end of the phones (with no right context
+    /// beyond them), and the recogniser's last phones.
+    pub fn finish(&mut self) -> Result<Vec<LiveFrame>, LiveError> {
+        if let Phones::Heard { recogniser, offset } = &mut self.source {
+            let offset = *offset;
+            let mut tail = self.resampler.as_mut().map(|(_, r)| r.finish()).unwrap_or_default();
+            if let Some(mut r) = recogniser.take() {
+                let mut heard = r.push(&std::mem::take(&mut tail))?;
+                heard.extend(r.finish()?);
+                self.extend(&heard, offset);
+            }
+        }
+        let end = self.phones.last().map_or(self.origin, |p| p.end);
+        self.frames_until(end)
+    }
+
+    /// Drops what is being said (an interruption): the next frame is the idle face, and the
+    /// phones start again from it.
+    pub fn clear(&mut self) {
+        self.origin = self.given as f64 / self.fps;
+        self.phones.clear();
+        if let Phones::Heard { recogniser, offset } = &mut self.source {
+            *recogniser = None;
+            *offset = self.heard;
+            self.resampler = None;
+        }
+        if self.origin < self.heard {
+            // Until new speech arrives, silence from the interruption.
+            self.phones.push(Segment {
+                start: self.origin,
+                end: self.heard,
+                phone: Phone::SIL,
+            });
+        }
+    }
+
+    /// The frames from the next one up to (not including) time `until`, synthesised over a
+    /// window of the phones that reaches [`WINDOW_BEFORE`] before the first of them.
+    fn frames_until(&mut self, until: f64) -> Result<Vec<LiveFrame>, LiveError> {
+        let first_time = self.given as f64 / self.fps;
+        let last = ((until * self.fps) - 1e-6).ceil() as usize;
+        if last <= self.given || self.phones.is_empty() {
+            return Ok(Vec::new());
+        }
+        let reach = (first_time - WINDOW_BEFORE).max(self.origin);
+        let w0 = self.phones.iter().rposition(|p| p.start <= reach).unwrap_or(0);
+        // The window starts on the frame grid, at or before its first phone.
+        let start = ((self.phones[w0].start * self.fps) + 1e-6).floor() / self.fps;
+        let mut target: Vec<Segment> = self.phones[w0..]
+            .iter()
+            .map(|p| Segment {
+                start: p.start - start,
+                end: p.end - start,
+                phone: p.phone,
+            })
+            .collect();
+        target[0].start = 0.0;
+        let smoothing = Smoothing::On(self.talker.manifest.settings.smoothing);
+        let utterance = crate::synth::synthesise(
+            self.synthesiser.as_ref(),
+            &self.talker.codebook,
+            Request::new(target.clone(), self.fps, smoothing),
+        )?;
+        let frames: &Frames = utterance.variants()[0].1;
+        let offset = (start * self.fps).round() as usize;
+        let mut out = Vec::with_capacity(last - self.given);
+        for index in self.given..last {
+            let Some(i) = index.checked_sub(offset).filter(|&i| i < frames.len()) else {
+                break;
+            };
+            let time = index as f64 / self.fps;
+            let speaking = target
+                .iter()
+                .find(|p| time - start < p.end)
+                .is_some_and(|p| p.phone != Phone::SIL);
+            out.push(LiveFrame {
+                index,
+                time,
+                values: frames.row(i).to_vec(),
+                speaking,
+            });
+        }
+        self.given += out.len();
+        Ok(out)
+    }
+}

@@ -1,0 +1,177 @@
+//! Live synthesis (issue 35): a session on the committed GRID s1 talker gives out every frame
+//! once, in order, as the speech arrives; with the phones given ahead it draws what offline
+//! synthesis draws; from the sound alone the lips move with it; an interruption returns to the
+//! idle face at the next frame; bad input is refused.
+
+use crate::common;
+
+use facespace::audio::{self, Audio};
+use facespace::eval::mouth::inner_mouth_height;
+use facespace::facespace::Frames;
+use facespace::live::{LiveError, LiveFrame, Session};
+use facespace::phonemes::{self, Phone, PhoneMap, Segment};
+use facespace::synth::{Request, Smoothing};
+use facespace::talker::Talker;
+
+fn talker() -> &'static Talker {
+    static TALKER: std::sync::OnceLock<Talker> = std::sync::OnceLock::new();
+    TALKER.get_or_init(|| Talker::load(&common::root().join("models/grid")).unwrap())
+}
+
+fn clip(id: &str) -> (Audio, Vec<Segment>) {
+    let dir = common::root().join("tests/data/grid");
+    let sound = audio::read(&dir.join(format!("{id}.wav")), 48_000, 600.0).unwrap();
+    let phones = phonemes::read_htk(&dir.join(format!("{id}.lab")), &PhoneMap::default()).unwrap();
+    (sound, phones)
+}
+
+/// Inner-mouth height of each frame.
+fn heights(frames: &[LiveFrame]) -> Vec<f64> {
+    let t = talker();
+    let rows: Vec<f32> = frames.iter().flat_map(|f| f.values.iter().copied()).collect();
+    let frames = Frames::from_rows(t.model.layout(), t.footage.fps, rows).unwrap();
+    facespace::eval::landmarks(&t.model, &frames)
+        .iter()
+        .map(|p| inner_mouth_height(p))
+        .collect()
+}
+
+/// Runs `session` over `sound` in 20 ms chunks, checking that frames come in order, once
+/// each, never before their time is heard (given phones: never before they are given).
+fn run(mut session: Session<'_>, sound: &Audio) -> Vec<LiveFrame> {
+    let mut frames: Vec<LiveFrame> = Vec::new();
+    for chunk in sound.samples.chunks(960) {
+        session.push_audio(chunk, sound.rate).unwrap();
+        frames.extend(session.pull().unwrap());
+    }
+    frames.extend(session.finish().unwrap());
+    let fps = talker().footage.fps;
+    for (i, f) in frames.iter().enumerate() {
+        assert_eq!(f.index, i);
+        assert!((f.time - i as f64 / fps).abs() < 1e-9);
+    }
+    frames
+}
+
+/// Phones given ahead (a text-to-speech engine's timings): the live frames follow the offline
+/// synthesis of the same phones — inner-mouth height r ≥ 0.95 with it, within 0.5 px
+/// on average — every frame of the sound given, the speaking ones where the phones are.
+#[test]
+fn given_phones_draw_what_offline_synthesis_draws() {
+    let t = talker();
+    for id in ["bbbf9a", "bbwtzp"] {
+        let (sound, phones) = clip(id);
+        let mut session = Session::with_given_phones(t);
+        session.push_phones(&phones).unwrap();
+        let live = run(session, &sound);
+        let settings = &t.manifest.settings;
+        let request = Request::new(phones.clone(), t.footage.fps, Smoothing::On(settings.smoothing));
+        let offline = facespace::synth::synthesise(settings.synthesiser().as_ref(), &t.codebook, request).unwrap();
+        let offline = offline.variants()[0].1.clone();
+        assert!(live.len().abs_diff(offline.len()) <= 2, "{id}: {} vs {}", live.len(), offline.len());
+        let n = live.len().min(offline.len());
+        let a = heights(&live[..n]);
+        let b: Vec<f64> = facespace::eval::landmarks(&t.model, &offline)
+            .iter()
+            .map(|p| inner_mouth_height(p))
+            .take(n)
+            .collect();
+        let r = facespace::eval::pearson(&a, &b);
+        let mean_diff = a.iter().zip(&b).map(|(x, y)| (x - y).abs()).sum::<f64>() / a.len() as f64;
+        assert!(r >= 0.95 && mean_diff < 0.5, "{id}: r {r}, mean |Δh| {mean_diff} px");
+        for f in &live {
+            let phone = phones.iter().find(|p| f.time < p.end).map_or(Phone::SIL, |p| p.phone);
+            assert_eq!(f.speaking, phone != Phone::SIL, "{id} at {}", f.time);
+        }
+    }
+}
+
+/// From the sound alone (48 kHz, resampled as it comes): a frame for each 40 ms of it, the
+/// mouth opening more while the phones are spoken than in the silences around them.
+#[test]
+fn the_sound_alone_moves_the_lips() {
+    let (sound, phones) = clip("bbbs7a");
+    let live = run(Session::new(talker()), &sound);
+    let expected = (sound.seconds() * talker().footage.fps).ceil() as usize;
+    assert!(live.len().abs_diff(expected) <= 2, "{} frames for {expected}", live.len());
+    let h = heights(&live);
+    let spoken = |f: &LiveFrame| phones.iter().any(|p| p.phone != Phone::SIL && p.start <= f.time && f.time < p.end);
+    let mean = |speech: bool| {
+        let v: Vec<f64> = live.iter().zip(&h).filter(|(f, _)| spoken(f) == speech).map(|(_, &h)| h).collect();
+        v.iter().sum::<f64>() / v.len() as f64
+    };
+    assert!(mean(true) > mean(false) + 0.5, "speech {} px, silence {} px", mean(true), mean(false));
+    assert!(live.iter().filter(|f| f.speaking).count() * 3 > live.len(), "speaking on too few frames");
+}
+
+/// An interruption: after `clear`, the next frame is the idle face (not speaking, the mouth
+/// no more open than in the silence before the speech, which opened it 3 px wider), and the
+/// session goes on taking speech.
+#[test]
+fn clear_returns_to_the_idle_face_at_the_next_frame() {
+    let t = talker();
+    let (sound, phones) = clip("bbbf9a");
+    let mut session = Session::with_given_phones(t);
+    session.push_phones(&phones).unwrap();
+    let mut frames = Vec::new();
+    // Up to the middle of the sentence.
+    let middle = sound.samples.len() / 2;
+    for chunk in sound.samples[..middle].chunks(960) {
+        session.push_audio(chunk, sound.rate).unwrap();
+        frames.extend(session.pull().unwrap());
+    }
+    let before = frames.len();
+    assert!(frames.last().unwrap().speaking);
+    session.clear();
+    session.push_audio(&vec![0.0; 4_800], sound.rate).unwrap();
+    frames.extend(session.finish().unwrap());
+    assert!(frames.len() > before, "frames go on after clear");
+    let next = &frames[before];
+    assert_eq!(next.index, before);
+    assert!(!next.speaking);
+    let h = heights(&frames);
+    let idle = h[..5].iter().sum::<f64>() / 5.0;
+    let widest = h[..before].iter().fold(0f64, |m, &x| m.max(x));
+    assert!(
+        h[before] <= idle + 1.0 && widest > idle + 3.0,
+        "after clear {} px, idle {idle} px, widest before {widest} px",
+        h[before]
+    );
+    // New phones after the interruption are taken from where it left.
+    let at = session.seconds();
+    session
+        .push_phones(&[Segment { start: at, end: at + 0.2, phone: Phone::parse("aa").unwrap() }])
+        .unwrap();
+}
+
+/// Bad input is refused with a clear error and the session stays usable: an absurd or a
+/// changed sample rate, non-finite samples, phones going back in time.
+#[test]
+fn bad_input_is_refused() {
+    let t = talker();
+    let mut session = Session::new(t);
+    for rate in [0, 1, 12_345, u32::MAX] {
+        let e = session.push_audio(&[0.0; 10], rate).unwrap_err();
+        assert!(matches!(e, LiveError::SampleRate(r) if r == rate), "{e}");
+        assert!(e.to_string().contains("Hz"));
+    }
+    session.push_audio(&[0.0; 480], 16_000).unwrap();
+    assert!(matches!(session.push_audio(&[0.0; 480], 48_000), Err(LiveError::SampleRate(48_000))));
+    let mut nan = vec![0.0; 100];
+    nan[9] = f32::NAN;
+    let e = session.push_audio(&nan, 16_000).unwrap_err();
+    assert!(e.to_string().contains("not finite"), "{e}");
+    session.push_audio(&[0.0; 16_000], 16_000).unwrap();
+    session.pull().unwrap();
+    let mut given = Session::with_given_phones(t);
+    let aa = Phone::parse("aa").unwrap();
+    given.push_phones(&[Segment { start: 0.0, end: 0.5, phone: aa }]).unwrap();
+    let e = given
+        .push_phones(&[Segment { start: 0.2, end: 0.6, phone: aa }])
+        .unwrap_err();
+    assert!(matches!(e, LiveError::PhonesOutOfOrder { .. }), "{e}");
+    let e = given
+        .push_phones(&[Segment { start: f64::NAN, end: 0.6, phone: aa }])
+        .unwrap_err();
+    assert!(matches!(e, LiveError::PhonesOutOfOrder { .. }), "{e}");
+}
