@@ -68,10 +68,12 @@ pub struct LiveFrame {
 
 /// Where a session's phones come from.
 enum Phones<'t> {
-    /// Recognised from the sound; the recogniser starts at `offset` session seconds.
+    /// Recognised from the sound; the recogniser starts at `offset` session seconds;
+    /// `sounding` is its guess at the phone after the ones it gave out (session seconds).
     Heard {
         recogniser: Option<Recogniser<'t>>,
         offset: f64,
+        sounding: Option<Segment>,
     },
     /// Given with their times (a text-to-speech engine's).
     Given,
@@ -104,6 +106,7 @@ impl<'t> Session<'t> {
             Phones::Heard {
                 recogniser: None,
                 offset: 0.0,
+                sounding: None,
             },
         )
     }
@@ -151,13 +154,25 @@ impl<'t> Session<'t> {
         let speech = resampler.push(samples);
         self.heard += samples.len() as f64 / f64::from(rate);
         match &mut self.source {
-            Phones::Heard { recogniser, offset } => {
+            Phones::Heard {
+                recogniser,
+                offset,
+                sounding,
+            } => {
                 let recogniser = match recogniser {
                     Some(r) => r,
                     None => recogniser.insert(self.talker.live_recogniser()?),
                 };
                 let heard = recogniser.push(&speech)?;
                 let offset = *offset;
+                *sounding = recogniser.sounding().and_then(|p| {
+                    let segment = crate::align::segments(std::slice::from_ref(p)).pop()?;
+                    Some(Segment {
+                        start: segment.start + offset,
+                        end: segment.end + offset,
+                        phone: segment.phone,
+                    })
+                });
                 self.extend(&heard, offset);
             }
             // Sound beyond the given phones is silence: the face rests while it plays.
@@ -231,18 +246,32 @@ impl<'t> Session<'t> {
     /// The frames settled since the last call, in order.
     pub fn pull(&mut self) -> Result<Vec<LiveFrame>, LiveError> {
         let context = self.talker.manifest.settings.context.max(1);
-        let settled = match self.phones.len().checked_sub(1 + context) {
+        // The recogniser's guess at the next phone is the last one's right context when it is
+        // another phone (the last has ended); a guess that continues the last leaves it open.
+        let next = match &self.source {
+            Phones::Heard {
+                sounding: Some(s), ..
+            } if self.phones.last().is_some_and(|l| l.phone != s.phone && (l.end - s.start).abs() < 1e-6) => {
+                Some(*s)
+            }
+            _ => None,
+        };
+        let known = self.phones.len() + usize::from(next.is_some());
+        let settled = match known.checked_sub(1 + context) {
             Some(k) => self.phones[k].end,
             None => return Ok(Vec::new()),
         };
         // Never ahead of the sound: an interruption takes back nothing already shown.
-        self.frames_until(settled.min(self.heard))
+        self.frames_until(settled.min(self.heard), next)
     }
 
     /// Ends the speech: every frame up to the end of the phones (with no right context
     /// beyond them), and the recogniser's last phones.
     pub fn finish(&mut self) -> Result<Vec<LiveFrame>, LiveError> {
-        if let Phones::Heard { recogniser, offset } = &mut self.source {
+        if let Phones::Heard {
+            recogniser, offset, ..
+        } = &mut self.source
+        {
             let offset = *offset;
             let mut tail = self.resampler.as_mut().map(|(_, r)| r.finish()).unwrap_or_default();
             if let Some(mut r) = recogniser.take() {
@@ -252,7 +281,7 @@ impl<'t> Session<'t> {
             }
         }
         let end = self.phones.last().map_or(self.origin, |p| p.end);
-        self.frames_until(end)
+        self.frames_until(end, None)
     }
 
     /// Drops what is being said (an interruption): the next frame is the idle face, and the
@@ -260,8 +289,14 @@ impl<'t> Session<'t> {
     pub fn clear(&mut self) {
         self.origin = self.given as f64 / self.fps;
         self.phones.clear();
-        if let Phones::Heard { recogniser, offset } = &mut self.source {
+        if let Phones::Heard {
+            recogniser,
+            offset,
+            sounding,
+        } = &mut self.source
+        {
             *recogniser = None;
+            *sounding = None;
             *offset = self.heard;
             self.resampler = None;
         }
@@ -276,8 +311,9 @@ impl<'t> Session<'t> {
     }
 
     /// The frames from the next one up to (not including) time `until`, synthesised over a
-    /// window of the phones that reaches [`WINDOW_BEFORE`] before the first of them.
-    fn frames_until(&mut self, until: f64) -> Result<Vec<LiveFrame>, LiveError> {
+    /// window of the phones (and the `next` one guessed after them) that reaches
+    /// [`WINDOW_BEFORE`] before the first of them.
+    fn frames_until(&mut self, until: f64, next: Option<Segment>) -> Result<Vec<LiveFrame>, LiveError> {
         let first_time = self.given as f64 / self.fps;
         let last = ((until * self.fps) - 1e-6).ceil() as usize;
         if last <= self.given || self.phones.is_empty() {
@@ -289,6 +325,7 @@ impl<'t> Session<'t> {
         let start = ((self.phones[w0].start * self.fps) + 1e-6).floor() / self.fps;
         let mut target: Vec<Segment> = self.phones[w0..]
             .iter()
+            .chain(&next)
             .map(|p| Segment {
                 start: p.start - start,
                 end: p.end - start,

@@ -432,6 +432,7 @@ impl Aligner {
             samples: 0,
             lag: STREAM_LAG_FRAMES,
             least_piece: STREAM_LEAST_PIECE,
+            sounding: None,
         })
     }
 
@@ -478,6 +479,8 @@ pub struct Recogniser<'a> {
     lag: usize,
     /// Frames a phone must have lasted before a piece of it is given out.
     least_piece: usize,
+    /// The phone after the ones given out, as the best path has it now.
+    sounding: Option<TimedPhone>,
 }
 
 impl Recogniser<'_> {
@@ -534,15 +537,27 @@ impl Recogniser<'_> {
     /// the same phone starting where the first ended.
     fn commit(&mut self, path: &search::Path, until: u32) -> Vec<TimedPhone> {
         let mut out = Vec::new();
+        self.sounding = None;
+        let frames = self.decoder.frames as u32;
         for (phone, start, end) in self.graph.phone_spans(path, self.decoder.frames) {
             let young = end > until && start + self.least_piece as u32 > until;
             let (start, end) = (start.max(self.committed), end.min(until));
             if start < end && !young {
                 out.push(search::timed_phone(self.model, phone, start, end));
                 self.committed = end;
+            } else if self.sounding.is_none() && end > self.committed.max(start) {
+                let start = start.max(self.committed);
+                self.sounding = Some(search::timed_phone(self.model, phone, start, frames.max(start + 1)));
             }
         }
         out
+    }
+
+    /// The phone the best path now has after the ones given out, from where they end to the
+    /// frames decoded: a guess the next frames may change (what a live synthesis reads as
+    /// the last phone's right context). `None` before the first push or after the end.
+    pub fn sounding(&self) -> Option<&TimedPhone> {
+        self.sounding.as_ref()
     }
 }
 
