@@ -38,14 +38,7 @@ fn main() {
     let split = args.next().unwrap_or_else(|| "test".into());
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let talker = Talker::load(&root.join("models/grid")).unwrap();
-    let damaged = std::fs::read_to_string(grid.join("damaged.txt")).unwrap_or_default();
-    let ids: Vec<String> = std::fs::read_to_string(grid.join(format!("{split}.txt")))
-        .unwrap()
-        .split_whitespace()
-        .filter(|id| !damaged.split_whitespace().any(|d| d == *id))
-        .take(limit)
-        .map(str::to_owned)
-        .collect();
+    let ids = grid::split(&grid, &split, limit);
     let aligner = facespace::align::Aligner::load_default(&[]).unwrap();
     let lm = aligner.phone_loop(
         facespace::align::PHONE_WEIGHT,

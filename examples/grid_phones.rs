@@ -12,6 +12,10 @@
 //! sound to `DIR/wav/`, `python3 tests/reference/pocketsphinx_phones.py DIR` recognises them,
 //! and the next run scores its `allphone.tsv` and `words.tsv` beside ours.
 
+#[path = "common/grid.rs"]
+#[allow(dead_code)]
+mod grid;
+
 use std::path::PathBuf;
 
 use facespace::align::{Aligner, PHONE_PENALTY, PHONE_WEIGHT, frontend};
@@ -37,14 +41,7 @@ fn main() {
     if settings.is_empty() {
         settings.push((PHONE_WEIGHT, PHONE_PENALTY));
     }
-    let damaged = std::fs::read_to_string(grid.join("damaged.txt")).unwrap_or_default();
-    let ids: Vec<String> = std::fs::read_to_string(grid.join(format!("{split}.txt")))
-        .unwrap()
-        .split_whitespace()
-        .filter(|id| !damaged.split_whitespace().any(|d| d == *id))
-        .take(limit)
-        .map(str::to_owned)
-        .collect();
+    let ids = grid::split(&grid, split, limit);
     let lags: Vec<(usize, usize)> = std::env::var("STREAM")
         .map(|l| {
             l.split(',')

@@ -50,17 +50,7 @@ fn main() {
     let clock = std::time::Instant::now();
     let talker = Talker::load(&root.join("models/grid")).unwrap();
     let split = args.next().unwrap_or_else(|| "test".into());
-    // The corpus's damaged clips (none in test; two in validation) are left out, as
-    // `corpus from-videos` leaves them out.
-    let damaged = std::fs::read_to_string(grid.join("damaged.txt")).unwrap_or_default();
-    let damaged: Vec<&str> = damaged.split_whitespace().collect();
-    let ids: Vec<String> = std::fs::read_to_string(grid.join(format!("{split}.txt")))
-        .unwrap()
-        .lines()
-        .map(|l| l.trim().to_owned())
-        .filter(|l| !l.is_empty() && !damaged.contains(&l.as_str()))
-        .take(limit)
-        .collect();
+    let ids = grid::split(&grid, &split, limit);
     let settings = &talker.manifest.settings;
     let say = format!(
         "say (talker settings: blend N={}, λ={:e})",

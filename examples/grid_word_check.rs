@@ -18,13 +18,7 @@ fn main() {
     let grid = PathBuf::from(&args[0]);
     let split = &args[1];
     let threshold: Option<f64> = args.get(2).map(|t| t.parse().unwrap());
-    let damaged = std::fs::read_to_string(grid.join("damaged.txt")).unwrap_or_default();
-    let ids: Vec<String> = std::fs::read_to_string(grid.join(format!("{split}.txt")))
-        .unwrap()
-        .split_whitespace()
-        .filter(|id| !damaged.split_whitespace().any(|d| d == *id))
-        .map(str::to_owned)
-        .collect();
+    let ids = grid::split(&grid, split, usize::MAX);
     let aligner = Aligner::load_default(&[]).unwrap();
     let lm = aligner.phone_loop(PHONE_WEIGHT, PHONE_PENALTY);
     let (mut truth, mut lies) = (Vec::new(), Vec::new());

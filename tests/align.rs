@@ -616,6 +616,17 @@ fn damaged_model_files_are_named() {
     assert!(e.contains("sendump"), "{e}");
 }
 
+/// Edit distance of `phones` from the committed clip `id`'s reference labels, silences left
+/// out, and the reference's length.
+fn phone_errors(id: &str, phones: &[align::TimedPhone]) -> (usize, usize) {
+    let speech = |s: &[phonemes::Segment]| -> Vec<Phone> {
+        s.iter().map(|s| s.phone).filter(|&p| p != Phone::SIL).collect()
+    };
+    let reference = phonemes::read_htk(&grid().join(format!("{id}.lab")), &PhoneMap::default()).unwrap();
+    let reference = speech(&reference);
+    (facespace::eval::edit_distance(&speech(&align::segments(phones)), &reference), reference.len())
+}
+
 /// Phones without words (issue 34): on the three committed clips (recorded) the recognised
 /// phones tile the recording and come nearer their reference labels than chance — the phone
 /// error rate stays under 85 % (63.9 % over GRID's test split, BENCHMARKS); and the bad
@@ -631,19 +642,9 @@ fn phones_are_recognised_without_words() {
         assert_eq!(phones[0].start, 0.0);
         assert!(phones.windows(2).all(|w| w[0].end == w[1].start && w[0].end > w[0].start));
         assert!((phones.last().unwrap().end - audio.seconds()).abs() < 0.03, "{id}");
-        let hyp: Vec<Phone> = align::segments(&phones)
-            .iter()
-            .map(|s| s.phone)
-            .filter(|&p| p != Phone::SIL)
-            .collect();
-        let reference: Vec<Phone> = phonemes::read_htk(&grid().join(format!("{id}.lab")), &PhoneMap::default())
-            .unwrap()
-            .iter()
-            .map(|s| s.phone)
-            .filter(|&p| p != Phone::SIL)
-            .collect();
-        errors += facespace::eval::edit_distance(&hyp, &reference);
-        total += reference.len();
+        let (e, n) = phone_errors(id, &phones);
+        errors += e;
+        total += n;
     }
     let per = errors as f64 / total as f64;
     assert!(per < 0.85, "PER {per}");
@@ -794,19 +795,9 @@ fn live_phones_arrive_within_their_lag() {
         let merged = align::merge_pieces(phones.clone());
         assert!(merged.len() <= phones.len());
         assert!(merged.windows(2).all(|w| w[0].phone != w[1].phone), "{id}");
-        let hyp: Vec<Phone> = align::segments(&merged)
-            .iter()
-            .map(|s| s.phone)
-            .filter(|&p| p != Phone::SIL)
-            .collect();
-        let reference: Vec<Phone> = phonemes::read_htk(&grid().join(format!("{id}.lab")), &PhoneMap::default())
-            .unwrap()
-            .iter()
-            .map(|s| s.phone)
-            .filter(|&p| p != Phone::SIL)
-            .collect();
-        errors += facespace::eval::edit_distance(&hyp, &reference);
-        total += reference.len();
+        let (e, n) = phone_errors(id, &merged);
+        errors += e;
+        total += n;
     }
     let per = errors as f64 / total as f64;
     assert!(per < 0.85, "PER {per}");
