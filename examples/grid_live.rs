@@ -15,7 +15,7 @@ mod grid;
 #[path = "common/track.rs"]
 mod track;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use facespace::align::frontend::SAMPLE_RATE;
 use facespace::eval::mouth::{MouthPc, inner_mouth_height};
@@ -30,12 +30,7 @@ const CHUNK_RATE: u32 = 48_000;
 const CHUNK: usize = 960;
 
 fn main() {
-    let mut args = std::env::args().skip(1);
-    let grid = PathBuf::from(args.next().expect("the GRID s1 folder"));
-    let limit: usize = args
-        .next()
-        .map_or(usize::MAX, |n| n.parse().unwrap_or(usize::MAX));
-    let split = args.next().unwrap_or_else(|| "test".into());
+    let (grid, limit, split) = grid::args();
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let talker = Talker::load(&root.join("models/grid")).unwrap();
     let ids = grid::split(&grid, &split, limit);

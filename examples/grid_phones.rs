@@ -13,7 +13,6 @@
 //! and the next run scores its `allphone.tsv` and `words.tsv` beside ours.
 
 #[path = "common/grid.rs"]
-#[allow(dead_code)]
 mod grid;
 
 use std::path::PathBuf;

@@ -24,7 +24,7 @@ mod grid;
 #[path = "common/track.rs"]
 mod track;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use facespace::eval::mouth::{MouthPc, inner_mouth_height, lip_motion, mouth_sharpness};
 use facespace::eval::{pearson, standard_deviation};
@@ -41,15 +41,10 @@ struct Sentence {
 }
 
 fn main() {
-    let mut args = std::env::args().skip(1);
-    let grid = PathBuf::from(args.next().expect("the GRID s1 folder"));
-    let limit: usize = args
-        .next()
-        .map_or(usize::MAX, |n| n.parse().unwrap_or(usize::MAX));
+    let (grid, limit, split) = grid::args();
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let clock = std::time::Instant::now();
     let talker = Talker::load(&root.join("models/grid")).unwrap();
-    let split = args.next().unwrap_or_else(|| "test".into());
     let ids = grid::split(&grid, &split, limit);
     let settings = &talker.manifest.settings;
     let say = format!(

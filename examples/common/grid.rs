@@ -1,4 +1,5 @@
-//! GRID s1 helpers shared by the examples that read its folder.
+//! GRID s1 helpers shared by the examples that read its folder (each uses some of them).
+#![allow(dead_code)]
 
 use std::path::Path;
 
@@ -24,4 +25,15 @@ pub fn split(grid: &Path, split: &str, limit: usize) -> Vec<String> {
         .take(limit)
         .map(str::to_owned)
         .collect()
+}
+
+/// The command line `GRID [LIMIT|all] [SPLIT]`: the GRID s1 folder, at most how many clips,
+/// and the split (`test` by default).
+pub fn args() -> (std::path::PathBuf, usize, String) {
+    let mut args = std::env::args().skip(1);
+    let grid = std::path::PathBuf::from(args.next().expect("the GRID s1 folder"));
+    let limit = args
+        .next()
+        .map_or(usize::MAX, |n| n.parse().unwrap_or(usize::MAX));
+    (grid, limit, args.next().unwrap_or_else(|| "test".into()))
 }
