@@ -71,7 +71,7 @@ enum Phones<'t> {
     /// Recognised from the sound; the recogniser starts at `offset` session seconds;
     /// `sounding` is its guess at the phone after the ones it gave out (session seconds).
     Heard {
-        recogniser: Option<Recogniser<'t>>,
+        recogniser: Option<Box<Recogniser<'t>>>,
         offset: f64,
         sounding: Option<Segment>,
     },
@@ -161,7 +161,7 @@ impl<'t> Session<'t> {
             } => {
                 let recogniser = match recogniser {
                     Some(r) => r,
-                    None => recogniser.insert(self.talker.live_recogniser()?),
+                    None => recogniser.insert(Box::new(self.talker.live_recogniser()?)),
                 };
                 let heard = recogniser.push(&speech)?;
                 let offset = *offset;

@@ -56,6 +56,8 @@ impl Graph {
     /// noises and tones no phone explains, so that music is not read as speech), each
     /// reachable from each with the cost `transition[from][to]` (`from` = the previous
     /// phone's id; the utterance starts as if after silence), entering and leaving anywhere.
+    // Node `c` is phone `c`: the index reads the transitions and names the node alike.
+    #[allow(clippy::needless_range_loop)]
     pub(super) fn phone_loop(model: &AcousticModel, transition: &[Vec<f32>]) -> Graph {
         let mut g = Graph {
             nodes: Vec::new(),
@@ -523,6 +525,8 @@ impl<'m> Decoder<'m> {
     }
 
     /// Decodes one more frame; `None` when the beam lost every hypothesis.
+    // States index the transition matrix in both its dimensions and the scores beside it.
+    #[allow(clippy::needless_range_loop)]
     pub(super) fn step(&mut self, g: &Graph, feat: &[f32; FEATURE_DIM]) -> Option<()> {
         let model = self.model;
         let n = g.nodes.len();
