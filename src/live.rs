@@ -8,6 +8,23 @@
 //! same synthesis as an offline utterance ([`crate::synth::synthesise`] with the talker's
 //! settings) run over a window of the latest phones: the smoothing spline over the window is
 //! the fixed-lag smoother, the frames near its end leave before later speech can pull them.
+//!
+//! ```no_run
+//! use facespace::live::Session;
+//! use facespace::talker::Talker;
+//!
+//! let talker = Talker::load("models/grid".as_ref())?;
+//! let mut session = Session::new(&talker);
+//! # let microphone: Vec<Vec<f32>> = Vec::new();
+//! for chunk in microphone {
+//!     session.push_audio(&chunk, 48_000)?;
+//!     for frame in session.pull()? {
+//!         // frame.time (s), frame.values: pose ‖ shape ‖ appearance of the talker's model
+//!     }
+//! }
+//! session.finish()?;
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 
 use thiserror::Error;
 
