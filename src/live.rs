@@ -3,8 +3,11 @@
 //! and gives out face-space frames at the video rate as soon as they are settled.
 //!
 //! The phones are recognised from the sound as it comes ([`crate::align::Recogniser`]) unless
-//! they are given. A frame is settled once the phone after its own has ended (the blend's
-//! right context, C = 1, needs that phone; wider contexts wait for more), and it is made by the
+//! they are given. A frame is settled once the phone after its own is known (the blend's
+//! right context, C = 1, needs that phone — the recogniser's guess at the phone now sounding
+//! stands in for it; wider contexts wait for more), or in a pause as far as the pause is heard
+//! (as if the speech had ended there, so the face rests without waiting for the next word),
+//! and it is made by the
 //! same synthesis as an offline utterance ([`crate::synth::synthesise`] with the talker's
 //! settings) run over a window of the latest phones: the smoothing spline over the window is
 //! the fixed-lag smoother, the frames near its end leave before later speech can pull them.
@@ -274,7 +277,13 @@ impl<'t> Session<'t> {
             _ => None,
         };
         let known = self.phones.len() + usize::from(next.is_some());
+        // A pause still going on is given out as far as it is heard, as if speech ended there
+        // (its right context silence): the face rests during it instead of waiting for its end.
+        let pausing = next.is_none()
+            && matches!(self.source, Phones::Heard { .. })
+            && self.phones.last().is_some_and(|l| l.phone == Phone::SIL);
         let settled = match known.checked_sub(1 + context) {
+            _ if pausing => self.phones[self.phones.len() - 1].end,
             Some(k) => self.phones[k].end,
             None => return Ok(Vec::new()),
         };
