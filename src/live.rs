@@ -185,14 +185,9 @@ impl<'t> Session<'t> {
                 };
                 let heard = recogniser.push(&speech)?;
                 let offset = *offset;
-                *sounding = recogniser.sounding().and_then(|p| {
-                    let segment = crate::align::segments(std::slice::from_ref(p)).pop()?;
-                    Some(Segment {
-                        start: segment.start + offset,
-                        end: segment.end + offset,
-                        phone: segment.phone,
-                    })
-                });
+                *sounding = recogniser
+                    .sounding()
+                    .and_then(|p| shifted(std::slice::from_ref(p), offset).pop());
                 self.extend(&heard, offset);
             }
             // Sound beyond the given phones is silence: the face rests while it plays.
@@ -233,12 +228,8 @@ impl<'t> Session<'t> {
 
     /// The recognised phones `heard` (recogniser seconds, from `offset`) added to the phones.
     fn extend(&mut self, heard: &[TimedPhone], offset: f64) {
-        for p in crate::align::segments(heard) {
-            self.append(Segment {
-                start: p.start + offset,
-                end: p.end + offset,
-                phone: p.phone,
-            });
+        for p in shifted(heard, offset) {
+            self.append(p);
         }
     }
 
@@ -299,9 +290,9 @@ impl<'t> Session<'t> {
         } = &mut self.source
         {
             let offset = *offset;
-            let mut tail = self.resampler.as_mut().map(|(_, r)| r.finish()).unwrap_or_default();
+            let tail = self.resampler.as_mut().map(|(_, r)| r.finish()).unwrap_or_default();
             if let Some(mut r) = recogniser.take() {
-                let mut heard = r.push(&std::mem::take(&mut tail))?;
+                let mut heard = r.push(&tail)?;
                 heard.extend(r.finish()?);
                 self.extend(&heard, offset);
             }
@@ -387,4 +378,16 @@ impl<'t> Session<'t> {
         self.given += out.len();
         Ok(out)
     }
+}
+
+/// Recognised phones as segments in session seconds (the recogniser started at `offset`).
+fn shifted(heard: &[TimedPhone], offset: f64) -> Vec<Segment> {
+    crate::align::segments(heard)
+        .into_iter()
+        .map(|p| Segment {
+            start: p.start + offset,
+            end: p.end + offset,
+            ..p
+        })
+        .collect()
 }

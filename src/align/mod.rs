@@ -282,15 +282,10 @@ impl Aligner {
         }
         let (alignment, fit) = self.align_checked(samples, rate, words, &lm())?;
         if !fit.matches() {
-            let worst: Vec<&str> = fit
-                .worst(3)
-                .iter()
-                .map(|&k| alignment.words[k].word.as_str())
-                .collect();
             return Err(AlignError::WordsDoNotMatch {
                 overall: fit.overall,
                 least: LEAST_OVERALL_FIT,
-                worst: worst.join(", "),
+                worst: fit.worst_words(&alignment.words, 3),
             });
         }
         Ok(alignment.phones)
@@ -620,6 +615,12 @@ impl WordFit {
         order.sort_by(|&a, &b| self.words[a].total_cmp(&self.words[b]));
         order.truncate(n);
         order
+    }
+
+    /// The `n` worst-fitting of the aligned `words`, worst first, as a list to show.
+    pub fn worst_words(&self, words: &[TimedWord], n: usize) -> String {
+        let worst: Vec<&str> = self.worst(n).iter().map(|&k| words[k].word.as_str()).collect();
+        worst.join(", ")
     }
 }
 

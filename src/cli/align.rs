@@ -94,13 +94,11 @@ pub fn run(a: AlignArgs) -> Result<()> {
         if f.matches() {
             println!("the words fit the speech (overall {:+.2} nats/frame)", f.overall);
         } else {
-            let worst: Vec<&str> =
-                f.worst(3).iter().map(|&k| result.words[k].word.as_str()).collect();
             println!(
                 "warning: these words may not be what was said (overall fit {:+.2} nats/frame, least {:.2}; worst: {}) — check the transcript, or leave out the words to recognise the phones",
                 f.overall,
                 align::LEAST_OVERALL_FIT,
-                worst.join(", ")
+                f.worst_words(&result.words, 3)
             );
         }
     }
