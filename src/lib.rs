@@ -121,6 +121,7 @@ pub mod phonemes;
 pub mod plot;
 pub mod render;
 pub mod rng;
+pub mod serve;
 pub mod shape;
 pub mod study;
 pub mod suggest;

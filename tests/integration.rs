@@ -23,6 +23,7 @@ mod grid_demo;
 mod hostile;
 mod kill;
 mod live;
+mod live_page;
 mod model;
 mod pca;
 mod phonemes;

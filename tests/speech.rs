@@ -43,36 +43,6 @@ fn inner_mouth_height(dir: &Path) -> Vec<f64> {
         .collect()
 }
 
-/// Whether the lips close for a phone at `start…end` s: the local minimum of the opening
-/// nearest the phone's middle lies within the phone ± one frame, and is a closure — at most
-/// half the widest opening within 150 ms of the phone.
-fn closes_within(height: &[f64], start: f64, end: f64, fps: f64) -> Result<(), String> {
-    let middle = (start + end) / 2.0 * fps;
-    let k = (1..height.len() - 1)
-        .filter(|&k| height[k] <= height[k - 1] && height[k] <= height[k + 1])
-        .min_by(|&a, &b| {
-            (a as f64 - middle)
-                .abs()
-                .partial_cmp(&(b as f64 - middle).abs())
-                .unwrap()
-        })
-        .ok_or("the lips never close")?;
-    let t = k as f64 / fps;
-    if t < start - 1.0 / fps - 1e-9 || t > end + 1.0 / fps + 1e-9 {
-        return Err(format!("the nearest closure is at frame {k} ({t:.2} s)"));
-    }
-    let lo = ((start - 0.15) * fps).floor().max(0.0) as usize;
-    let hi = (((end + 0.15) * fps).ceil() as usize).min(height.len() - 1);
-    let widest = height[lo..=hi].iter().fold(0f64, |m, &v| m.max(v));
-    if height[k] > 0.5 * widest {
-        return Err(format!(
-            "frame {k} opens {:.2} px of {widest:.2}: not a closure",
-            height[k]
-        ));
-    }
-    Ok(())
-}
-
 /// Lag (samples) of `b` against `a` maximising their correlation, within ±`max`.
 fn lag(a: &[f32], b: &[f32], max: i64) -> i64 {
     let n = a.len().min(b.len());
@@ -149,7 +119,7 @@ fn grid_speech_drives_the_face_in_sync() {
             .iter()
             .filter(|s| bilabial.contains(&Some(s.phone)))
         {
-            if let Err(why) = closes_within(&height, seg.start, seg.end, fps) {
+            if let Err(why) = common::closes_within(&height, seg.start, seg.end, fps) {
                 panic!(
                     "{id}: /{}/ {:.2}–{:.2} s: {why}",
                     seg.phone, seg.start, seg.end
@@ -157,7 +127,7 @@ fn grid_speech_drives_the_face_in_sync() {
             }
             // The check can fail: three frames off, most closures miss.
             shifted_pass +=
-                closes_within(&height, seg.start + 0.12, seg.end + 0.12, fps).is_ok() as usize;
+                common::closes_within(&height, seg.start + 0.12, seg.end + 0.12, fps).is_ok() as usize;
             count += 1;
         }
         assert!(

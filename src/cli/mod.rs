@@ -11,6 +11,7 @@ mod eval;
 mod frames;
 mod model;
 mod say;
+mod serve;
 mod study;
 mod synth;
 mod talker;
@@ -134,6 +135,9 @@ enum Command {
         after_help = "Example: facespace visemes tests/data/grid/bbbf9a.wav --transcript tests/data/grid/bbbf9a.txt -f json -o out/bbbf9a.json"
     )]
     Visemes(visemes::VisemesArgs),
+    /// The live page: the talker's face speaks typed sentences or the microphone's speech,
+    /// rendered in the browser (WebGL2) from face-space as it arrives.
+    Serve(serve::ServeArgs),
 }
 
 pub fn run() -> Result<()> {
@@ -156,6 +160,7 @@ pub fn run() -> Result<()> {
         Command::Say(a) => say::run(a),
         Command::Visemes(a) => visemes::run(a),
         Command::Talker(c) => talker::run(c),
+        Command::Serve(a) => serve::run(a),
     }
 }
 

@@ -167,40 +167,49 @@ impl Backdrop {
         codebook: &crate::codebook::Codebook,
         utterance: &mut super::Utterance,
     ) -> bool {
-        if codebook.photometric != crate::corpus::Photometric::Sentence
-            || self.tracker_hash != model.hash()
-            || self.tracked.layout() != utterance.synthesis.frames.layout()
-            || self.tracked.is_empty()
-        {
+        let Some(shift) = self.lighting_shift(model, codebook) else {
+            return false;
+        };
+        if utterance.synthesis.frames.layout() != self.tracked.layout() {
             return false;
         }
-        let range = self.tracked.layout().appearance_range();
-        let corpus = codebook.appearance_mean();
-        let here = self.tracked.values();
-        let n = here.nrows() as f64;
-        let shift: Vec<f32> = range
-            .clone()
-            .zip(&corpus)
-            .map(|(k, c)| {
-                (here.column(k).iter().map(|&x| f64::from(x)).sum::<f64>() / n - c) as f32
-            })
-            .collect();
-        let relight = |frames: &mut crate::facespace::Frames| {
-            let mut v = frames.values_mut();
-            for mut row in v.rows_mut() {
-                for (k, d) in range.clone().zip(&shift) {
-                    row[k] += d;
-                }
-            }
-        };
-        relight(&mut utterance.synthesis.frames);
+        relight(&mut utterance.synthesis.frames, &shift);
         if let Some(smoothed) = &mut utterance.smoothed {
-            relight(smoothed);
+            relight(smoothed, &shift);
         }
         utterance
             .pose
             .push_str("; appearance re-lit to the background's mean");
         true
+    }
+
+    /// What [`Backdrop::match_lighting`] adds to every appearance vector: this background's
+    /// tracked mean − the codebook's mean; `None` when the codebook was not re-centred per
+    /// sentence or the background was tracked in another model's space.
+    pub fn lighting_shift(
+        &self,
+        model: &FaceModel,
+        codebook: &crate::codebook::Codebook,
+    ) -> Option<Vec<f32>> {
+        if codebook.photometric != crate::corpus::Photometric::Sentence
+            || self.tracker_hash != model.hash()
+            || self.tracked.layout() != model.layout()
+            || self.tracked.is_empty()
+        {
+            return None;
+        }
+        let range = self.tracked.layout().appearance_range();
+        let corpus = codebook.appearance_mean();
+        let here = self.tracked.values();
+        let n = here.nrows() as f64;
+        Some(
+            range
+                .zip(&corpus)
+                .map(|(k, c)| {
+                    (here.column(k).iter().map(|&x| f64::from(x)).sum::<f64>() / n - c) as f32
+                })
+                .collect(),
+        )
     }
 
     /// One image (read from `path`): the face found in it (grid search, then the AAM fit)
@@ -331,6 +340,17 @@ impl Backdrop {
 /// between the synthesised lips and another take's face took their motion from 0.90× to
 /// 0.87× of real; 1 keeps it (0.895×); 3 adds the footage's own jitter (0.98×).
 pub const ARTICULATOR_WEIGHT_TOTAL: f64 = 1.0;
+
+/// Adds `shift` to every frame's appearance ([`Backdrop::lighting_shift`]).
+pub fn relight(frames: &mut crate::facespace::Frames, shift: &[f32]) {
+    let range = frames.layout().appearance_range();
+    let mut v = frames.values_mut();
+    for mut row in v.rows_mut() {
+        for (k, d) in range.clone().zip(shift) {
+            row[k] += d;
+        }
+    }
+}
 
 /// Region synthesis over a background face (DESIGN §7, \[blend\] §3): every frame's shape is
 /// re-fitted, at its (background) pose, by weighted least squares ([`ARTICULATOR_WEIGHT_TOTAL`])

@@ -113,7 +113,7 @@ pub struct Synthesis {
 
 /// Turns target phones into face-space frames: shape and appearance. The pose columns are
 /// not the synthesiser's to choose — [`synthesise`] sets them as the [`Request`] asks.
-pub trait Synthesiser {
+pub trait Synthesiser: Send + Sync {
     /// A short description for reports and evaluation tables, e.g. `blend C=1 N=3`.
     fn name(&self) -> String;
 

@@ -448,6 +448,20 @@ impl Talker {
         aligner.recogniser(crate::align::frontend::SAMPLE_RATE, &lm)
     }
 
+    /// `text` spoken in the talker's voice into `staging/speech.wav`, and its phones aligned
+    /// to that sound; with notes for the user (a voice that was missing).
+    pub fn speak(
+        &self,
+        text: &str,
+        staging: &Path,
+    ) -> Result<(Vec<Segment>, PathBuf, Vec<String>), TalkerError> {
+        let mut notes = Vec::new();
+        let request = SayRequest::new(Speech::Text(text.into()));
+        let (phones, _, sound) = self.phones(&request, staging, &mut notes)?;
+        let sound = sound.unwrap_or_else(|| staging.join("speech.wav"));
+        Ok((phones, sound, notes))
+    }
+
     /// The phones of `speech` and the sound to put under them, made in `staging` when the
     /// speech is text.
     fn phones(

@@ -33,6 +33,12 @@ fn pipe() -> (OwnedFd, OwnedFd) {
 impl Browser {
     /// Starts `chromium` headless with an empty profile.
     pub fn launch(chromium: &str) -> Browser {
+        Self::launch_with(chromium, &[])
+    }
+
+    /// [`Browser::launch`] with extra command-line switches (WebGL on SwiftShader, a WAV
+    /// file as the microphone).
+    pub fn launch_with(chromium: &str, extra: &[String]) -> Browser {
         use std::os::fd::AsRawFd;
         let profile = tempfile::tempdir().unwrap();
         let (their_in, our_out) = pipe();
@@ -51,8 +57,9 @@ impl Browser {
                 "--autoplay-policy=no-user-gesture-required",
                 "--remote-debugging-pipe",
                 &format!("--user-data-dir={}", profile.path().display()),
-                "about:blank",
             ])
+            .args(extra)
+            .arg("about:blank")
             .stdout(std::process::Stdio::null())
             .stderr(std::process::Stdio::null());
         // SAFETY: only async-signal-safe fcntl and dup2 calls between fork and exec.

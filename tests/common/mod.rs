@@ -111,6 +111,12 @@ pub fn http(url: &str, method: &str, path: &str, body: &str) -> (u16, String) {
 /// One HTTP/1.0 request with exactly these header lines (each ending in CRLF) and a
 /// `Content-Length`; returns (status, body).
 pub fn http_raw(url: &str, method: &str, path: &str, headers: &str, body: &str) -> (u16, String) {
+    let (status, bytes) = http_bytes(url, method, path, headers, body);
+    (status, String::from_utf8_lossy(&bytes).into_owned())
+}
+
+/// [`http_raw`] with the reply's body as bytes.
+pub fn http_bytes(url: &str, method: &str, path: &str, headers: &str, body: &str) -> (u16, Vec<u8>) {
     use std::io::{Read, Write};
     let host = url.trim_start_matches("http://").trim_end_matches('/');
     let mut s = std::net::TcpStream::connect(host).unwrap();
@@ -124,10 +130,9 @@ pub fn http_raw(url: &str, method: &str, path: &str, headers: &str, body: &str) 
     );
     let mut bytes = Vec::new();
     let _ = s.read_to_end(&mut bytes);
-    let reply = String::from_utf8_lossy(&bytes).into_owned();
-    let status = reply[9..12].parse().unwrap();
-    let body = reply.split("\r\n\r\n").nth(1).unwrap_or("").to_owned();
-    (status, body)
+    let status = String::from_utf8_lossy(&bytes[9..12]).parse().unwrap();
+    let start = bytes.windows(4).position(|w| w == b"\r\n\r\n").map_or(bytes.len(), |p| p + 4);
+    (status, bytes[start..].to_vec())
 }
 
 /// What a server started as a child prints up to its "(Ctrl+C" line, which holds its
@@ -217,4 +222,43 @@ pub fn codebook_like(
         &mut facespace::no_progress,
     )
     .unwrap()
+}
+
+/// Whether the lips close for a phone at `start…end` s: the local minimum of the opening
+/// nearest the phone's middle lies within the phone ± one frame, and is a closure — at most
+/// half the widest opening within 150 ms of the phone.
+pub fn closes_within(height: &[f64], start: f64, end: f64, fps: f64) -> Result<(), String> {
+    let middle = (start + end) / 2.0 * fps;
+    let k = (1..height.len() - 1)
+        .filter(|&k| height[k] <= height[k - 1] && height[k] <= height[k + 1])
+        .min_by(|&a, &b| {
+            (a as f64 - middle)
+                .abs()
+                .partial_cmp(&(b as f64 - middle).abs())
+                .unwrap()
+        })
+        .ok_or("the lips never close")?;
+    let t = k as f64 / fps;
+    if t < start - 1.0 / fps - 1e-9 || t > end + 1.0 / fps + 1e-9 {
+        return Err(format!("the nearest closure is at frame {k} ({t:.2} s)"));
+    }
+    let lo = ((start - 0.15) * fps).floor().max(0.0) as usize;
+    let hi = (((end + 0.15) * fps).ceil() as usize).min(height.len() - 1);
+    let widest = height[lo..=hi].iter().fold(0f64, |m, &v| m.max(v));
+    if height[k] > 0.5 * widest {
+        return Err(format!(
+            "frame {k} opens {:.2} px of {widest:.2}: not a closure",
+            height[k]
+        ));
+    }
+    Ok(())
+}
+
+/// The inner lips' opening (iBUG 61–63 over 67–65, 0-based), pixels.
+pub fn inner_opening(points: &[[f64; 2]]) -> f64 {
+    [(61, 67), (62, 66), (63, 65)]
+        .iter()
+        .map(|&(t, b)| points[b][1] - points[t][1])
+        .sum::<f64>()
+        / 3.0
 }
