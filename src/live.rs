@@ -42,6 +42,11 @@ use crate::talker::Talker;
 /// over, so that the spline and the blend's left context see what came before.
 pub const WINDOW_BEFORE: f64 = 1.0;
 
+/// Seconds of known phones after the last frame wanted that a synthesis window reaches
+/// forward over: phones given far ahead (a text-to-speech engine's whole sentence) would
+/// otherwise make every window as long as the rest of the sentence.
+pub const WINDOW_AFTER: f64 = 1.0;
+
 /// Sample rates a session takes, Hz (the sound is resampled to the recogniser's 16 kHz).
 pub const RATES: [u32; 5] = [8_000, 16_000, 22_050, 24_000, 48_000];
 
@@ -350,7 +355,7 @@ impl<'t> Session<'t> {
 
     /// The frames from the next one up to (not including) time `until`, synthesised over a
     /// window of the phones (and the `next` one guessed after them) that reaches
-    /// [`WINDOW_BEFORE`] before the first of them.
+    /// [`WINDOW_BEFORE`] before the first of them and [`WINDOW_AFTER`] beyond the last.
     fn frames_until(&mut self, until: f64, next: Option<Segment>) -> Result<Vec<LiveFrame>, LiveError> {
         let first_time = self.given as f64 / self.fps;
         let last = ((until * self.fps) - 1e-6).ceil() as usize;
@@ -359,9 +364,16 @@ impl<'t> Session<'t> {
         }
         let reach = (first_time - WINDOW_BEFORE).max(self.origin);
         let w0 = self.phones.iter().rposition(|p| p.start <= reach).unwrap_or(0);
+        let w1 = self
+            .phones
+            .iter()
+            .position(|p| p.start >= until + WINDOW_AFTER)
+            .unwrap_or(self.phones.len())
+            .max(w0 + 1);
+        let next = next.filter(|_| w1 == self.phones.len());
         // The window starts on the frame grid, at or before its first phone.
         let start = ((self.phones[w0].start * self.fps) + 1e-6).floor() / self.fps;
-        let mut target: Vec<Segment> = self.phones[w0..]
+        let mut target: Vec<Segment> = self.phones[w0..w1]
             .iter()
             .chain(&next)
             .map(|p| Segment {

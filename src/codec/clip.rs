@@ -378,7 +378,8 @@ impl Quantisation {
         (self.max[k] - self.min[k]) / levels
     }
 
-    fn encode(&self, params: &[f32]) -> Vec<u16> {
+    /// Each value as its code (column by column over `params`, frames × dims).
+    pub fn encode(&self, params: &[f32]) -> Vec<u16> {
         let dims = self.min.len();
         params
             .iter()

@@ -65,9 +65,22 @@ pub enum ServeError {
     /// A footage clip could not be read.
     #[error("the talker's footage: {0}")]
     Footage(#[from] crate::video::VideoError),
-    /// A footage frame could not be encoded for the page.
-    #[error("encoding footage for the page: {0}")]
-    Jpeg(String),
+    /// A footage frame could not be encoded for the page, or a file written.
+    #[error("preparing the page: {0}")]
+    Prepare(String),
+    /// The call's recording could not be encoded.
+    #[error("the call's recording: {0}")]
+    Call(#[from] crate::codec::CodecError),
+    /// The call's recording runs at another frame rate than the talker.
+    #[error("{video}: {fps} fps; the call must run at the talker's {talker} fps")]
+    CallRate {
+        /// The recording.
+        video: std::path::PathBuf,
+        /// Its rate.
+        fps: f64,
+        /// The talker's.
+        talker: f64,
+    },
 }
 
 /// What happened, for the command line to report.
@@ -88,6 +101,8 @@ pub enum Event {
 struct Client<'t> {
     typed: Session<'t>,
     heard: Option<Session<'t>>,
+    /// A call in progress: the page frame where it starts, when it started, frames sent.
+    call: Option<(usize, Instant, usize)>,
     used: Instant,
 }
 
@@ -105,7 +120,29 @@ pub struct LiveServer<'t> {
     /// Every footage frame as JPEG, in footage order.
     footage: Vec<Vec<u8>>,
     ids: Mutex<crate::rng::Rng>,
+    call: Option<Call>,
 }
+
+/// A recording streamed through face-space (`serve --call VIDEO`): tracked and projected
+/// when the server starts, each frame quantised to 8 bits per value over the clip's range
+/// (the codec's `--bits 8`), then released to a page at the recording's own pace, as a
+/// camera would deliver it.
+struct Call {
+    /// Frames × dims codes.
+    codes: Vec<u8>,
+    quantisation: crate::codec::clip::Quantisation,
+    frames: usize,
+    dims: usize,
+    /// The recording's sound as M4A (AAC copied from the MP4), if it has one.
+    audio: Option<Vec<u8>>,
+}
+
+/// How far ahead of its frames a call's sound is placed on the page's clock, and how long
+/// a released frame may wait on the page: the jitter buffer.
+pub const CALL_LEAD: Duration = Duration::from_millis(500);
+
+/// `FSPQ`, the first word of a packet of 8-bit frames (a call's).
+pub const MAGIC_QUANTISED: u32 = u32::from_le_bytes(*b"FSPQ");
 
 /// A request's refusal: status and why.
 type Refusal = (u16, String);
@@ -131,12 +168,59 @@ impl<'t> LiveServer<'t> {
         Ok(LiveServer {
             server,
             talker,
-            model: model_json(talker, &stage).to_string().into_bytes(),
+            model: model_json(talker, &stage, None).to_string().into_bytes(),
             appearance: appearance_layers(talker),
             stage,
             clients: Mutex::new(HashMap::new()),
             footage: footage_jpegs(&talker.footage)?,
             ids: Mutex::new(crate::rng::Rng::new(seed)),
+            call: None,
+        })
+    }
+
+    /// The same server offering a call: `video` (of the talker, at the talker's frame rate)
+    /// tracked and projected through face-space now, streamed to a page that asks at 8 bits
+    /// per value, with its sound.
+    pub fn with_call(self, video: &std::path::Path) -> Result<Self, ServeError> {
+        let options = crate::codec::EncodeOptions {
+            bits: Some(8),
+            ..Default::default()
+        };
+        let source = crate::video::Source::open(video)?;
+        let fps = source.info().fps;
+        if (fps - self.talker.footage.fps).abs() > 1e-3 {
+            return Err(ServeError::CallRate {
+                video: video.into(),
+                fps,
+                talker: self.talker.footage.fps,
+            });
+        }
+        let encoded = crate::codec::encode(&self.talker.model, source, &options, crate::no_progress)?;
+        let clip = encoded.clip;
+        let quantisation = clip.quantisation.clone().ok_or_else(|| ServeError::Prepare("the call was not quantised".into()))?;
+        let codes: Vec<u8> = quantisation
+            .encode(clip.frames.as_slice())
+            .into_iter()
+            .map(|c| c.min(255) as u8)
+            .collect();
+        let staging = tempfile::tempdir().map_err(|e| ServeError::Prepare(e.to_string()))?;
+        let m4a = staging.path().join("call.m4a");
+        let audio = if crate::video::extract_audio(video, &m4a)? {
+            Some(std::fs::read(&m4a).map_err(|e| ServeError::Prepare(e.to_string()))?)
+        } else {
+            None
+        };
+        let call = Call {
+            codes,
+            quantisation,
+            frames: clip.frames.len(),
+            dims: clip.frames.layout().dims(),
+            audio,
+        };
+        Ok(LiveServer {
+            model: model_json(self.talker, &self.stage, Some(&call)).to_string().into_bytes(),
+            call: Some(call),
+            ..self
         })
     }
 
@@ -190,6 +274,10 @@ impl<'t> LiveServer<'t> {
             (false, "/api/appearance") => {
                 ok(Reply::ok(self.appearance.clone(), "application/octet-stream"))
             }
+            (false, "/api/call/audio.m4a") => match self.call.as_ref().and_then(|c| c.audio.as_ref()) {
+                Some(audio) => ok(Reply::ok(audio.clone(), "audio/mp4")),
+                None => Err((404, "the call has no sound".into())),
+            },
             (false, path) => {
                 let jpeg = path
                     .strip_prefix("/footage/")
@@ -238,6 +326,42 @@ impl<'t> LiveServer<'t> {
                 let client = self.client(&body.session)?;
                 ok(self.listen(&client, &body)?)
             }
+            (true, "/api/call") => {
+                let body: CallBody = parse(&request.body)?;
+                let call = self.call.as_ref().ok_or((404, "no call here: start the server with --call VIDEO".to_string()))?;
+                if !(body.now.is_finite() && body.now >= 0.0) {
+                    return Err(bad("`now` must be the page's frame clock, ≥ 0"));
+                }
+                let client = self.client(&body.session)?;
+                let fps = self.talker.footage.fps;
+                let at = (body.now + CALL_LEAD.as_secs_f64() * fps).ceil() as usize;
+                lock(&client).call = Some((at, Instant::now(), 0));
+                let q = &call.quantisation;
+                ok(Reply::json(json!({
+                    "at": at,
+                    "frames": call.frames,
+                    "dims": call.dims,
+                    "min": q.min,
+                    "max": q.max,
+                    "sound": call.audio.is_some(),
+                    "sound_bytes": call.audio.as_ref().map_or(0, Vec::len),
+                })))
+            }
+            (true, "/api/call/frames") => {
+                let body: SessionBody = parse(&request.body)?;
+                let call = self.call.as_ref().ok_or((404, "no call here".to_string()))?;
+                let client = self.client(&body.session)?;
+                let mut c = lock(&client);
+                let (at, started, sent) = c.call.ok_or((409, "no call in progress: POST /api/call first".to_string()))?;
+                // Released as a camera delivers them: frame k once the recording's time k/fps has passed.
+                let due = ((started.elapsed().as_secs_f64() * self.talker.footage.fps).floor() as usize + 1).min(call.frames);
+                c.call = (due < call.frames).then_some((at, started, due));
+                let (from, to) = (sent.min(due), due);
+                ok(Reply::ok(
+                    quantised_packet(at + from, to - from, call.dims, &call.codes[from * call.dims..to * call.dims]),
+                    "application/octet-stream",
+                ))
+            }
             (true, "/api/clear") => {
                 let body: SessionBody = parse(&request.body)?;
                 let client = self.client(&body.session)?;
@@ -269,6 +393,7 @@ impl<'t> LiveServer<'t> {
             Arc::new(Mutex::new(Client {
                 typed: Session::with_given_phones(self.talker),
                 heard: None,
+                call: None,
                 used: Instant::now(),
             })),
         );
@@ -370,7 +495,7 @@ fn footage_jpegs(footage: &crate::talker::footage::Footage) -> Result<Vec<Vec<u8
                 let mut jpeg = Vec::new();
                 image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpeg, 92)
                     .encode_image(&frame)
-                    .map_err(|e| ServeError::Jpeg(e.to_string()))?;
+                    .map_err(|e| ServeError::Prepare(e.to_string()))?;
                 out.push(jpeg);
             }
             Ok(out)
@@ -391,6 +516,14 @@ struct SayBody {
     session: String,
     text: String,
     /// The page's frame clock when it asked (frames since its session began).
+    now: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CallBody {
+    session: String,
+    /// The page's frame clock when it asked.
     now: f64,
 }
 
@@ -439,8 +572,21 @@ pub fn packet(frames: &[LiveFrame], sound: Option<(usize, &[u8])>) -> Vec<u8> {
     out
 }
 
+/// 8-bit frames (a call's) as the page takes them: the frame packet's layout with `FSPQ`,
+/// one byte per value, no sound.
+fn quantised_packet(first: usize, count: usize, dims: usize, codes: &[u8]) -> Vec<u8> {
+    let flags = count.div_ceil(4) * 4;
+    let mut out = Vec::with_capacity(24 + flags + codes.len());
+    for word in [MAGIC_QUANTISED, first as u32, count as u32, dims as u32, 0, 0] {
+        out.extend_from_slice(&word.to_le_bytes());
+    }
+    out.resize(24 + flags, 1);
+    out.extend_from_slice(codes);
+    out
+}
+
 /// The model and living frame as the page takes them.
-fn model_json(talker: &Talker, stage: &Stage<'_>) -> serde_json::Value {
+fn model_json(talker: &Talker, stage: &Stage<'_>, call: Option<&Call>) -> serde_json::Value {
     let model = &talker.model;
     let frame = &model.frame;
     let plan = stage.plan();
@@ -457,6 +603,7 @@ fn model_json(talker: &Talker, stage: &Stage<'_>) -> serde_json::Value {
         "triangles": frame.triangles.iter().flatten().collect::<Vec<_>>(),
         "hull": frame.hull_edges.iter().flatten().collect::<Vec<_>>(),
         "shape": {"mean": model.shape.pca.mean, "components": model.shape.pca.components},
+        "call": call.map(|c| json!({"frames": c.frames, "sound": c.audio.is_some()})),
         "plan": {
             "frames": plan.frames,
             "mix": plan.mix.iter().map(|m| m.map(|(g, w)| json!([g, w]))).collect::<Vec<_>>(),
@@ -465,8 +612,9 @@ fn model_json(talker: &Talker, stage: &Stage<'_>) -> serde_json::Value {
 }
 
 /// The appearance basis in the reference frame, as the page uploads it: `n + 1` layers of
-/// `height × width` RGBA `f32` (layer 0 the mean with the face's alpha — feathered and faded
-/// away from the lips and chin, as `say` draws over footage — layer `k + 1` component `k`),
+/// `height × width` RGBA `f32` (layer 0 the mean with the face's alpha over footage —
+/// feathered and faded away from the lips and chin, as `say` draws — layer `k + 1` component
+/// `k`, layer 1's alpha the whole face's feathered alpha, for a call drawn on its own),
 /// each reference pixel holding its mask pixel or the padding's, zero elsewhere.
 fn appearance_layers(talker: &Talker) -> Vec<u8> {
     let model = &talker.model;
@@ -474,6 +622,9 @@ fn appearance_layers(talker: &Talker) -> Vec<u8> {
     let pca = &model.appearance.pca;
     let (w, h, dim) = (frame.width, frame.height, pca.dim());
     let alpha = Edge::Articulators(DEFAULT_FEATHER)
+        .alpha(model)
+        .unwrap_or_else(|| vec![1.0; frame.n_pixels()]);
+    let whole = Edge::Feathered(DEFAULT_FEATHER)
         .alpha(model)
         .unwrap_or_else(|| vec![1.0; frame.n_pixels()]);
     let mut source = vec![-1i64; w * h];
@@ -494,7 +645,11 @@ fn appearance_layers(talker: &Talker) -> Vec<u8> {
         for &s in &source {
             let px = if s >= 0 {
                 let s = s as usize;
-                let a = if layer == 0 { alpha[s] } else { 0.0 };
+                let a = match layer {
+                    0 => alpha[s],
+                    1 => whole[s],
+                    _ => 0.0,
+                };
                 [values[3 * s], values[3 * s + 1], values[3 * s + 2], a]
             } else {
                 [0.0; 4]

@@ -168,6 +168,12 @@ impl Browser {
         r["result"]["value"].clone()
     }
 
+    /// The page as a PNG, as shown.
+    pub fn screenshot(&mut self, page: &Page) -> Vec<u8> {
+        let r = self.call(Some(page), "Page.captureScreenshot", json!({"format": "png"}));
+        base64(r["data"].as_str().unwrap())
+    }
+
     /// Waits until `condition` (a JavaScript expression) is true in the page.
     pub fn wait_for(&mut self, page: &Page, condition: &str) {
         let script = format!(
@@ -186,4 +192,28 @@ impl Drop for Browser {
         let _ = self.child.kill();
         let _ = self.child.wait();
     }
+}
+
+/// Bytes of standard base64 (as the DevTools protocol and `btoa` give them).
+pub fn base64(s: &str) -> Vec<u8> {
+    let value = |c: u8| match c {
+        b'A'..=b'Z' => c - b'A',
+        b'a'..=b'z' => c - b'a' + 26,
+        b'0'..=b'9' => c - b'0' + 52,
+        b'+' => 62,
+        b'/' => 63,
+        _ => panic!("not base64: {c}"),
+    };
+    let bytes: Vec<u8> = s.bytes().filter(|&c| c != b'=').collect();
+    let mut out = Vec::with_capacity(bytes.len() * 3 / 4);
+    for chunk in bytes.chunks(4) {
+        let word = chunk
+            .iter()
+            .enumerate()
+            .fold(0u32, |w, (i, &c)| w | (u32::from(value(c)) << (18 - 6 * i)));
+        for k in 0..chunk.len() - 1 {
+            out.push((word >> (16 - 8 * k)) as u8);
+        }
+    }
+    out
 }
