@@ -4,6 +4,7 @@
 //! `cargo run --release --example live_page_screenshot -- docs/live-page.png`
 
 #[path = "../tests/common/cdp.rs"]
+#[allow(dead_code)]
 mod cdp;
 
 fn main() {

@@ -196,6 +196,15 @@ fn the_server_streams_frames_and_refuses_bad_input() {
     assert_eq!(code, 400, "{}", String::from_utf8_lossy(&reply));
     let (code, _) = post("/api/listen", &json!({"session": other, "rate": 16000, "pcm": vec![0; 640]}));
     assert_eq!(code, 200);
+    // A typed sentence: its frames from the frame where its sound (a WAV) starts, after now.
+    if facespace::tts::available().is_some() {
+        let (code, bytes) = post("/api/say", &json!({"session": session, "text": "bin blue at f two now", "now": 1000}));
+        assert_eq!(code, 200, "{}", String::from_utf8_lossy(&bytes));
+        let p = read_packet(&bytes);
+        assert!(p.at > 1000 && p.first == p.at, "at {} first {}", p.at, p.first);
+        assert_eq!(&p.sound[..4], b"RIFF");
+        assert!(p.values.len() >= 25 && p.speaking.iter().any(|&s| s));
+    }
     let (code, reply) = post("/api/clear", &json!({"session": session}));
     assert_eq!(code, 200, "{}", String::from_utf8_lossy(&reply));
 }

@@ -23,14 +23,14 @@ pub struct System {
     /// The row's name.
     pub name: String,
     /// What synthesises.
-    pub synthesiser: Box<dyn Synthesiser + Sync>,
+    pub synthesiser: Box<dyn Synthesiser>,
     /// Smoothing weight λ, or none.
     pub smoothing: Option<f64>,
 }
 
 impl System {
     /// A row named after the synthesiser and smoothing.
-    pub fn new(synthesiser: impl Synthesiser + Sync + 'static, smoothing: Option<f64>) -> Self {
+    pub fn new(synthesiser: impl Synthesiser + 'static, smoothing: Option<f64>) -> Self {
         let name = match smoothing {
             Some(l) => format!("{}, smoothed λ={l:e}", synthesiser.name()),
             None => format!("{}, unsmoothed", synthesiser.name()),
@@ -218,7 +218,7 @@ pub fn choose_smoothing(
     model: &FaceModel,
     codebook: &Codebook,
     validation: &[Sentence],
-    synthesiser: impl Synthesiser + Sync + Clone + 'static,
+    synthesiser: impl Synthesiser + Clone + 'static,
     grid: &[f64],
 ) -> Result<SmoothingChoice, SynthError> {
     let systems: Vec<System> = grid
