@@ -47,6 +47,25 @@ fn one_browser() -> std::sync::MutexGuard<'static, ()> {
     LOCK.lock().unwrap_or_else(|e| e.into_inner())
 }
 
+/// The live page open in headless Chromium (WebGL2 on SwiftShader, and `extra` switches),
+/// ready, holding [`one_browser`]; `None` (the test skipped) without Chromium.
+fn open_page(
+    extra: &[String],
+) -> Option<(std::sync::MutexGuard<'static, ()>, common::cdp::Browser, common::cdp::Page)> {
+    let Some(chromium) = common::chromium() else {
+        eprintln!("skipped: no Chromium on PATH (.ci/run installs the distribution's package)");
+        return None;
+    };
+    let one = one_browser();
+    let mut switches = webgl();
+    switches.extend_from_slice(extra);
+    let mut browser = common::cdp::Browser::launch_with(chromium, &switches);
+    let page = browser.open(url());
+    browser.wait_for(&page, "facespace.ready || facespace.error");
+    assert_eq!(browser.eval(&page, "facespace.error"), Value::Null);
+    Some((one, browser, page))
+}
+
 /// WebGL2 in headless Chromium without a GPU: SwiftShader.
 fn webgl() -> Vec<String> {
     ["--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--ignore-gpu-blocklist"]
@@ -242,16 +261,10 @@ fn staged(index: usize) -> Vec<f32> {
 /// draws it (face pixels found by drawing the CPU's twice, over two greys).
 #[test]
 fn the_page_renders_face_space_as_the_cpu_does() {
-    let Some(chromium) = common::chromium() else {
-        eprintln!("skipped: no Chromium on PATH (.ci/run installs the distribution's package)");
+    let talker = talker();
+    let Some((_one, mut browser, page)) = open_page(&[]) else {
         return;
     };
-    let talker = talker();
-    let _one = one_browser();
-    let mut browser = common::cdp::Browser::launch_with(chromium, &webgl());
-    let page = browser.open(url());
-    browser.wait_for(&page, "facespace.ready || facespace.error");
-    assert_eq!(browser.eval(&page, "facespace.error"), Value::Null);
     browser.eval(&page, "facespace.paused = true");
     let over_footage = CpuRenderer::with_edge(&talker.model, Edge::Articulators(DEFAULT_FEATHER));
     let whole_face = CpuRenderer::with_edge(&talker.model, Edge::Feathered(DEFAULT_FEATHER));
@@ -308,10 +321,6 @@ fn the_page_renders_face_space_as_the_cpu_does() {
 /// footage's own face on the next frame and stops the sound.
 #[test]
 fn typed_sentences_play_in_sync_and_stop_at_once() {
-    let Some(chromium) = common::chromium() else {
-        eprintln!("skipped: no Chromium on PATH (.ci/run installs the distribution's package)");
-        return;
-    };
     if facespace::tts::available().is_none() {
         eprintln!("skipped: no text-to-speech engine (.ci/run installs Festival)");
         return;
@@ -322,11 +331,9 @@ fn typed_sentences_play_in_sync_and_stop_at_once() {
     let text = "Bob made a map of the moor.";
     let staging = tempfile::tempdir().unwrap();
     let (phones, _, _) = talker.speak(text, staging.path()).unwrap();
-    let _one = one_browser();
-    let mut browser = common::cdp::Browser::launch_with(chromium, &webgl());
-    let page = browser.open(url());
-    browser.wait_for(&page, "facespace.ready || facespace.error");
-    assert_eq!(browser.eval(&page, "facespace.error"), Value::Null);
+    let Some((_one, mut browser, page)) = open_page(&[]) else {
+        return;
+    };
     let said = browser.eval(
         &page,
         &format!(
@@ -406,23 +413,16 @@ fn typed_sentences_play_in_sync_and_stop_at_once() {
 /// phone recogniser's choices flip on such small changes; a broken path scores near 0.
 #[test]
 fn the_microphone_drives_the_face() {
-    let Some(chromium) = common::chromium() else {
-        eprintln!("skipped: no Chromium on PATH (.ci/run installs the distribution's package)");
-        return;
-    };
     let talker = talker();
     let wav = common::root().join("tests/data/grid/bbbf9a.wav");
-    let mut switches = webgl();
-    switches.extend([
+    let microphone = [
         "--use-fake-ui-for-media-stream".into(),
         "--use-fake-device-for-media-stream".into(),
         format!("--use-file-for-fake-audio-capture={}%noloop", wav.display()),
-    ]);
-    let _one = one_browser();
-    let mut browser = common::cdp::Browser::launch_with(chromium, &switches);
-    let page = browser.open(url());
-    browser.wait_for(&page, "facespace.ready || facespace.error");
-    assert_eq!(browser.eval(&page, "facespace.error"), Value::Null);
+    ];
+    let Some((_one, mut browser, page)) = open_page(&microphone) else {
+        return;
+    };
     browser.eval(&page, "facespace.startMicrophone().then(() => true)");
     std::thread::sleep(std::time::Duration::from_millis(4000));
     browser.eval(&page, "facespace.stopMicrophone(true)");
@@ -495,10 +495,6 @@ fn correlation(a: &[f64], b: &[f64], lag: i64) -> f64 {
 /// the packets' headers.
 #[test]
 fn a_call_streams_through_face_space() {
-    let Some(chromium) = common::chromium() else {
-        eprintln!("skipped: no Chromium on PATH (.ci/run installs the distribution's package)");
-        return;
-    };
     let talker = talker();
     let options = facespace::codec::EncodeOptions {
         bits: Some(8),
@@ -508,11 +504,9 @@ fn a_call_streams_through_face_space() {
     let clip = facespace::codec::encode(&talker.model, source, &options, facespace::no_progress)
         .unwrap()
         .clip;
-    let _one = one_browser();
-    let mut browser = common::cdp::Browser::launch_with(chromium, &webgl());
-    let page = browser.open(url());
-    browser.wait_for(&page, "facespace.ready || facespace.error");
-    assert_eq!(browser.eval(&page, "facespace.error"), Value::Null);
+    let Some((_one, mut browser, page)) = open_page(&[]) else {
+        return;
+    };
     let started = std::time::Instant::now();
     let info = browser.eval(&page, "facespace.startCall()");
     let took = started.elapsed().as_secs_f64();
