@@ -78,6 +78,12 @@ pub enum LiveError {
     /// A frame could not be placed on the talker's face.
     #[error(transparent)]
     Model(#[from] crate::model::ModelError),
+    /// A frame could not be drawn.
+    #[error(transparent)]
+    Render(#[from] crate::render::RenderError),
+    /// The talker's footage could not be read.
+    #[error("the talker's footage: {0}")]
+    Footage(#[from] crate::video::VideoError),
 }
 
 /// One frame of a live session: face-space values in the talker model's layout
@@ -294,15 +300,20 @@ impl<'t> Session<'t> {
     /// beyond them), and the recogniser's last phones.
     pub fn finish(&mut self) -> Result<Vec<LiveFrame>, LiveError> {
         if let Phones::Heard {
-            recogniser, offset, ..
+            recogniser,
+            offset,
+            sounding,
         } = &mut self.source
         {
-            let offset = *offset;
-            let tail = self.resampler.as_mut().map(|(_, r)| r.finish()).unwrap_or_default();
+            let start = *offset;
+            let tail = self.resampler.take().map(|(_, mut r)| r.finish()).unwrap_or_default();
+            // Sound after this is another utterance: its recogniser starts where this ends.
+            *offset = self.heard;
+            *sounding = None;
             if let Some(mut r) = recogniser.take() {
                 let mut heard = r.push(&tail)?;
                 heard.extend(r.finish()?);
-                self.extend(&heard, offset);
+                self.extend(&heard, start);
             }
         }
         let end = self.phones.last().map_or(self.origin, |p| p.end);
@@ -346,6 +357,15 @@ impl<'t> Session<'t> {
             self.heard = self.heard.max(frame as f64 / self.fps);
         }
         self.clear();
+    }
+
+    /// Whether nothing is being said: every phone known has been given out as frames and no
+    /// sound waits in a recogniser (after [`Session::finish`], [`Session::clear`], or before
+    /// any speech).
+    pub fn is_quiet(&self) -> bool {
+        let waiting = matches!(&self.source, Phones::Heard { recogniser: Some(_), .. });
+        let end = self.phones.last().map_or(self.origin, |p| p.end);
+        !waiting && end * self.fps <= self.given as f64 + 1e-6
     }
 
     /// The next frame this session gives out.
@@ -533,5 +553,134 @@ impl<'t> Stage<'t> {
             f.values.copy_from_slice(placed.row(k));
         }
         Ok(())
+    }
+}
+
+/// One picture of a [`Screen`]: a frame of the session drawn over its footage frame, or the
+/// footage as it is while nothing is said.
+#[derive(Clone, Debug)]
+pub struct Picture {
+    /// Frame number since the session began; shown at `index / fps` seconds of its sound.
+    pub index: usize,
+    /// Its presentation time, seconds of the session's sound.
+    pub time: f64,
+    /// The picture, in the footage's size.
+    pub image: image::RgbImage,
+    /// Whether the face was synthesised (speech, or a pause inside it) rather than the
+    /// footage's own.
+    pub face: bool,
+    /// Whether a phone (not silence) is spoken at it.
+    pub speaking: bool,
+}
+
+/// A live session drawn on the server's CPU: every frame index gets a picture, in order — the
+/// frames the session settles drawn over their footage frames ([`Stage`], lips and jaw
+/// feathered in as `say` draws), and the footage as it is for frames with nothing said (before
+/// speech, after [`Screen::clear`], or skipped while quiet by [`Screen::idle_until`]). For
+/// hosts that want pixels (a voice agent's video track); the page renders face-space itself.
+pub struct Screen<'s, 't> {
+    session: Session<'t>,
+    stage: &'s Stage<'t>,
+    renderer: crate::render::CpuRenderer<'t>,
+    /// The stage's loop of footage, decoded in order.
+    footage: crate::talker::footage::Shown,
+    /// The next picture's index.
+    next: usize,
+    /// Settled frames not yet drawn.
+    settled: std::collections::VecDeque<LiveFrame>,
+}
+
+impl<'s, 't> Screen<'s, 't> {
+    /// `session` drawn on `stage` (a stage of the session's talker).
+    pub fn new(session: Session<'t>, stage: &'s Stage<'t>) -> Self {
+        let talker = stage.talker;
+        let edge = crate::render::Edge::Articulators(crate::render::DEFAULT_FEATHER);
+        Screen {
+            session,
+            stage,
+            renderer: crate::render::CpuRenderer::with_edge(&talker.model, edge),
+            footage: talker.footage.shown(stage.plan()),
+            next: 0,
+            settled: std::collections::VecDeque::new(),
+        }
+    }
+
+    /// The session, to push sound or phones into.
+    pub fn session(&mut self) -> &mut Session<'t> {
+        &mut self.session
+    }
+
+    /// An interruption: the next picture is the footage's own face, and so is every frame of
+    /// the sound already taken.
+    pub fn clear(&mut self) {
+        self.settled.clear();
+        let next = self.next as f64 / self.session.fps;
+        self.session.skip_to(self.session.seconds().max(next));
+    }
+
+    /// Ends the speech: every frame of it can then be drawn.
+    pub fn finish(&mut self) -> Result<Vec<Picture>, LiveError> {
+        let frames = self.session.finish()?;
+        self.draw(frames)
+    }
+
+    /// The pictures the session has settled since the last call, in order.
+    pub fn pull(&mut self) -> Result<Vec<Picture>, LiveError> {
+        let frames = self.session.pull()?;
+        self.draw(frames)
+    }
+
+    /// [`Screen::pull`], and while the session is quiet the footage as it is up to (not
+    /// including) frame `until` — a video track keeps its rate while nothing is said.
+    pub fn idle_until(&mut self, until: usize) -> Result<Vec<Picture>, LiveError> {
+        let mut out = self.pull()?;
+        if self.session.is_quiet() && until > self.session.next_frame() {
+            self.session.skip_to(until as f64 / self.session.fps);
+            out.extend(self.draw(Vec::new())?);
+        }
+        Ok(out)
+    }
+
+    /// Draws every frame up to the session's next: settled ones over their footage, the rest
+    /// (skipped) as footage.
+    fn draw(&mut self, mut frames: Vec<LiveFrame>) -> Result<Vec<Picture>, LiveError> {
+        self.stage.place(&mut frames)?;
+        self.settled.extend(frames);
+        let fps = self.session.fps;
+        let mut out = Vec::new();
+        while self.next < self.session.next_frame() {
+            let index = self.next;
+            let loop_len = self.stage.len().max(1);
+            if index % loop_len == 0 && index > 0 {
+                self.footage = self.footage.fresh();
+            }
+            let mut image = self.footage.next_frame()?;
+            while self.settled.front().is_some_and(|f| f.index < index) {
+                self.settled.pop_front();
+            }
+            let (face, speaking) = match self.settled.front() {
+                Some(f) if f.index == index => {
+                    let params = self
+                        .stage
+                        .talker
+                        .model
+                        .layout()
+                        .split(&f.values)
+                        .map_err(|e| LiveError::Synth(SynthError::from(e)))?;
+                    crate::render::Renderer::render_into(&self.renderer, params, &mut image)?;
+                    (true, f.speaking)
+                }
+                _ => (false, false),
+            };
+            out.push(Picture {
+                index,
+                time: index as f64 / fps,
+                image,
+                face,
+                speaking,
+            });
+            self.next += 1;
+        }
+        Ok(out)
     }
 }

@@ -175,3 +175,67 @@ fn bad_input_is_refused() {
         .unwrap_err();
     assert!(matches!(e, LiveError::PhonesOutOfOrder { .. }), "{e}");
 }
+
+/// A screen (`live::Screen`): every frame index gets exactly one picture, in order; speech is
+/// drawn over its footage frame (the mouth region changed, the rest the footage's own), and a
+/// clear or a quiet stretch shows the footage itself, pixel for pixel; sound after a finished
+/// utterance starts a new one at the right time.
+#[test]
+fn a_screen_draws_every_frame_over_the_footage() {
+    use facespace::live::{Picture, Screen, Stage};
+    let talker = talker();
+    let stage = Stage::new(talker, 0).unwrap();
+    let (sound, _) = clip("bbbf9a");
+    let mut screen = Screen::new(Session::new(talker), &stage);
+    // Footage as it is: the stage's loop decoded on its own.
+    let mut footage = talker.footage.shown(stage.plan());
+    let mut own = Vec::new();
+    let mut check = |pictures: Vec<Picture>, own: &mut Vec<image::RgbImage>| -> Vec<Picture> {
+        for p in &pictures {
+            while own.len() <= p.index {
+                own.push(footage.next_frame().unwrap());
+            }
+            let real = &own[p.index];
+            assert_eq!(p.image.dimensions(), real.dimensions());
+            let changed = p.image.pixels().zip(real.pixels()).filter(|(a, b)| a != b).count();
+            if p.face {
+                assert!(changed > 100, "frame {}: a face drawn changes nothing", p.index);
+                assert!(changed < 12_000, "frame {}: {changed} pixels changed", p.index);
+            } else {
+                assert_eq!(changed, 0, "frame {}: not the footage's own", p.index);
+            }
+        }
+        pictures
+    };
+    // Half a second of quiet, then the clip, then its end.
+    let mut pictures = check(screen.idle_until(12).unwrap(), &mut own);
+    assert_eq!(pictures.len(), 12);
+    assert!(pictures.iter().all(|p| !p.face));
+    for chunk in sound.samples.chunks(960) {
+        screen.session().push_audio(chunk, sound.rate).unwrap();
+        pictures.extend(check(screen.pull().unwrap(), &mut own));
+    }
+    pictures.extend(check(screen.finish().unwrap(), &mut own));
+    for (i, p) in pictures.iter().enumerate() {
+        assert_eq!(p.index, i, "one picture per frame, in order");
+    }
+    let expected = 12.0 + sound.samples.len() as f64 / f64::from(sound.rate) * 25.0;
+    assert!((pictures.len() as f64 - expected).abs() <= 1.0, "{} pictures for {expected:.1} frames", pictures.len());
+    let speaking = pictures.iter().filter(|p| p.speaking).count();
+    assert!(speaking >= 25, "{speaking} speaking");
+    // Quiet again: the footage runs on; then the clip again, interrupted a second in.
+    let n = pictures.len();
+    let quiet = check(screen.idle_until(n + 5).unwrap(), &mut own);
+    assert_eq!(quiet.len(), 5);
+    assert!(quiet.iter().all(|p| !p.face));
+    let mut again = Vec::new();
+    for chunk in sound.samples.chunks(960).take(75) {
+        screen.session().push_audio(chunk, sound.rate).unwrap();
+        again.extend(check(screen.pull().unwrap(), &mut own));
+    }
+    assert!(again.iter().any(|p| p.speaking), "the second utterance is heard");
+    assert_eq!(again.first().map(|p| p.index), Some(n + 5));
+    screen.clear();
+    let after = check(screen.idle_until(again.last().unwrap().index + 4).unwrap(), &mut own);
+    assert!(!after.is_empty() && after.iter().all(|p| !p.face), "a face after the clear");
+}
