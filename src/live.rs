@@ -651,7 +651,7 @@ impl<'s, 't> Screen<'s, 't> {
         while self.next < self.session.next_frame() {
             let index = self.next;
             let loop_len = self.stage.len().max(1);
-            if index % loop_len == 0 && index > 0 {
+            if index.is_multiple_of(loop_len) && index > 0 {
                 self.footage = self.footage.fresh();
             }
             let mut image = self.footage.next_frame()?;
