@@ -27,6 +27,7 @@ mod live_page;
 mod model;
 mod pca;
 mod phonemes;
+mod python;
 mod region;
 mod shape;
 mod smooth;

@@ -1,0 +1,157 @@
+"""facespace: a talking face from a statistical appearance model, in Python.
+
+A :class:`Talker` is a talker folder (``facespace talker build``; the repository ships GRID
+s1's as ``models/grid``). Its :meth:`Talker.session` is a live session: push speech as it
+arrives — sound, and the phones with their times when a text-to-speech engine gives them —
+and take video frames (``numpy.uint8`` arrays, height × width × 3) each with its presentation
+time, drawn on the CPU over the talker's own footage; while nothing is said the footage plays
+as it is. :meth:`Talker.say` writes an MP4 with sound.
+
+Errors raise :class:`FacespaceError` with the library's message.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from typing import Iterable, List, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from ._facespace import FacespaceError, LiveSession as _LiveSession, Talker as _Talker
+
+__all__ = ["FacespaceError", "Frame", "LiveSession", "Talker"]
+
+
+@dataclass
+class Frame:
+    """One video frame of a live session."""
+
+    index: int
+    """Frame number since the session began."""
+    time: float
+    """Presentation time, seconds of the session's sound (``index / fps``)."""
+    image: np.ndarray
+    """The picture, ``uint8``, height × width × 3 (RGB)."""
+    face: bool
+    """Whether the face was synthesised (speech, or a pause in it), not the footage's own."""
+    speaking: bool
+    """Whether a phone (not silence) is spoken at it."""
+
+
+class Talker:
+    """A talker folder, loaded once per process."""
+
+    def __init__(self, path: str = "models/grid") -> None:
+        self._inner = _Talker(str(path))
+
+    @property
+    def fps(self) -> float:
+        """Frames per second of the talker's video."""
+        return self._inner.fps
+
+    @property
+    def size(self) -> Tuple[int, int]:
+        """(width, height) of its frames."""
+        return self._inner.size
+
+    @property
+    def name(self) -> str:
+        return self._inner.name
+
+    def session(self, given_phones: bool = False) -> "LiveSession":
+        """A live session: phones recognised from its sound, or given (``given_phones``)."""
+        return LiveSession(self._inner.session(given_phones))
+
+    def say(
+        self,
+        out: str,
+        text: Optional[str] = None,
+        audio: Optional[str] = None,
+        words: Optional[str] = None,
+    ) -> dict:
+        """Says ``text`` (text-to-speech in the talker's voice) or the recording ``audio``
+        (aligned to ``words``, or recognised without them) into the MP4 ``out``; returns the
+        report."""
+        return json.loads(self._inner.say(str(out), text, None if audio is None else str(audio), words))
+
+
+AudioLike = Union[bytes, bytearray, memoryview, np.ndarray]
+
+
+def _samples(samples: AudioLike) -> bytes:
+    """Mono samples as little-endian float32 bytes: int16 (bytes, or an int16 array) scaled
+    to −1…1, float32/float64 arrays as they are."""
+    if isinstance(samples, (bytes, bytearray, memoryview)):
+        raw = bytes(samples)
+        if len(raw) % 2:
+            raise FacespaceError("int16 PCM bytes: the byte count must be even")
+        return (np.frombuffer(raw, dtype="<i2").astype(np.float32) / 32768.0).astype("<f4").tobytes()
+    if not isinstance(samples, np.ndarray):
+        raise FacespaceError(f"audio must be bytes or a numpy array, not {type(samples).__name__}")
+    if samples.ndim == 2 and 1 in samples.shape:
+        samples = samples.reshape(-1)
+    if samples.ndim != 1:
+        raise FacespaceError(f"audio must be mono (one channel), got shape {samples.shape}")
+    if samples.dtype == np.int16:
+        return (samples.astype(np.float32) / 32768.0).astype("<f4").tobytes()
+    if samples.dtype in (np.float32, np.float64):
+        return samples.astype("<f4").tobytes()
+    raise FacespaceError(f"audio samples must be int16, float32 or float64, not {samples.dtype}")
+
+
+class LiveSession:
+    """A live session on a talker (see the module's documentation)."""
+
+    def __init__(self, inner: _LiveSession) -> None:
+        self._inner = inner
+
+    @property
+    def fps(self) -> float:
+        return self._inner.fps
+
+    @property
+    def size(self) -> Tuple[int, int]:
+        return self._inner.size
+
+    @property
+    def next_frame(self) -> int:
+        """The index the next frame will have."""
+        return self._inner.next_frame
+
+    def push_audio(self, samples: AudioLike, sample_rate: int) -> None:
+        """Takes the next chunk of sound: int16 PCM bytes, or a numpy int16 / float32 array,
+        mono, at ``sample_rate`` (8, 16, 22.05, 24 or 48 kHz; the same every call)."""
+        self._inner.push_f32(_samples(samples), int(sample_rate))
+
+    def push_phones(self, phones: Iterable[Tuple[str, float, float]]) -> None:
+        """Phones with their times, session seconds: (ARPAbet phone, start, end), in order."""
+        self._inner.push_phones([(str(p), float(s), float(e)) for p, s, e in phones])
+
+    def _frames(self, pictures: Sequence[tuple]) -> List[Frame]:
+        w, h = self.size
+        return [
+            Frame(i, t, np.frombuffer(b, dtype=np.uint8).reshape(h, w, 3), face, speaking)
+            for i, t, b, face, speaking in pictures
+        ]
+
+    def pull(self) -> List[Frame]:
+        """The frames settled since the last call, in order."""
+        return self._frames(self._inner.pull())
+
+    def idle_until(self, index: int) -> List[Frame]:
+        """:meth:`pull`, and while nothing is said the footage as it is up to frame ``index``
+        (not included): a video track keeps its rate between utterances."""
+        return self._frames(self._inner.idle_until(int(index)))
+
+    def finish(self) -> List[Frame]:
+        """Ends the utterance: all its remaining frames."""
+        return self._frames(self._inner.finish())
+
+    def clear(self) -> None:
+        """An interruption: the next frame is the footage's own face."""
+        self._inner.clear()
+
+    def close(self) -> None:
+        """Ends the session; later calls raise :class:`FacespaceError`."""
+        self._inner.close()

@@ -1,0 +1,244 @@
+//! `facespace._facespace`: the library to Python (issue 36) — a talker, its live session
+//! drawn on the CPU (`live::Screen`), and `say` to a file. The Python side
+//! (`facespace/__init__.py`) turns arrays into bytes and pictures into numpy arrays. Errors
+//! arrive as `facespace.FacespaceError` carrying the library's message; the GIL is released
+//! while the library works.
+
+use std::collections::HashMap;
+use std::path::PathBuf;
+use std::sync::{Mutex, OnceLock};
+
+use facespace::live::{Screen, Session, Stage};
+use facespace::phonemes::{Phone, Segment};
+use facespace::talker::{SayRequest, Speech};
+use pyo3::create_exception;
+use pyo3::prelude::*;
+use pyo3::types::PyBytes;
+
+create_exception!(_facespace, FacespaceError, pyo3::exceptions::PyException);
+
+fn error(e: impl std::fmt::Display) -> PyErr {
+    FacespaceError::new_err(e.to_string())
+}
+
+/// A loaded talker and its stage. Loaded once per folder and kept for the life of the
+/// interpreter (a talker is what a process serves; 100–200 MB).
+struct Loaded {
+    talker: &'static facespace::talker::Talker,
+    stage: &'static Stage<'static>,
+}
+
+fn load(path: &std::path::Path) -> Result<&'static Loaded, String> {
+    static LOADED: OnceLock<Mutex<HashMap<PathBuf, &'static Loaded>>> = OnceLock::new();
+    let key = std::fs::canonicalize(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut loaded = LOADED
+        .get_or_init(Default::default)
+        .lock()
+        .unwrap_or_else(|e| e.into_inner());
+    if let Some(l) = loaded.get(&key) {
+        return Ok(l);
+    }
+    let talker: &'static _ =
+        Box::leak(Box::new(facespace::talker::Talker::load(&key).map_err(|e| e.to_string())?));
+    let stage: &'static _ = Box::leak(Box::new(Stage::new(talker, 0).map_err(|e| e.to_string())?));
+    let l: &'static Loaded = Box::leak(Box::new(Loaded { talker, stage }));
+    loaded.insert(key, l);
+    Ok(l)
+}
+
+/// A talker folder (`facespace talker build`).
+#[pyclass(frozen, module = "facespace._facespace")]
+struct Talker {
+    loaded: &'static Loaded,
+}
+
+#[pymethods]
+impl Talker {
+    #[new]
+    fn new(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
+        let loaded = py.allow_threads(|| load(&path)).map_err(error)?;
+        Ok(Talker { loaded })
+    }
+
+    /// Frames per second of the talker's video.
+    #[getter]
+    fn fps(&self) -> f64 {
+        self.loaded.talker.footage.fps
+    }
+
+    /// (width, height) of its frames.
+    #[getter]
+    fn size(&self) -> (u32, u32) {
+        self.loaded.talker.footage.size
+    }
+
+    /// Its name.
+    #[getter]
+    fn name(&self) -> String {
+        self.loaded.talker.manifest.name.clone()
+    }
+
+    /// Says `text` (text-to-speech in the talker's voice), or the recording `audio` (with its
+    /// `words`, or recognised without them), into the MP4 `out`; returns the report as a dict
+    /// of its JSON.
+    #[pyo3(signature = (out, text=None, audio=None, words=None))]
+    fn say(
+        &self,
+        py: Python<'_>,
+        out: PathBuf,
+        text: Option<String>,
+        audio: Option<PathBuf>,
+        words: Option<String>,
+    ) -> PyResult<String> {
+        let speech = match (text, audio, words) {
+            (Some(t), None, None) => Speech::Text(t),
+            (None, Some(a), Some(w)) => Speech::Recording { audio: a, words: w },
+            (None, Some(a), None) => Speech::Sound(a),
+            _ => return Err(error("say: give text, or audio (with its words or without)")),
+        };
+        let talker = self.loaded.talker;
+        let report = py
+            .allow_threads(|| talker.say(&SayRequest::new(speech), &out, |_| {}))
+            .map_err(error)?;
+        serde_json_string(&report)
+    }
+
+    /// A live session: phones recognised from its sound, or given (`given_phones`).
+    #[pyo3(signature = (given_phones=false))]
+    fn session(&self, given_phones: bool) -> LiveSession {
+        let talker = self.loaded.talker;
+        let session = if given_phones {
+            Session::with_given_phones(talker)
+        } else {
+            Session::new(talker)
+        };
+        LiveSession {
+            screen: Some(Screen::new(session, self.loaded.stage)),
+            size: talker.footage.size,
+            fps: talker.footage.fps,
+        }
+    }
+}
+
+fn serde_json_string(report: &facespace::talker::SayReport) -> PyResult<String> {
+    serde_json::to_string(report).map_err(error)
+}
+
+/// A live session drawn on the CPU: push sound (and phones), take pictures.
+#[pyclass(module = "facespace._facespace")]
+struct LiveSession {
+    screen: Option<Screen<'static, 'static>>,
+    size: (u32, u32),
+    fps: f64,
+}
+
+type Pictures = Vec<(usize, f64, Py<PyBytes>, bool, bool)>;
+
+impl LiveSession {
+    fn screen(&mut self) -> PyResult<&mut Screen<'static, 'static>> {
+        self.screen
+            .as_mut()
+            .ok_or_else(|| error("this session is closed"))
+    }
+
+    fn pictures(py: Python<'_>, pictures: Vec<facespace::live::Picture>) -> Pictures {
+        pictures
+            .into_iter()
+            .map(|p| {
+                let bytes = PyBytes::new(py, p.image.as_raw()).unbind();
+                (p.index, p.time, bytes, p.face, p.speaking)
+            })
+            .collect()
+    }
+}
+
+#[pymethods]
+impl LiveSession {
+    /// Frames per second.
+    #[getter]
+    fn fps(&self) -> f64 {
+        self.fps
+    }
+
+    /// (width, height) of every picture.
+    #[getter]
+    fn size(&self) -> (u32, u32) {
+        self.size
+    }
+
+    /// Takes sound: `samples` as little-endian float32 bytes (mono, −1…1) at `rate` Hz.
+    fn push_f32(&mut self, py: Python<'_>, samples: &[u8], rate: u32) -> PyResult<()> {
+        if samples.len() % 4 != 0 {
+            return Err(error("float32 samples: the byte count must be a multiple of 4"));
+        }
+        let x: Vec<f32> = samples
+            .chunks_exact(4)
+            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect();
+        let screen = self.screen()?;
+        py.allow_threads(|| screen.session().push_audio(&x, rate))
+            .map_err(error)
+    }
+
+    /// Phones with their times (session seconds): a list of (ARPAbet phone, start, end).
+    fn push_phones(&mut self, phones: Vec<(String, f64, f64)>) -> PyResult<()> {
+        let segments = phones
+            .iter()
+            .map(|(p, start, end)| {
+                let phone = Phone::parse(p).ok_or_else(|| error(format!("unknown phone {p:?}")))?;
+                Ok(Segment {
+                    start: *start,
+                    end: *end,
+                    phone,
+                })
+            })
+            .collect::<PyResult<Vec<_>>>()?;
+        self.screen()?.session().push_phones(&segments).map_err(error)
+    }
+
+    /// The pictures settled so far: (index, time, RGB bytes, face drawn, speaking).
+    fn pull(&mut self, py: Python<'_>) -> PyResult<Pictures> {
+        let screen = self.screen()?;
+        let p = py.allow_threads(|| screen.pull()).map_err(error)?;
+        Ok(Self::pictures(py, p))
+    }
+
+    /// [`pull`], and the footage as it is up to frame `until` while nothing is said.
+    fn idle_until(&mut self, py: Python<'_>, until: usize) -> PyResult<Pictures> {
+        let screen = self.screen()?;
+        let p = py.allow_threads(|| screen.idle_until(until)).map_err(error)?;
+        Ok(Self::pictures(py, p))
+    }
+
+    /// Ends the utterance: every picture of it.
+    fn finish(&mut self, py: Python<'_>) -> PyResult<Pictures> {
+        let screen = self.screen()?;
+        let p = py.allow_threads(|| screen.finish()).map_err(error)?;
+        Ok(Self::pictures(py, p))
+    }
+
+    /// An interruption: the next picture is the footage's own face.
+    fn clear(&mut self) -> PyResult<()> {
+        self.screen()?.clear();
+        Ok(())
+    }
+
+    /// The next frame index a picture will have.
+    #[getter]
+    fn next_frame(&mut self) -> PyResult<usize> {
+        Ok(self.screen()?.session().next_frame())
+    }
+
+    /// Ends the session; any later call raises.
+    fn close(&mut self) {
+        self.screen = None;
+    }
+}
+
+#[pymodule]
+fn _facespace(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("FacespaceError", m.py().get_type::<FacespaceError>())?;
+    m.add_class::<Talker>()?;
+    m.add_class::<LiveSession>()?;
+    Ok(())
+}
