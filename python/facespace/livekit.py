@@ -1,0 +1,149 @@
+"""A facespace face for LiveKit Agents: a ``VideoGenerator`` for
+``livekit.agents.voice.avatar`` (``pip install ./python[livekit]``).
+
+The agent's speech (``rtc.AudioFrame`` s, then ``AudioSegmentEnd``) goes into a live session
+whose phones are recognised as the sound comes; iteration yields each video frame followed by
+the sound that plays under it (re-timed to the frames, so the ``AVSynchronizer`` keeps them
+together), ``AudioSegmentEnd`` after a segment's last frame, and the talker's own footage while
+nothing is said. ``clear_buffer()`` drops what is being said: the next frame is the footage's
+own face.
+
+    from livekit.agents.voice.avatar import AvatarRunner
+    import facespace
+    from facespace.livekit import FacespaceVideoGenerator
+
+    talker = facespace.Talker("models/grid")
+    video = FacespaceVideoGenerator(talker)
+    runner = AvatarRunner(room, audio_recv=audio_receiver, video_gen=video, options=video.options())
+    await runner.start()
+"""
+
+from __future__ import annotations
+
+import asyncio
+from typing import AsyncIterator, Optional, Union
+
+import numpy as np
+from livekit import rtc
+from livekit.agents.voice.avatar import AudioSegmentEnd, AvatarOptions, VideoGenerator
+
+from . import Frame, Talker
+
+__all__ = ["FacespaceVideoGenerator"]
+
+
+class FacespaceVideoGenerator(VideoGenerator):
+    """Video (and re-timed sound) of ``talker`` speaking the audio pushed into it."""
+
+    def __init__(self, talker: Talker, *, sample_rate: int = 24000) -> None:
+        self._talker = talker
+        self._session = talker.session()
+        self._sample_rate = sample_rate
+        self._queue: "asyncio.Queue[Union[rtc.AudioFrame, AudioSegmentEnd]]" = asyncio.Queue()
+        self._pending = np.zeros(0, dtype=np.int16)  # the segment's sound not yet given out
+        self._rate: Optional[int] = None
+        self._segment_start: Optional[int] = None  # frame where the segment's sound starts
+        self._given = 0  # samples of the segment given out
+        self._ended = False
+        self._clears = 0  # interruptions so far: a batch being given out stops at one
+        self.last_frame: Optional[Frame] = None
+        """The last frame given out (its index, time and whether the face was synthesised)."""
+
+    def options(self) -> AvatarOptions:
+        """The ``AvatarOptions`` this generator's frames and sound have."""
+        w, h = self._talker.size
+        return AvatarOptions(
+            video_width=w,
+            video_height=h,
+            video_fps=self._talker.fps,
+            audio_sample_rate=self._sample_rate,
+            audio_channels=1,
+        )
+
+    async def push_audio(self, frame: Union[rtc.AudioFrame, AudioSegmentEnd]) -> None:
+        self._queue.put_nowait(frame)
+
+    def clear_buffer(self) -> None:
+        while not self._queue.empty():
+            self._queue.get_nowait()
+        self._session.clear()
+        self._pending = np.zeros(0, dtype=np.int16)
+        self._segment_start = None
+        self._ended = False
+        self._clears += 1
+
+    def __aiter__(self) -> AsyncIterator[Union[rtc.VideoFrame, rtc.AudioFrame, AudioSegmentEnd]]:
+        return self._stream()
+
+    def _take(self, item: Union[rtc.AudioFrame, AudioSegmentEnd]) -> None:
+        if isinstance(item, AudioSegmentEnd):
+            if self._segment_start is not None:
+                self._ended = True
+            return
+        samples = np.frombuffer(item.data, dtype=np.int16)
+        if item.num_channels > 1:
+            samples = samples.reshape(-1, item.num_channels).mean(axis=1).astype(np.int16)
+        if self._rate is not None and item.sample_rate != self._rate:
+            raise ValueError(f"audio at {item.sample_rate} Hz after {self._rate} Hz")
+        self._rate = item.sample_rate
+        if self._segment_start is None:
+            self._segment_start = self._session.next_frame
+            self._given = 0
+        self._session.push_audio(samples, item.sample_rate)
+        self._pending = np.concatenate([self._pending, samples])
+
+    def _video(self, frame: Frame) -> rtc.VideoFrame:
+        self.last_frame = frame
+        h, w, _ = frame.image.shape
+        rgba = np.empty((h, w, 4), dtype=np.uint8)
+        rgba[..., :3] = frame.image
+        rgba[..., 3] = 255
+        return rtc.VideoFrame(w, h, rtc.VideoBufferType.RGBA, rgba.tobytes())
+
+    def _sound_for(self, frame: Frame, last: bool) -> Optional[rtc.AudioFrame]:
+        """The segment's sound under ``frame`` (to the end of the frame; all of it after the
+        last frame), resampled to the output rate by taking the session's clock."""
+        if self._segment_start is None or self._rate is None:
+            return None
+        end = len(self._pending) + self._given if last else int(
+            round((frame.index + 1 - self._segment_start) / self._talker.fps * self._rate)
+        )
+        n = max(0, min(end - self._given, len(self._pending)))
+        if n == 0:
+            return None
+        chunk, self._pending = self._pending[:n], self._pending[n:]
+        self._given += n
+        if self._rate != self._sample_rate:
+            x = np.arange(int(round(n * self._sample_rate / self._rate))) * (self._rate / self._sample_rate)
+            chunk = np.interp(x, np.arange(n), chunk.astype(np.float64)).round().astype(np.int16)
+        return rtc.AudioFrame(chunk.tobytes(), self._sample_rate, 1, len(chunk))
+
+    async def _stream(self) -> AsyncIterator[Union[rtc.VideoFrame, rtc.AudioFrame, AudioSegmentEnd]]:
+        while True:
+            while not self._queue.empty():
+                self._take(self._queue.get_nowait())
+            if self._segment_start is None:
+                # Nothing said: the footage as it is, one frame at a time (the synchroniser paces).
+                for frame in self._session.idle_until(self._session.next_frame + 1):
+                    yield self._video(frame)
+                await asyncio.sleep(0)
+                continue
+            ending, clears = self._ended, self._clears
+            frames = await asyncio.to_thread(self._session.finish if ending else self._session.pull)
+            for k, frame in enumerate(frames):
+                if self._clears != clears:
+                    break
+                yield self._video(frame)
+                sound = self._sound_for(frame, ending and k == len(frames) - 1)
+                if sound is not None:
+                    yield sound
+            if self._clears != clears:
+                continue
+            if ending:
+                self._segment_start, self._ended = None, False
+                yield AudioSegmentEnd()
+            elif not frames:
+                try:
+                    self._take(await asyncio.wait_for(self._queue.get(), 1 / self._talker.fps))
+                except asyncio.TimeoutError:
+                    pass

@@ -1,0 +1,101 @@
+"""The LiveKit adapter driven as ``AvatarRunner`` drives it, offline: a GRID clip's sound in
+20 ms ``rtc.AudioFrame`` s and ``AudioSegmentEnd`` in; video frames, the re-timed sound and
+``AudioSegmentEnd`` out. Recorded speech: GRID s1's test clip bbbf9a."""
+
+import asyncio
+import pathlib
+import wave
+
+import numpy as np
+import pytest
+
+rtc = pytest.importorskip("livekit.rtc")
+avatar = pytest.importorskip("livekit.agents.voice.avatar")
+
+import facespace
+from facespace.livekit import FacespaceVideoGenerator
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def talker():
+    return facespace.Talker(str(ROOT / "models/grid"))
+
+
+def clip():
+    with wave.open(str(ROOT / "tests/data/grid/bbbf9a.wav")) as w:
+        return np.frombuffer(w.readframes(w.getnframes()), dtype="<i2"), w.getframerate()
+
+
+async def speak(gen, samples, rate, end=True):
+    step = rate // 50
+    for k in range(0, len(samples), step):
+        chunk = samples[k : k + step]
+        await gen.push_audio(rtc.AudioFrame(chunk.tobytes(), rate, 1, len(chunk)))
+    if end:
+        await gen.push_audio(avatar.AudioSegmentEnd())
+
+
+def test_frames_and_sound_stay_together(talker):
+    samples, rate = clip()
+
+    async def run():
+        gen = FacespaceVideoGenerator(talker, sample_rate=rate)
+        options = gen.options()
+        assert (options.video_width, options.video_height) == talker.size
+        await speak(gen, samples, rate)
+        video, heard, worst = 0, 0, 0.0
+        faces = 0
+        async for item in gen:
+            if isinstance(item, rtc.VideoFrame):
+                video += 1
+                faces += gen.last_frame.face
+                # The sound given out so far against the frames: within one frame.
+                worst = max(worst, abs(heard / rate - (video - 1) / talker.fps))
+            elif isinstance(item, rtc.AudioFrame):
+                heard += item.samples_per_channel
+            elif isinstance(item, avatar.AudioSegmentEnd):
+                break
+        return video, heard, worst, faces
+
+    video, heard, worst, faces = asyncio.run(run())
+    assert heard == len(samples)
+    expected = len(samples) / rate * talker.fps
+    assert abs(video - expected) <= 1, (video, expected)
+    assert worst <= 1 / talker.fps + 1e-9, worst
+    assert faces >= video - 1
+
+
+def test_an_interruption_returns_to_the_footage_at_once(talker):
+    samples, rate = clip()
+
+    async def run():
+        gen = FacespaceVideoGenerator(talker, sample_rate=rate)
+        await speak(gen, samples[: rate * 2], rate, end=False)
+        it = gen.__aiter__()
+        faces = 0
+        while faces < 10:
+            item = await it.__anext__()
+            if isinstance(item, rtc.VideoFrame) and gen.last_frame.face:
+                faces += 1
+        gen.clear_buffer()
+        after = []
+        while len(after) < 3:
+            item = await it.__anext__()
+            if isinstance(item, rtc.VideoFrame):
+                after.append(gen.last_frame.face)
+            assert not isinstance(item, rtc.AudioFrame), "sound after the interruption"
+        return after
+
+    assert asyncio.run(run()) == [False, False, False]
+
+
+def test_idle_frames_while_nothing_is_said(talker):
+    async def run():
+        gen = FacespaceVideoGenerator(talker)
+        it = gen.__aiter__()
+        return [await it.__anext__() for _ in range(5)]
+
+    frames = asyncio.run(run())
+    assert all(isinstance(f, rtc.VideoFrame) for f in frames)
