@@ -39,11 +39,10 @@ class Frame:
     """Whether a phone (not silence) is spoken at it."""
 
 
-class Talker:
-    """A talker folder, loaded once per process."""
+class _Video:
+    """What a talker and its sessions share: the video's rate and size."""
 
-    def __init__(self, path: str = "models/grid") -> None:
-        self._inner = _Talker(str(path))
+    _inner: Union[_Talker, _LiveSession]
 
     @property
     def fps(self) -> float:
@@ -54,6 +53,13 @@ class Talker:
     def size(self) -> Tuple[int, int]:
         """(width, height) of its frames."""
         return self._inner.size
+
+
+class Talker(_Video):
+    """A talker folder, loaded once per process."""
+
+    def __init__(self, path: str = "models/grid") -> None:
+        self._inner = _Talker(str(path))
 
     @property
     def name(self) -> str:
@@ -100,19 +106,11 @@ def _samples(samples: AudioLike) -> bytes:
     raise FacespaceError(f"audio samples must be int16, float32 or float64, not {samples.dtype}")
 
 
-class LiveSession:
+class LiveSession(_Video):
     """A live session on a talker (see the module's documentation)."""
 
     def __init__(self, inner: _LiveSession) -> None:
         self._inner = inner
-
-    @property
-    def fps(self) -> float:
-        return self._inner.fps
-
-    @property
-    def size(self) -> Tuple[int, int]:
-        return self._inner.size
 
     @property
     def next_frame(self) -> int:
