@@ -48,14 +48,7 @@ fn main() {
                         s.push_phones(&phones).unwrap();
                         s
                     };
-                    let plan = facespace::talker::footage::Plan {
-                        frames: (0..2000).map(|t| stage.shown(t).footage).collect(),
-                        mix: (0..2000).map(|t| stage.shown(t).mix).collect(),
-                        joins: Vec::new(),
-                        join_costs: Vec::new(),
-                        median_step: 0.0,
-                    };
-                    let mut footage = talker.footage.shown(&plan);
+                    let mut footage = talker.footage.shown(stage.plan());
                     let mut chunks = sound.samples.chunks(640).peekable();
                     while let Some(chunk) = chunks.next() {
                         let t = Instant::now();

@@ -350,7 +350,7 @@ fn typed_sentences_play_in_sync_and_stop_at_once() {
         .iter()
         .map(|v| {
             let l = talker.model.landmarks(talker.model.layout().split(v).unwrap()).unwrap();
-            common::inner_opening(&l.points)
+            facespace::eval::mouth::inner_mouth_height(&l.points)
         })
         .collect();
     let bilabial = [Phone::parse("p"), Phone::parse("b"), Phone::parse("m")];
@@ -445,7 +445,7 @@ fn the_microphone_drives_the_face() {
     assert!(speaking >= 25, "{speaking} speaking frames");
     let opening = |v: &[f32]| {
         let l = talker.model.landmarks(talker.model.layout().split(v).unwrap()).unwrap();
-        common::inner_opening(&l.points)
+        facespace::eval::mouth::inner_mouth_height(&l.points)
     };
     let page_open: Vec<f64> = heard
         .iter()

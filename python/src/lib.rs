@@ -100,7 +100,7 @@ impl Talker {
         let report = py
             .allow_threads(|| talker.say(&SayRequest::new(speech), &out, |_| {}))
             .map_err(error)?;
-        serde_json_string(&report)
+        serde_json::to_string(&report).map_err(error)
     }
 
     /// A live session: phones recognised from its sound, or given (`given_phones`).
@@ -118,10 +118,6 @@ impl Talker {
             fps: talker.footage.fps,
         }
     }
-}
-
-fn serde_json_string(report: &facespace::talker::SayReport) -> PyResult<String> {
-    serde_json::to_string(report).map_err(error)
 }
 
 /// A live session drawn on the CPU: push sound (and phones), take pictures.

@@ -3,29 +3,17 @@
 ``AudioSegmentEnd`` out. Recorded speech: GRID s1's test clip bbbf9a."""
 
 import asyncio
-import pathlib
-import wave
 
-import numpy as np
 import pytest
 
 rtc = pytest.importorskip("livekit.rtc")
 avatar = pytest.importorskip("livekit.agents.voice.avatar")
 
-import facespace
 from facespace.livekit import FacespaceVideoGenerator
 
-ROOT = pathlib.Path(__file__).resolve().parents[2]
 
 
-@pytest.fixture(scope="module")
-def talker():
-    return facespace.Talker(str(ROOT / "models/grid"))
 
-
-def clip():
-    with wave.open(str(ROOT / "tests/data/grid/bbbf9a.wav")) as w:
-        return np.frombuffer(w.readframes(w.getnframes()), dtype="<i2"), w.getframerate()
 
 
 async def speak(gen, samples, rate, end=True):
@@ -37,8 +25,8 @@ async def speak(gen, samples, rate, end=True):
         await gen.push_audio(avatar.AudioSegmentEnd())
 
 
-def test_frames_and_sound_stay_together(talker):
-    samples, rate = clip()
+def test_frames_and_sound_stay_together(talker, clip):
+    samples, rate = clip
 
     async def run():
         gen = FacespaceVideoGenerator(talker, sample_rate=rate)
@@ -67,8 +55,8 @@ def test_frames_and_sound_stay_together(talker):
     assert faces >= video - 1
 
 
-def test_an_interruption_returns_to_the_footage_at_once(talker):
-    samples, rate = clip()
+def test_an_interruption_returns_to_the_footage_at_once(talker, clip):
+    samples, rate = clip
 
     async def run():
         gen = FacespaceVideoGenerator(talker, sample_rate=rate)

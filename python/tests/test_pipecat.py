@@ -3,29 +3,13 @@ a GRID clip's sound as TTS audio frames between TTSStarted/TTSStopped in; images
 re-timed sound out. Recorded speech: GRID s1's test clip bbbf9a."""
 
 import asyncio
-import pathlib
-import wave
 
-import numpy as np
 import pytest
 
 frames_mod = pytest.importorskip("pipecat.frames.frames")
 test_utils = pytest.importorskip("pipecat.tests.utils")
 
-import facespace
 from facespace.pipecat import FacespaceVideoProcessor
-
-ROOT = pathlib.Path(__file__).resolve().parents[2]
-
-
-@pytest.fixture(scope="module")
-def talker():
-    return facespace.Talker(str(ROOT / "models/grid"))
-
-
-def clip():
-    with wave.open(str(ROOT / "tests/data/grid/bbbf9a.wav")) as w:
-        return np.frombuffer(w.readframes(w.getnframes()), dtype="<i2"), w.getframerate()
 
 
 def tts(samples, rate):
@@ -36,8 +20,8 @@ def tts(samples, rate):
     ]
 
 
-def test_images_and_sound_stay_together(talker):
-    samples, rate = clip()
+def test_images_and_sound_stay_together(talker, clip):
+    samples, rate = clip
     face = FacespaceVideoProcessor(talker)
     sent = [frames_mod.TTSStartedFrame(), *tts(samples, rate), frames_mod.TTSStoppedFrame()]
     down, _ = asyncio.run(test_utils.run_test(face, frames_to_send=sent))
@@ -58,8 +42,8 @@ def test_images_and_sound_stay_together(talker):
     assert any(isinstance(f, frames_mod.TTSStoppedFrame) for f in down)
 
 
-def test_an_interruption_returns_to_the_footage(talker):
-    samples, rate = clip()
+def test_an_interruption_returns_to_the_footage(talker, clip):
+    samples, rate = clip
     face = FacespaceVideoProcessor(talker)
     # A system frame overtakes queued data: the sleep lets the speech through first.
     sent = [

@@ -2,30 +2,15 @@
 interruption returns to the footage at once, bad input raises with the library's message.
 Recorded speech: GRID s1's test clip bbbf9a (committed in tests/data/grid)."""
 
-import pathlib
-import wave
 
 import numpy as np
 import pytest
 
 import facespace
 
-ROOT = pathlib.Path(__file__).resolve().parents[2]
 
-
-@pytest.fixture(scope="module")
-def talker():
-    return facespace.Talker(str(ROOT / "models/grid"))
-
-
-def clip(name="bbbf9a"):
-    with wave.open(str(ROOT / "tests/data/grid" / f"{name}.wav")) as w:
-        assert w.getnchannels() == 1 and w.getsampwidth() == 2
-        return np.frombuffer(w.readframes(w.getnframes()), dtype="<i2"), w.getframerate()
-
-
-def test_frames_follow_the_sound(talker):
-    samples, rate = clip()
+def test_frames_follow_the_sound(talker, clip):
+    samples, rate = clip
     session = talker.session()
     frames = []
     step = rate // 25  # 40 ms chunks
@@ -46,8 +31,8 @@ def test_frames_follow_the_sound(talker):
     assert not any(f.speaking for f in frames[-10:])
 
 
-def test_bytes_and_float_arrays_give_the_same_frames(talker):
-    samples, rate = clip()
+def test_bytes_and_float_arrays_give_the_same_frames(talker, clip):
+    samples, rate = clip
     a, b = talker.session(), talker.session()
     a.push_audio(samples.tobytes(), rate)
     b.push_audio(samples.astype(np.float32) / 32768.0, rate)
@@ -56,8 +41,8 @@ def test_bytes_and_float_arrays_give_the_same_frames(talker):
     assert all(np.array_equal(x.image, y.image) for x, y in zip(fa, fb))
 
 
-def test_an_interruption_returns_to_the_footage_at_once(talker):
-    samples, rate = clip()
+def test_an_interruption_returns_to_the_footage_at_once(talker, clip):
+    samples, rate = clip
     session = talker.session()
     quiet = session.idle_until(10)
     assert len(quiet) == 10 and not any(f.face for f in quiet)
@@ -69,7 +54,7 @@ def test_an_interruption_returns_to_the_footage_at_once(talker):
     assert after and not any(f.face for f in after), [f.face for f in after]
 
 
-def test_bad_input_raises_with_the_library_message(talker):
+def test_bad_input_raises_with_the_library_message(talker, root):
     session = talker.session()
     with pytest.raises(facespace.FacespaceError, match="int16, float32"):
         session.push_audio(np.zeros(640, dtype=np.int32), 16000)
@@ -88,6 +73,6 @@ def test_bad_input_raises_with_the_library_message(talker):
     with pytest.raises(facespace.FacespaceError, match="closed"):
         session.pull()
     with pytest.raises(facespace.FacespaceError):
-        facespace.Talker(str(ROOT / "models/demo"))
+        facespace.Talker(str(root / "models/demo"))
     with pytest.raises(facespace.FacespaceError):
         facespace.Talker("/no/such/talker")

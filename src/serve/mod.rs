@@ -302,9 +302,7 @@ impl<'t> LiveServer<'t> {
                 if body.text.chars().count() > MAX_TEXT {
                     return Err(bad(format!("the text is longer than {MAX_TEXT} characters")));
                 }
-                if !(body.now.is_finite() && body.now >= 0.0) {
-                    return Err(bad("`now` must be the page's frame clock, ≥ 0"));
-                }
+                frame_clock("now", body.now)?;
                 let client = self.client(&body.session)?;
                 // From the request's arrival: time waiting for a worker counts too.
                 let started = Instant::now();
@@ -329,9 +327,7 @@ impl<'t> LiveServer<'t> {
             (true, "/api/call") => {
                 let body: CallBody = parse(&request.body)?;
                 let call = self.call.as_ref().ok_or((404, "no call here: start the server with --call VIDEO".to_string()))?;
-                if !(body.now.is_finite() && body.now >= 0.0) {
-                    return Err(bad("`now` must be the page's frame clock, ≥ 0"));
-                }
+                frame_clock("now", body.now)?;
                 let client = self.client(&body.session)?;
                 let fps = self.talker.footage.fps;
                 let at = (body.now + CALL_LEAD.as_secs_f64() * fps).ceil() as usize;
@@ -457,8 +453,8 @@ impl<'t> LiveServer<'t> {
         if body.pcm.len() as f64 > MAX_CHUNK_SECONDS * f64::from(body.rate) {
             return Err(bad(format!("more than {MAX_CHUNK_SECONDS} s of sound in one chunk")));
         }
-        if body.at.is_some_and(|a| !(a.is_finite() && a >= 0.0)) {
-            return Err(bad("`at` must be the page's frame clock, ≥ 0"));
+        if let Some(at) = body.at {
+            frame_clock("at", at)?;
         }
         let samples: Vec<f32> = body.pcm.iter().map(|&s| f32::from(s) / 32768.0).collect();
         let fps = self.talker.footage.fps;
@@ -541,6 +537,15 @@ struct ListenBody {
     /// The microphone stopped: give every frame.
     #[serde(default)]
     end: bool,
+}
+
+/// A page's frame clock (`now`, `at`): finite and ≥ 0.
+fn frame_clock(name: &str, value: f64) -> Result<(), Refusal> {
+    if value.is_finite() && value >= 0.0 {
+        Ok(())
+    } else {
+        Err(bad(format!("`{name}` must be the page's frame clock, ≥ 0")))
+    }
 }
 
 fn parse<T: serde::de::DeserializeOwned>(body: &str) -> Result<T, Refusal> {

@@ -254,11 +254,3 @@ pub fn closes_within(height: &[f64], start: f64, end: f64, fps: f64) -> Result<(
     Ok(())
 }
 
-/// The inner lips' opening (iBUG 61–63 over 67–65, 0-based), pixels.
-pub fn inner_opening(points: &[[f64; 2]]) -> f64 {
-    [(61, 67), (62, 66), (63, 65)]
-        .iter()
-        .map(|&(t, b)| points[b][1] - points[t][1])
-        .sum::<f64>()
-        / 3.0
-}
