@@ -72,9 +72,27 @@ pub enum LiveError {
         /// Where the session's phones had reached.
         previous: f64,
     },
+    /// Words given to a session that was not made for them.
+    #[error("words given to a session that takes sound or phones (make it with_given_words)")]
+    NotReading,
+    /// Given words that go back in time.
+    #[error("word {index} ({word:?}) starts at {start:.3} s, before the {previous:.3} s of the last one")]
+    WordsOutOfOrder {
+        /// Its place among the words given in that call.
+        index: usize,
+        /// The word.
+        word: String,
+        /// Its start, session seconds.
+        start: f64,
+        /// Where the session's words had reached.
+        previous: f64,
+    },
     /// The synthesis failed.
     #[error(transparent)]
     Synth(#[from] SynthError),
+    /// Values that do not fit the talker's layout.
+    #[error(transparent)]
+    Layout(#[from] crate::facespace::FacespaceError),
     /// A frame could not be placed on the talker's face.
     #[error(transparent)]
     Model(#[from] crate::model::ModelError),
@@ -111,7 +129,41 @@ enum Phones<'t> {
     },
     /// Given with their times (a text-to-speech engine's).
     Given,
+    /// Words given with their start times (a text-to-speech engine's word timestamps), each
+    /// aligned to its stretch of the sound ([`Session::push_words`]).
+    Read(Box<Reading>),
 }
+
+/// A session's given words and the sound they are aligned to.
+#[derive(Default)]
+struct Reading {
+    /// Words given and not yet aligned: (word, start), session seconds.
+    waiting: std::collections::VecDeque<(String, f64)>,
+    /// The last words aligned, the left context of the next alignment.
+    aligned: std::collections::VecDeque<(String, f64)>,
+    /// The sound at 16 kHz from `sound_start` session seconds.
+    sound: Vec<f32>,
+    sound_start: f64,
+}
+
+impl Reading {
+    /// The sample of `sound` at `t` session seconds (clamped to it).
+    fn at(&self, t: f64) -> usize {
+        let rate = f64::from(crate::align::frontend::SAMPLE_RATE);
+        (((t - self.sound_start) * rate).round().max(0.0) as usize).min(self.sound.len())
+    }
+}
+
+/// A gap shorter than this between a word's phones and the next word's start is the
+/// timestamps' rounding, not a pause (seconds).
+const SLIVER: f64 = 0.05;
+
+/// Seconds of sound a session of given words keeps while no word comes for it.
+pub const MAX_UNREAD: f64 = 30.0;
+
+/// Seconds of sound, at least, that a given word is aligned within (the words before it
+/// give the rest): the front end's mean normalisation needs more than one short word.
+pub const WORD_WINDOW: f64 = 1.0;
 
 /// A live session on a talker (module docs).
 pub struct Session<'t> {
@@ -148,6 +200,15 @@ impl<'t> Session<'t> {
     /// A session whose phones are given ([`Session::push_phones`]); its sound only keeps time.
     pub fn with_given_phones(talker: &'t Talker) -> Self {
         Self::with_source(talker, Phones::Given)
+    }
+
+    /// A session whose words are given with their start times ([`Session::push_words`]), as
+    /// text-to-speech engines with word timestamps give them: each word's phones are aligned
+    /// to its stretch of the sound as soon as the sound reaches the next word, so the lips
+    /// close where the sound's /p b m/ are, not where a recogniser guesses them. Sound that
+    /// no word covers has its phones recognised at [`Session::finish`].
+    pub fn with_given_words(talker: &'t Talker) -> Self {
+        Self::with_source(talker, Phones::Read(Box::default()))
     }
 
     fn with_source(talker: &'t Talker, source: Phones<'t>) -> Self {
@@ -204,6 +265,14 @@ impl<'t> Session<'t> {
                     .and_then(|p| shifted(std::slice::from_ref(p), offset).pop());
                 self.extend(&heard, offset);
             }
+            Phones::Read(reading) => {
+                reading.sound.extend_from_slice(&speech);
+                // Sound no word comes for is kept for a while, then dropped (it stays silent).
+                let cut = reading.at(self.heard - MAX_UNREAD);
+                reading.sound.drain(..cut);
+                reading.sound_start += cut as f64 / f64::from(crate::align::frontend::SAMPLE_RATE);
+                self.read(false)?;
+            }
             // Sound beyond the given phones is silence: the face rests while it plays.
             Phones::Given => {
                 let end = self.phones.last().map_or(self.origin, |p| p.end);
@@ -236,6 +305,118 @@ impl<'t> Session<'t> {
         }
         for p in phones {
             self.append(*p);
+        }
+        Ok(())
+    }
+
+    /// Takes words with their start times (session seconds), in order, after the words
+    /// already given (a session made by [`Session::with_given_words`]). A word's stretch of
+    /// sound runs to the next word's start (the last: to [`Session::finish`]).
+    pub fn push_words(&mut self, words: &[(String, f64)]) -> Result<(), LiveError> {
+        let Phones::Read(reading) = &mut self.source else {
+            return Err(LiveError::NotReading);
+        };
+        let mut previous = reading
+            .waiting
+            .back()
+            .or(reading.aligned.back())
+            .map_or(self.origin, |w| w.1)
+            .max(self.phones.last().map_or(self.origin, |p| p.end));
+        for (index, (word, start)) in words.iter().enumerate() {
+            if !start.is_finite() || *start < previous - 1e-6 {
+                return Err(LiveError::WordsOutOfOrder {
+                    index,
+                    word: word.clone(),
+                    start: *start,
+                    previous,
+                });
+            }
+            previous = *start;
+        }
+        for (word, start) in words {
+            // Punctuation alone is no word; what a word carries around it is dropped.
+            let spoken = crate::align::dict::words(word).join(" ");
+            if !spoken.is_empty() {
+                reading.waiting.push_back((spoken, *start));
+            }
+        }
+        self.read(false)
+    }
+
+    /// Aligns every waiting word whose stretch of sound is heard (`to_end`: all of them, the
+    /// last to the end of the sound), and adds its phones.
+    fn read(&mut self, to_end: bool) -> Result<(), LiveError> {
+        let Phones::Read(reading) = &mut self.source else {
+            return Ok(());
+        };
+        let aligner = self.talker.default_aligner()?;
+        let rate = f64::from(crate::align::frontend::SAMPLE_RATE);
+        let mut phones = Vec::new();
+        while let Some((word, start)) = reading.waiting.front().cloned() {
+            let end = match reading.waiting.get(1) {
+                Some(next) if next.1 <= self.heard => next.1,
+                _ if to_end => self.heard,
+                _ => break,
+            };
+            reading.waiting.pop_front();
+            // The window: this word and the ones before it within WORD_WINDOW.
+            let context: Vec<&(String, f64)> = reading
+                .aligned
+                .iter()
+                .filter(|w| w.1 >= end - WORD_WINDOW)
+                .collect();
+            // The first word after a pause-free start (or a clear) takes the silence before it.
+            let lead = if reading.aligned.is_empty() { start - WORD_WINDOW } else { start };
+            let from = context.first().map_or(lead, |w| w.1).max(reading.sound_start);
+            let samples = &reading.sound[reading.at(from)..reading.at(end)];
+            let text: Vec<&str> = context.iter().map(|w| w.0.as_str()).chain([word.as_str()]).collect();
+            let ours = context.len();
+            let aligned = aligner
+                .align(samples, crate::align::frontend::SAMPLE_RATE, &text.join(" "))
+                .ok()
+                .and_then(|alignment| {
+                    // This word's phones and the silence after it.
+                    let first = alignment.phones.iter().position(|p| p.word.is_some_and(|w| w >= ours))?;
+                    Some(shifted(&alignment.phones[first..], from))
+                });
+            // A word the dictionary lacks, or a stretch too short for it: its phones heard.
+            let found = aligned.unwrap_or_else(|| recognised(aligner, &reading.sound[reading.at(start)..reading.at(end)], start));
+            phones.extend(found.into_iter().filter(|p| p.end > start));
+            // The stretch ends at the next word: a sliver left by the timestamps' rounding
+            // goes to the last phone, a real gap becomes silence.
+            match phones.last_mut() {
+                Some(last) if last.end < end && end - last.end < SLIVER => last.end = end,
+                _ => phones.push(Segment {
+                    start: end,
+                    end,
+                    phone: Phone::SIL,
+                }),
+            }
+            reading.aligned.push_back((word, start));
+            while reading.aligned.len() > 8 {
+                reading.aligned.pop_front();
+            }
+            // Sound no later window reaches is dropped.
+            let cut = reading.at(end - WORD_WINDOW);
+            reading.sound.drain(..cut);
+            reading.sound_start += cut as f64 / rate;
+        }
+        if to_end && reading.waiting.is_empty() {
+            // Sound after the last word's stretch (or with no words at all): its phones heard.
+            let end = phones.last().map_or(self.phones.last().map_or(self.origin, |p| p.end), |p| p.end);
+            if self.heard > end + 0.1 {
+                let samples = &reading.sound[reading.at(end)..];
+                phones.extend(recognised(aligner, samples, end));
+            }
+            // Silence to the end of the sound where nothing more is heard.
+            phones.push(Segment {
+                start: self.heard,
+                end: self.heard,
+                phone: Phone::SIL,
+            });
+        }
+        for p in phones {
+            self.append(p);
         }
         Ok(())
     }
@@ -316,6 +497,7 @@ impl<'t> Session<'t> {
                 self.extend(&heard, start);
             }
         }
+        self.read(true)?;
         let end = self.phones.last().map_or(self.origin, |p| p.end);
         self.frames_until(end, None)
     }
@@ -334,6 +516,13 @@ impl<'t> Session<'t> {
             *recogniser = None;
             *sounding = None;
             *offset = self.heard;
+            self.resampler = None;
+        }
+        if let Phones::Read(reading) = &mut self.source {
+            **reading = Reading {
+                sound_start: self.heard,
+                ..Reading::default()
+            };
             self.resampler = None;
         }
         if self.origin < self.heard {
@@ -363,9 +552,18 @@ impl<'t> Session<'t> {
     /// sound waits in a recogniser (after [`Session::finish`], [`Session::clear`], or before
     /// any speech).
     pub fn is_quiet(&self) -> bool {
-        let waiting = matches!(&self.source, Phones::Heard { recogniser: Some(_), .. });
         let end = self.phones.last().map_or(self.origin, |p| p.end);
+        let waiting = match &self.source {
+            Phones::Heard { recogniser, .. } => recogniser.is_some(),
+            Phones::Read(reading) => !reading.waiting.is_empty() || self.heard > end + 1e-6,
+            Phones::Given => false,
+        };
         !waiting && end * self.fps <= self.given as f64 + 1e-6
+    }
+
+    /// The phones known so far since the session's start or its last clear, session seconds.
+    pub fn phones(&self) -> &[Segment] {
+        &self.phones
     }
 
     /// The next frame this session gives out.
@@ -431,6 +629,16 @@ impl<'t> Session<'t> {
         self.given += out.len();
         Ok(out)
     }
+}
+
+/// The phones recognised in `samples` (16 kHz) that start at `start` session seconds; none
+/// where nothing is heard (too little speech, too short).
+fn recognised(aligner: &crate::align::Aligner, samples: &[f32], start: f64) -> Vec<Segment> {
+    let lm = aligner.phone_loop(crate::align::PHONE_WEIGHT, crate::align::PHONE_PENALTY);
+    aligner
+        .recognise(samples, crate::align::frontend::SAMPLE_RATE, &lm)
+        .map(|heard| shifted(&heard, start))
+        .unwrap_or_default()
 }
 
 /// Recognised phones as segments in session seconds (the recogniser started at `offset`).
@@ -532,8 +740,7 @@ impl<'t> Stage<'t> {
         let layout = self.talker.model.layout();
         let n = self.len().max(1);
         let rows: Vec<f32> = frames.iter().flat_map(|f| f.values.iter().copied()).collect();
-        let mut placed = Frames::from_rows(layout, self.talker.footage.fps, rows)
-            .map_err(|e| LiveError::Synth(SynthError::from(e)))?;
+        let mut placed = Frames::from_rows(layout, self.talker.footage.fps, rows)?;
         for (k, f) in frames.iter().enumerate() {
             if let Some(pose) = self.poses.get(f.index % n) {
                 placed.set_pose(k, *pose);
@@ -564,8 +771,11 @@ pub struct Picture {
     pub index: usize,
     /// Its presentation time, seconds of the session's sound.
     pub time: f64,
-    /// The picture, in the footage's size.
+    /// The picture, in the footage's size or the size asked for ([`Screen::with_size`]).
     pub image: image::RgbImage,
+    /// The face's 68 iBUG landmarks in the picture's pixels: the face drawn, or the footage's
+    /// own as tracked.
+    pub landmarks: Vec<crate::shape::Point>,
     /// Whether the face was synthesised (speech, or a pause inside it) rather than the
     /// footage's own.
     pub face: bool,
@@ -588,6 +798,8 @@ pub struct Screen<'s, 't> {
     next: usize,
     /// Settled frames not yet drawn.
     settled: std::collections::VecDeque<LiveFrame>,
+    /// The footage's size to the pictures' size, when they differ.
+    scaler: Option<crate::render::scale::Scaler>,
 }
 
 impl<'s, 't> Screen<'s, 't> {
@@ -602,7 +814,30 @@ impl<'s, 't> Screen<'s, 't> {
             footage: talker.footage.shown(stage.plan()),
             next: 0,
             settled: std::collections::VecDeque::new(),
+            scaler: None,
         }
+    }
+
+    /// [`Screen::new`] with pictures of `size` (width, height): each drawn in the footage's
+    /// size, then scaled to fit ([`crate::render::scale::Fit`]).
+    pub fn with_size(
+        session: Session<'t>,
+        stage: &'s Stage<'t>,
+        size: (u32, u32),
+        fit: crate::render::scale::Fit,
+    ) -> Self {
+        let scaler = crate::render::scale::Scaler::new(stage.talker.footage.size, size, fit);
+        Screen {
+            scaler: (!scaler.is_identity()).then_some(scaler),
+            ..Self::new(session, stage)
+        }
+    }
+
+    /// The pictures' size.
+    pub fn size(&self) -> (u32, u32) {
+        self.scaler
+            .as_ref()
+            .map_or(self.stage.talker.footage.size, |s| s.size())
     }
 
     /// The session, to push sound or phones into.
@@ -658,24 +893,25 @@ impl<'s, 't> Screen<'s, 't> {
             while self.settled.front().is_some_and(|f| f.index < index) {
                 self.settled.pop_front();
             }
-            let (face, speaking) = match self.settled.front() {
+            let (face, speaking, mut landmarks) = match self.settled.front() {
                 Some(f) if f.index == index => {
-                    let params = self
-                        .stage
-                        .talker
-                        .model
-                        .layout()
-                        .split(&f.values)
-                        .map_err(|e| LiveError::Synth(SynthError::from(e)))?;
+                    let model = &self.stage.talker.model;
+                    let params = model.layout().split(&f.values)?;
                     crate::render::Renderer::render_into(&self.renderer, params, &mut image)?;
-                    (true, f.speaking)
+                    let points = model.shape.instance(&params.pose, params.shape).points;
+                    (true, f.speaking, points)
                 }
-                _ => (false, false),
+                _ => (false, false, self.stage.landmarks[index % loop_len].points.clone()),
             };
+            if let Some(scaler) = &self.scaler {
+                image = scaler.scale(&image);
+                landmarks.iter_mut().for_each(|p| *p = scaler.point(*p));
+            }
             out.push(Picture {
                 index,
                 time: index as f64 / fps,
                 image,
+                landmarks,
                 face,
                 speaking,
             });

@@ -104,6 +104,65 @@ fn the_sound_alone_moves_the_lips() {
     assert!(live.iter().filter(|f| f.speaking).count() * 3 > live.len(), "speaking on too few frames");
 }
 
+/// The words of a GRID clip with their start times (its `.align`, 25 000 units a second),
+/// as a text-to-speech engine's word timestamps give them.
+fn words(id: &str) -> Vec<(String, f64)> {
+    let text = std::fs::read_to_string(common::root().join(format!("tests/data/grid/{id}.align"))).unwrap();
+    text.lines()
+        .filter_map(|l| {
+            let mut f = l.split_whitespace();
+            let start: f64 = f.next()?.parse().ok()?;
+            let (_, word) = (f.next()?, f.next()?);
+            (word != "sil").then(|| (word.to_string(), start / 25_000.0))
+        })
+        .collect()
+}
+
+/// Share of the widest opening within which a frame next to a lower one still counts as the
+/// closure (`common::closes_within`): every GRID sentence opens on the /b/ of "bin" out of
+/// closed lips at rest, and with the clip's own phones given the live face's lowest frame of
+/// that plateau can fall just before the phone (0.19 px lower, bbwtzp).
+const PLATEAU: f64 = 0.05;
+
+/// Words given with their start times, each pushed when the sound reaches it (a streaming
+/// text-to-speech engine's word timestamps): every /p b m/ of the clip closes the lips within
+/// a frame of its phone, every frame given once in order. The check can fail: the same frames
+/// three frames late miss most closures.
+#[test]
+fn given_words_close_the_lips_on_their_bilabials() {
+    let t = talker();
+    let bilabial = ["p", "b", "m"].map(|p| Phone::parse(p).unwrap());
+    let (mut count, mut late) = (0, 0);
+    for id in ["bbbf9a", "bbwtzp", "bbbs7a"] {
+        let (sound, phones) = clip(id);
+        let mut waiting = words(id).into_iter().peekable();
+        let mut session = Session::with_given_words(t);
+        let mut frames: Vec<LiveFrame> = Vec::new();
+        for (k, chunk) in sound.samples.chunks(960).enumerate() {
+            let now = (k + 1) as f64 * 0.02;
+            while let Some(w) = waiting.next_if(|w| w.1 <= now) {
+                session.push_words(&[w]).unwrap();
+            }
+            session.push_audio(chunk, sound.rate).unwrap();
+            frames.extend(session.pull().unwrap());
+        }
+        frames.extend(session.finish().unwrap());
+        assert!(session.is_quiet());
+        for (i, f) in frames.iter().enumerate() {
+            assert_eq!(f.index, i, "{id}");
+        }
+        let h = heights(&frames);
+        for p in phones.iter().filter(|p| bilabial.contains(&p.phone)) {
+            if let Err(why) = common::closes_within(&h, p.start, p.end, t.footage.fps, PLATEAU) {
+                panic!("{id}: /{}/ {:.2}–{:.2} s: {why}", p.phone, p.start, p.end);
+            }
+            late += common::closes_within(&h, p.start + 0.12, p.end + 0.12, t.footage.fps, PLATEAU).is_ok() as usize;
+            count += 1;
+        }
+    }
+    assert!(count >= 6 && late * 2 <= count, "{late} of {count} pass 3 frames late");
+}
+
 /// An interruption: after `clear`, the next frame is the idle face (not speaking, the mouth
 /// no more open than in the silence before the speech, which opened it 3 px wider), and the
 /// session goes on taking speech.
@@ -174,6 +233,19 @@ fn bad_input_is_refused() {
         .push_phones(&[Segment { start: f64::NAN, end: 0.6, phone: aa }])
         .unwrap_err();
     assert!(matches!(e, LiveError::PhonesOutOfOrder { .. }), "{e}");
+    let e = given.push_words(&[("bin".into(), 0.0)]).unwrap_err();
+    assert!(matches!(e, LiveError::NotReading), "{e}");
+    let mut read = Session::with_given_words(t);
+    read.push_words(&[("bin".into(), 0.5), ("blue".into(), 0.9)]).unwrap();
+    let e = read.push_words(&[("at".into(), 0.7)]).unwrap_err();
+    assert!(matches!(e, LiveError::WordsOutOfOrder { .. }) && e.to_string().contains("\"at\""), "{e}");
+    let e = read.push_words(&[("at".into(), f64::INFINITY)]).unwrap_err();
+    assert!(matches!(e, LiveError::WordsOutOfOrder { .. }), "{e}");
+    // A word the dictionary lacks and punctuation alone: taken, the session goes on.
+    read.push_words(&[("zqxjv".into(), 1.2), ("—".into(), 1.3)]).unwrap();
+    read.push_audio(&[0.0; 32_000], 16_000).unwrap();
+    read.finish().unwrap();
+    assert!(read.is_quiet());
 }
 
 /// A screen (`live::Screen`): every frame index gets exactly one picture, in order; speech is

@@ -356,7 +356,7 @@ fn typed_sentences_play_in_sync_and_stop_at_once() {
     let bilabial = [Phone::parse("p"), Phone::parse("b"), Phone::parse("m")];
     let mut closures = 0;
     for p in phones.iter().filter(|p| bilabial.contains(&Some(p.phone))) {
-        common::closes_within(&height, p.start, p.end, 25.0)
+        common::closes_within(&height, p.start, p.end, 25.0, 0.0)
             .unwrap_or_else(|why| panic!("/{}/ at {:.2}–{:.2} s: {why}", p.phone, p.start, p.end));
         closures += 1;
     }

@@ -119,7 +119,7 @@ fn grid_speech_drives_the_face_in_sync() {
             .iter()
             .filter(|s| bilabial.contains(&Some(s.phone)))
         {
-            if let Err(why) = common::closes_within(&height, seg.start, seg.end, fps) {
+            if let Err(why) = common::closes_within(&height, seg.start, seg.end, fps, 0.0) {
                 panic!(
                     "{id}: /{}/ {:.2}–{:.2} s: {why}",
                     seg.phone, seg.start, seg.end
@@ -127,7 +127,7 @@ fn grid_speech_drives_the_face_in_sync() {
             }
             // The check can fail: three frames off, most closures miss.
             shifted_pass +=
-                common::closes_within(&height, seg.start + 0.12, seg.end + 0.12, fps).is_ok() as usize;
+                common::closes_within(&height, seg.start + 0.12, seg.end + 0.12, fps, 0.0).is_ok() as usize;
             count += 1;
         }
         assert!(

@@ -7,6 +7,7 @@
 //! caller consumes the frames in order, so memory does not grow with the sequence.
 
 mod composite;
+pub mod scale;
 #[cfg(feature = "gpu")]
 pub mod gpu;
 

@@ -433,7 +433,7 @@ impl Talker {
     }
 
     /// The talker's own aligner (the committed dictionary), loaded on first use and kept.
-    fn default_aligner(&self) -> Result<&crate::align::Aligner, crate::align::AlignError> {
+    pub(crate) fn default_aligner(&self) -> Result<&crate::align::Aligner, crate::align::AlignError> {
         if let Some(a) = self.aligner.get() {
             return Ok(a);
         }

@@ -226,11 +226,17 @@ pub fn codebook_like(
 
 /// Whether the lips close for a phone at `start…end` s: the local minimum of the opening
 /// nearest the phone's middle lies within the phone ± one frame, and is a closure — at most
-/// half the widest opening within 150 ms of the phone.
-pub fn closes_within(height: &[f64], start: f64, end: f64, fps: f64) -> Result<(), String> {
+/// half the widest opening within 150 ms of the phone. With `plateau` > 0, a frame within
+/// that share of the widest opening of its lower neighbour counts as a minimum too: lips
+/// resting closed before an utterance's first /b/ hold a plateau whose lowest frame is noise.
+pub fn closes_within(height: &[f64], start: f64, end: f64, fps: f64, plateau: f64) -> Result<(), String> {
     let middle = (start + end) / 2.0 * fps;
+    let lo = ((start - 0.15) * fps).floor().max(0.0) as usize;
+    let hi = (((end + 0.15) * fps).ceil() as usize).min(height.len() - 1);
+    let widest = height[lo..=hi].iter().fold(0f64, |m, &v| m.max(v));
+    let flat = plateau * widest;
     let k = (1..height.len() - 1)
-        .filter(|&k| height[k] <= height[k - 1] && height[k] <= height[k + 1])
+        .filter(|&k| height[k] <= height[k - 1] + flat && height[k] <= height[k + 1] + flat)
         .min_by(|&a, &b| {
             (a as f64 - middle)
                 .abs()
@@ -242,9 +248,6 @@ pub fn closes_within(height: &[f64], start: f64, end: f64, fps: f64) -> Result<(
     if t < start - 1.0 / fps - 1e-9 || t > end + 1.0 / fps + 1e-9 {
         return Err(format!("the nearest closure is at frame {k} ({t:.2} s)"));
     }
-    let lo = ((start - 0.15) * fps).floor().max(0.0) as usize;
-    let hi = (((end + 0.15) * fps).ceil() as usize).min(height.len() - 1);
-    let widest = height[lo..=hi].iter().fold(0f64, |m, &v| m.max(v));
     if height[k] > 0.5 * widest {
         return Err(format!(
             "frame {k} opens {:.2} px of {widest:.2}: not a closure",
