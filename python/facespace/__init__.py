@@ -2,10 +2,11 @@
 
 A :class:`Talker` is a talker folder (``facespace talker build``; the repository ships GRID
 s1's as ``models/grid``). Its :meth:`Talker.session` is a live session: push speech as it
-arrives — sound, and the phones with their times when a text-to-speech engine gives them —
-and take video frames (``numpy.uint8`` arrays, height × width × 3) each with its presentation
-time, drawn on the CPU over the talker's own footage; while nothing is said the footage plays
-as it is. :meth:`Talker.say` writes an MP4 with sound.
+arrives — sound, and the words or phones with their times when a text-to-speech engine gives
+them — and take video frames (``numpy.uint8`` arrays, height × width × 3, in the talker's size
+or the one asked for) each with its presentation time and the face's landmarks, drawn on the
+CPU over the talker's own footage; while nothing is said the footage plays as it is.
+:meth:`Talker.say` writes an MP4 with sound.
 
 Errors raise :class:`FacespaceError` with the library's message.
 """
@@ -33,6 +34,9 @@ class Frame:
     """Presentation time, seconds of the session's sound (``index / fps``)."""
     image: np.ndarray
     """The picture, ``uint8``, height × width × 3 (RGB)."""
+    landmarks: np.ndarray
+    """The face's 68 iBUG landmarks in the picture's pixels, ``float32``, 68 × 2 (x, y): the
+    face drawn, or the footage's own as tracked."""
     face: bool
     """Whether the face was synthesised (speech, or a pause in it), not the footage's own."""
     speaking: bool
@@ -65,9 +69,22 @@ class Talker(_Video):
     def name(self) -> str:
         return self._inner.name
 
-    def session(self, given_phones: bool = False) -> "LiveSession":
-        """A live session: phones recognised from its sound, or given (``given_phones``)."""
-        return LiveSession(self._inner.session(given_phones))
+    def session(
+        self,
+        given: str = "sound",
+        size: Optional[Tuple[int, int]] = None,
+        fit: str = "contain",
+    ) -> "LiveSession":
+        """A live session. ``given`` says where its phones come from: ``"sound"``, recognised
+        as the sound arrives (the default; lag about 0.2 s); ``"words"``, aligned to words
+        given with their start times (:meth:`LiveSession.push_words`, a TTS's word
+        timestamps); ``"phones"``, given with their times (:meth:`LiveSession.push_phones`).
+        ``size`` is the pictures' (width, height), the talker's own by default; a picture of
+        another aspect ratio is fitted by ``fit``: ``"contain"`` (all of it, black bars) or
+        ``"cover"`` (the frame filled, the excess cut off)."""
+        if size is not None:
+            size = (int(size[0]), int(size[1]))
+        return LiveSession(self._inner.session(str(given), size, str(fit)))
 
     def say(
         self,
@@ -117,20 +134,39 @@ class LiveSession(_Video):
         """The index the next frame will have."""
         return self._inner.next_frame
 
+    @property
+    def seconds(self) -> float:
+        """Seconds of sound taken: the session time at which the next chunk starts."""
+        return self._inner.seconds
+
     def push_audio(self, samples: AudioLike, sample_rate: int) -> None:
         """Takes the next chunk of sound: int16 PCM bytes, or a numpy int16 / float32 array,
         mono, at ``sample_rate`` (8, 16, 22.05, 24 or 48 kHz; the same every call)."""
         self._inner.push_f32(_samples(samples), int(sample_rate))
 
     def push_phones(self, phones: Iterable[Tuple[str, float, float]]) -> None:
-        """Phones with their times, session seconds: (ARPAbet phone, start, end), in order."""
+        """Phones with their times, session seconds: (ARPAbet phone, start, end), in order
+        (a session made with ``given="phones"``)."""
         self._inner.push_phones([(str(p), float(s), float(e)) for p, s, e in phones])
+
+    def push_words(self, words: Iterable[Tuple[str, float]]) -> None:
+        """Words with their start times, session seconds: (word, start), in order (a session
+        made with ``given="words"``). Each word is aligned to its stretch of the sound (to the
+        next word's start) once that sound has been pushed."""
+        self._inner.push_words([(str(w), float(s)) for w, s in words])
 
     def _frames(self, pictures: Sequence[tuple]) -> List[Frame]:
         w, h = self.size
         return [
-            Frame(i, t, np.frombuffer(b, dtype=np.uint8).reshape(h, w, 3), face, speaking)
-            for i, t, b, face, speaking in pictures
+            Frame(
+                i,
+                t,
+                np.frombuffer(b, dtype=np.uint8).reshape(h, w, 3),
+                np.frombuffer(points, dtype="<f4").reshape(-1, 2),
+                face,
+                speaking,
+            )
+            for i, t, b, points, face, speaking in pictures
         ]
 
     def pull(self) -> List[Frame]:

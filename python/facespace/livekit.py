@@ -13,7 +13,7 @@ own face.
     from facespace.livekit import FacespaceVideoGenerator
 
     talker = facespace.Talker("models/grid")
-    video = FacespaceVideoGenerator(talker)
+    video = FacespaceVideoGenerator(talker, size=(1280, 720))
     runner = AvatarRunner(room, audio_recv=audio_receiver, video_gen=video, options=video.options())
     await runner.start()
 """
@@ -21,7 +21,7 @@ own face.
 from __future__ import annotations
 
 import asyncio
-from typing import AsyncIterator, Optional, Union
+from typing import AsyncIterator, Callable, Optional, Tuple, Union
 
 import numpy as np
 from livekit import rtc
@@ -33,11 +33,23 @@ __all__ = ["FacespaceVideoGenerator"]
 
 
 class FacespaceVideoGenerator(VideoGenerator):
-    """Video (and re-timed sound) of ``talker`` speaking the audio pushed into it."""
+    """Video (and re-timed sound at ``sample_rate``) of ``talker`` speaking the audio pushed
+    into it, in pictures of ``size`` (width, height; the talker's own by default) fitted by
+    ``fit`` (``"contain"`` or ``"cover"``). ``on_frame`` is called with each
+    :class:`facespace.Frame` (its landmarks, whether the face speaks) as it is given out."""
 
-    def __init__(self, talker: Talker, *, sample_rate: int = 24000) -> None:
+    def __init__(
+        self,
+        talker: Talker,
+        *,
+        sample_rate: int = 24000,
+        size: Optional[Tuple[int, int]] = None,
+        fit: str = "contain",
+        on_frame: Optional[Callable[[Frame], None]] = None,
+    ) -> None:
         self._talker = talker
-        self._session = talker.session()
+        self._session = talker.session(size=size, fit=fit)
+        self._on_frame = on_frame
         self._sample_rate = sample_rate
         self._queue: "asyncio.Queue[Union[rtc.AudioFrame, AudioSegmentEnd]]" = asyncio.Queue()
         self._pending = np.zeros(0, dtype=np.int16)  # the segment's sound not yet given out
@@ -51,7 +63,7 @@ class FacespaceVideoGenerator(VideoGenerator):
 
     def options(self) -> AvatarOptions:
         """The ``AvatarOptions`` this generator's frames and sound have."""
-        w, h = self._talker.size
+        w, h = self._session.size
         return AvatarOptions(
             video_width=w,
             video_height=h,
@@ -94,6 +106,8 @@ class FacespaceVideoGenerator(VideoGenerator):
 
     def _video(self, frame: Frame) -> rtc.VideoFrame:
         self.last_frame = frame
+        if self._on_frame is not None:
+            self._on_frame(frame)
         h, w, _ = frame.image.shape
         rgba = np.empty((h, w, 4), dtype=np.uint8)
         rgba[..., :3] = frame.image

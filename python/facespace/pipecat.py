@@ -1,22 +1,28 @@
 """A facespace face for pipecat: a frame processor (``pip install ./python[pipecat]``).
 
-Put it after the TTS service. Each ``TTSAudioRawFrame`` goes into a live session whose phones
-are recognised as the sound comes; the processor pushes an ``OutputImageRawFrame`` per video
-frame followed by the TTS sound under it (re-timed to the frames, so transport playback keeps
-them together), and the rest of the speech on ``TTSStoppedFrame``. An ``InterruptionFrame``
-drops what is being said: the next image is the talker's footage. Other frames pass through.
+Put it after the TTS service. Each ``TTSAudioRawFrame`` goes into a live session; the processor
+pushes an ``OutputImageRawFrame`` per video frame followed by the TTS sound under it (re-timed
+to the frames, so transport playback keeps them together), and the rest of the speech on
+``TTSStoppedFrame``. An ``InterruptionFrame`` drops what is being said: the next image is the
+talker's footage. Other frames pass through.
+
+The phones come from the sound, recognised as it arrives — unless the TTS service gives word
+timestamps (Cartesia, ElevenLabs, Rime, …: ``TTSTextFrame`` s whose ``pts`` is the word's
+start) and ``word_timestamps=True``: then each word is aligned to its own stretch of the
+sound, so the lips close on the sound's own /p b m/. The words' times are taken as pipecat's
+TTS services set them: from the clock at the speech's first audio frame.
 
     from pipecat.pipeline.pipeline import Pipeline
     import facespace
     from facespace.pipecat import FacespaceVideoProcessor
 
-    face = FacespaceVideoProcessor(facespace.Talker("models/grid"))
+    face = FacespaceVideoProcessor(facespace.Talker("models/grid"), size=(512, 512))
     pipeline = Pipeline([transport.input(), stt, llm, tts, face, transport.output()])
 """
 
 from __future__ import annotations
 
-from typing import Optional
+from typing import Callable, List, Optional, Tuple
 
 import numpy as np
 from pipecat.frames.frames import (
@@ -26,9 +32,11 @@ from pipecat.frames.frames import (
     OutputImageRawFrame,
     TTSAudioRawFrame,
     TTSStoppedFrame,
+    TTSTextFrame,
 )
 from pipecat.processors.frame_processor import FrameDirection, FrameProcessor
 
+from . import FacespaceError
 from . import Frame as FaceFrame
 from . import Talker
 
@@ -36,16 +44,33 @@ __all__ = ["FacespaceVideoProcessor"]
 
 
 class FacespaceVideoProcessor(FrameProcessor):
-    """Video of ``talker`` speaking the TTS audio that passes through."""
+    """Video of ``talker`` speaking the TTS audio that passes through, in pictures of ``size``
+    (width, height; the talker's own by default) fitted by ``fit`` (``"contain"`` or
+    ``"cover"``). ``on_frame`` is called with each :class:`facespace.Frame` (its landmarks,
+    whether the face speaks) before its image is pushed."""
 
-    def __init__(self, talker: Talker, **kwargs) -> None:
+    def __init__(
+        self,
+        talker: Talker,
+        *,
+        size: Optional[Tuple[int, int]] = None,
+        fit: str = "contain",
+        word_timestamps: bool = False,
+        on_frame: Optional[Callable[[FaceFrame], None]] = None,
+        **kwargs,
+    ) -> None:
         super().__init__(**kwargs)
         self._talker = talker
-        self._session = talker.session()
+        self._session = talker.session("words" if word_timestamps else "sound", size=size, fit=fit)
+        self._words = word_timestamps
+        self._on_frame = on_frame
         self._pending = np.zeros(0, dtype=np.int16)
         self._rate: Optional[int] = None
         self._start: Optional[int] = None  # frame where the speech's sound starts
         self._given = 0
+        self._origin = 0.0  # session seconds where the speech's sound starts
+        self._baseline: Optional[int] = None  # clock (ns) of the speech's first audio frame
+        self._last_word_pts = 0
         self.last_frame: Optional[FaceFrame] = None
         """The last frame pushed (its index, time and whether the face was synthesised)."""
 
@@ -54,7 +79,7 @@ class FacespaceVideoProcessor(FrameProcessor):
         if isinstance(frame, InterruptionFrame):
             self._session.clear()
             self._pending = np.zeros(0, dtype=np.int16)
-            self._start = None
+            self._start, self._baseline = None, None
             await self.push_frame(frame, direction)
         elif isinstance(frame, TTSAudioRawFrame):
             samples = np.frombuffer(frame.audio, dtype=np.int16)
@@ -62,21 +87,36 @@ class FacespaceVideoProcessor(FrameProcessor):
                 samples = samples.reshape(-1, frame.num_channels).mean(axis=1).astype(np.int16)
             if self._start is None:
                 self._start, self._given = self._session.next_frame, 0
+                self._origin = self._session.seconds
+                # As pipecat's word timestamp tracker sets its baseline.
+                self._baseline = max(self._last_word_pts, self.get_clock().get_time())
             self._rate = frame.sample_rate
             self._session.push_audio(samples, frame.sample_rate)
             self._pending = np.concatenate([self._pending, samples])
             await self._push(self._session.pull(), last=False)
+        elif isinstance(frame, TTSTextFrame):
+            if self._words and frame.pts and self._baseline is not None:
+                self._last_word_pts = max(self._last_word_pts, frame.pts)
+                start = self._origin + (frame.pts - self._baseline) / 1e9
+                try:
+                    self._session.push_words([(frame.text, start)])
+                except FacespaceError:
+                    pass  # a word out of order: its sound's phones are recognised instead
+                await self._push(self._session.pull(), last=False)
+            await self.push_frame(frame, direction)
         elif isinstance(frame, TTSStoppedFrame):
             if self._start is not None:
                 await self._push(self._session.finish(), last=True)
-                self._start = None
+                self._start, self._baseline = None, None
             await self.push_frame(frame, direction)
         else:
             await self.push_frame(frame, direction)
 
-    async def _push(self, frames, last: bool) -> None:
+    async def _push(self, frames: List[FaceFrame], last: bool) -> None:
         for k, face in enumerate(frames):
             self.last_frame = face
+            if self._on_frame is not None:
+                self._on_frame(face)
             h, w, _ = face.image.shape
             await self.push_frame(OutputImageRawFrame(image=face.image.tobytes(), size=(w, h), format="RGB"))
             if self._start is None or self._rate is None:

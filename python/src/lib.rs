@@ -10,6 +10,7 @@ use std::sync::{Mutex, OnceLock};
 
 use facespace::live::{Screen, Session, Stage};
 use facespace::phonemes::{Phone, Segment};
+use facespace::render::scale::Fit;
 use facespace::talker::{SayRequest, Speech};
 use pyo3::create_exception;
 use pyo3::prelude::*;
@@ -103,20 +104,29 @@ impl Talker {
         serde_json::to_string(&report).map_err(error)
     }
 
-    /// A live session: phones recognised from its sound, or given (`given_phones`).
-    #[pyo3(signature = (given_phones=false))]
-    fn session(&self, given_phones: bool) -> LiveSession {
+    /// A live session: phones recognised from its sound, or given ("phones"), or aligned to
+    /// words given with their start times ("words"); pictures of `size` (width, height) fitted
+    /// by `fit` ("contain" or "cover"), the footage's own size by default.
+    #[pyo3(signature = (given="sound", size=None, fit="contain"))]
+    fn session(&self, given: &str, size: Option<(u32, u32)>, fit: &str) -> PyResult<LiveSession> {
         let talker = self.loaded.talker;
-        let session = if given_phones {
-            Session::with_given_phones(talker)
-        } else {
-            Session::new(talker)
+        let session = match given {
+            "sound" => Session::new(talker),
+            "phones" => Session::with_given_phones(talker),
+            "words" => Session::with_given_words(talker),
+            _ => return Err(error(format!("given {given:?}: \"sound\", \"phones\" or \"words\""))),
         };
-        LiveSession {
-            screen: Some(Screen::new(session, self.loaded.stage)),
-            size: talker.footage.size,
-            fps: talker.footage.fps,
+        let fit: Fit = fit.parse().map_err(error)?;
+        let size = size.unwrap_or(talker.footage.size);
+        if size.0 == 0 || size.1 == 0 || size.0 > MAX_SIDE || size.1 > MAX_SIDE {
+            return Err(error(format!("size {size:?}: each side 1 to {MAX_SIDE} pixels")));
         }
+        let screen = Screen::with_size(session, self.loaded.stage, size, fit);
+        Ok(LiveSession {
+            size: screen.size(),
+            screen: Some(screen),
+            fps: talker.footage.fps,
+        })
     }
 }
 
@@ -128,7 +138,11 @@ struct LiveSession {
     fps: f64,
 }
 
-type Pictures = Vec<(usize, f64, Py<PyBytes>, bool, bool)>;
+/// The longest side of a picture a session draws (8K).
+const MAX_SIDE: u32 = 7680;
+
+/// (index, time, RGB bytes, landmarks as float32 x, y bytes, face drawn, speaking).
+type Pictures = Vec<(usize, f64, Py<PyBytes>, Py<PyBytes>, bool, bool)>;
 
 impl LiveSession {
     fn screen(&mut self) -> PyResult<&mut Screen<'static, 'static>> {
@@ -142,7 +156,14 @@ impl LiveSession {
             .into_iter()
             .map(|p| {
                 let bytes = PyBytes::new(py, p.image.as_raw()).unbind();
-                (p.index, p.time, bytes, p.face, p.speaking)
+                let points: Vec<u8> = p
+                    .landmarks
+                    .iter()
+                    .flat_map(|q| [q[0] as f32, q[1] as f32])
+                    .flat_map(f32::to_le_bytes)
+                    .collect();
+                let points = PyBytes::new(py, &points).unbind();
+                (p.index, p.time, bytes, points, p.face, p.speaking)
             })
             .collect()
     }
@@ -160,6 +181,12 @@ impl LiveSession {
     #[getter]
     fn size(&self) -> (u32, u32) {
         self.size
+    }
+
+    /// Seconds of sound taken (session time: where the next chunk starts).
+    #[getter]
+    fn seconds(&mut self) -> PyResult<f64> {
+        Ok(self.screen()?.session().seconds())
     }
 
     /// Takes sound: `samples` as little-endian float32 bytes (mono, −1…1) at `rate` Hz.
@@ -192,7 +219,14 @@ impl LiveSession {
         self.screen()?.session().push_phones(&segments).map_err(error)
     }
 
-    /// The pictures settled so far: (index, time, RGB bytes, face drawn, speaking).
+    /// Words with their start times (session seconds): a list of (word, start), in order.
+    fn push_words(&mut self, py: Python<'_>, words: Vec<(String, f64)>) -> PyResult<()> {
+        let screen = self.screen()?;
+        py.allow_threads(|| screen.session().push_words(&words))
+            .map_err(error)
+    }
+
+    /// The pictures settled so far (see `Pictures`).
     fn pull(&mut self, py: Python<'_>) -> PyResult<Pictures> {
         let screen = self.screen()?;
         let p = py.allow_threads(|| screen.pull()).map_err(error)?;

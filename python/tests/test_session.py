@@ -3,10 +3,13 @@ interruption returns to the footage at once, bad input raises with the library's
 Recorded speech: GRID s1's test clip bbbf9a (committed in tests/data/grid)."""
 
 
+import os
+
 import numpy as np
 import pytest
 
 import facespace
+from conftest import closures, grid_clip
 
 
 def test_frames_follow_the_sound(talker, clip):
@@ -66,6 +69,18 @@ def test_bad_input_raises_with_the_library_message(talker, root):
         session.push_audio(b"\x00\x01\x02", 16000)
     with pytest.raises(facespace.FacespaceError, match="unknown phone"):
         session.push_phones([("zz", 0.0, 0.1)])
+    with pytest.raises(facespace.FacespaceError, match="with_given_words"):
+        session.push_words([("bin", 0.0)])
+    with pytest.raises(facespace.FacespaceError, match="given"):
+        talker.session(given="letters")
+    with pytest.raises(facespace.FacespaceError, match="contain or cover"):
+        talker.session(fit="stretch")
+    with pytest.raises(facespace.FacespaceError, match="each side"):
+        talker.session(size=(0, 720))
+    words = talker.session(given="words")
+    words.push_words([("bin", 0.5)])
+    with pytest.raises(facespace.FacespaceError, match="before"):
+        words.push_words([("blue", 0.2)])
     session.push_audio(np.zeros(640, dtype=np.int16), 16000)
     with pytest.raises(facespace.FacespaceError, match="Hz"):
         session.push_audio(np.zeros(1920, dtype=np.int16), 48000)
@@ -76,3 +91,80 @@ def test_bad_input_raises_with_the_library_message(talker, root):
         facespace.Talker(str(root / "models/demo"))
     with pytest.raises(facespace.FacespaceError):
         facespace.Talker("/no/such/talker")
+
+
+@pytest.mark.parametrize("size", [(512, 512), (1280, 720)])
+def test_pictures_in_the_size_asked_for(talker, clip, size):
+    """Pictures of pipecat's and LiveKit's usual sizes: the talker's 360×288 frame fitted
+    whole between black bars, its landmarks mapped with it; cover fills the frame."""
+    samples, rate = clip
+    session = talker.session(size=size)
+    assert session.size == size
+    session.push_audio(samples[: rate * 2], rate)
+    frames = session.pull() + session.finish()
+    w, h = size
+    scale = min(w / talker.size[0], h / talker.size[1])
+    bar = round((w - talker.size[0] * scale) / 2)
+    for f in frames:
+        assert f.image.shape == (h, w, 3)
+        assert f.landmarks.shape == (68, 2)
+        # The face inside the picture's part of the frame, the bars black.
+        assert (f.landmarks[:, 0] > bar).all() and (f.landmarks[:, 0] < w - bar).all()
+        if bar > 1:
+            assert f.image[:, : bar - 1].max() == 0 and f.image[:, w - bar + 1 :].max() == 0
+    native = talker.session()
+    native.push_audio(samples[: rate * 2], rate)
+    first = (native.pull() + native.finish())[0]
+    assert np.allclose(frames[0].landmarks, first.landmarks * scale + [bar, (h - talker.size[1] * scale) / 2], atol=1e-3)
+    cover = talker.session(size=size, fit="cover")
+    assert cover.idle_until(1)[0].image.min(axis=(0, 1)).max() > 0
+
+
+def test_given_words_close_the_lips_on_their_bilabials(talker):
+    """A session of given words (a TTS's word timestamps), each word pushed as the sound
+    reaches it: every /p b m/ of two GRID clips closes the lips within a frame."""
+    for clip_id in ["bbbf9a", "bbwtzp"]:
+        samples, rate, phones, words = grid_clip(clip_id)
+        session = talker.session(given="words")
+        frames = []
+        step = rate // 50
+        for k in range(0, len(samples), step):
+            now = (k + step) / rate
+            while words and words[0][1] <= now:
+                session.push_words([words.pop(0)])
+            session.push_audio(samples[k : k + step], rate)
+            frames += session.pull()
+        frames += session.finish()
+        good, count, fails = closures(frames, phones, talker.fps)
+        assert count >= 3 and not fails, (clip_id, fails)
+
+
+def rss_mb():
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024
+    return 0.0
+
+
+@pytest.mark.skipif(not os.path.exists("/proc/self/status"), reason="reads /proc")
+def test_memory_does_not_grow_with_the_speech(talker, clip):
+    """A scaled-down run of the 10-minute benchmark (python/bench/live.py --minutes 10): a
+    36 s of speech (GRID clips end to end, each finished as an utterance, with idle footage
+    between) pushed as fast as it is drawn; the resident memory after the first 9 s and at
+    the end differ by less than 4 MB (the first seconds fill the caches: footage, synthesis)."""
+    samples, rate = clip
+    session = talker.session()
+    step = rate // 50
+    marks = []
+    spoken = 0.0
+    while spoken < 36:
+        for k in range(0, len(samples), step):
+            session.push_audio(samples[k : k + step], rate)
+            session.pull()
+        session.finish()
+        session.idle_until(session.next_frame + 5)
+        spoken += len(samples) / rate
+        marks.append((spoken, rss_mb()))
+    settled = next(m for s, m in marks if s >= 9)
+    assert marks[-1][1] - settled < 4, marks
