@@ -854,69 +854,104 @@ impl<'s, 't> Screen<'s, 't> {
     }
 
     /// Ends the speech: every frame of it can then be drawn.
-    pub fn finish(&mut self) -> Result<Vec<Picture>, LiveError> {
+    pub fn finish(&mut self) -> Result<Drawing<'_, 's, 't>, LiveError> {
         let frames = self.session.finish()?;
-        self.draw(frames)
+        self.take(frames)
     }
 
     /// The pictures the session has settled since the last call, in order.
-    pub fn pull(&mut self) -> Result<Vec<Picture>, LiveError> {
+    pub fn pull(&mut self) -> Result<Drawing<'_, 's, 't>, LiveError> {
         let frames = self.session.pull()?;
-        self.draw(frames)
+        self.take(frames)
     }
 
     /// [`Screen::pull`], and while the session is quiet the footage as it is up to (not
     /// including) frame `until` — a video track keeps its rate while nothing is said.
-    pub fn idle_until(&mut self, until: usize) -> Result<Vec<Picture>, LiveError> {
-        let mut out = self.pull()?;
+    pub fn idle_until(&mut self, until: usize) -> Result<Drawing<'_, 's, 't>, LiveError> {
+        let frames = self.session.pull()?;
+        self.stage_frames(frames)?;
         if self.session.is_quiet() && until > self.session.next_frame() {
             self.session.skip_to(until as f64 / self.session.fps);
-            out.extend(self.draw(Vec::new())?);
         }
-        Ok(out)
+        Ok(Drawing { screen: self })
     }
 
-    /// Draws every frame up to the session's next: settled ones over their footage, the rest
-    /// (skipped) as footage.
-    fn draw(&mut self, mut frames: Vec<LiveFrame>) -> Result<Vec<Picture>, LiveError> {
+    /// Pictures ready to draw: frame indices up to the session's next.
+    pub fn ready(&self) -> usize {
+        self.session.next_frame().saturating_sub(self.next)
+    }
+
+    /// Settled frames placed on the stage and queued for drawing.
+    fn stage_frames(&mut self, mut frames: Vec<LiveFrame>) -> Result<(), LiveError> {
         self.stage.place(&mut frames)?;
         self.settled.extend(frames);
-        let fps = self.session.fps;
-        let mut out = Vec::new();
-        while self.next < self.session.next_frame() {
-            let index = self.next;
-            let loop_len = self.stage.len().max(1);
-            if index.is_multiple_of(loop_len) && index > 0 {
-                self.footage = self.footage.fresh();
-            }
-            let mut image = self.footage.next_frame()?;
-            while self.settled.front().is_some_and(|f| f.index < index) {
-                self.settled.pop_front();
-            }
-            let (face, speaking, mut landmarks) = match self.settled.front() {
-                Some(f) if f.index == index => {
-                    let model = &self.stage.talker.model;
-                    let params = model.layout().split(&f.values)?;
-                    crate::render::Renderer::render_into(&self.renderer, params, &mut image)?;
-                    let points = model.shape.instance(&params.pose, params.shape).points;
-                    (true, f.speaking, points)
-                }
-                _ => (false, false, self.stage.landmarks[index % loop_len].points.clone()),
-            };
-            if let Some(scaler) = &self.scaler {
-                image = scaler.scale(&image);
-                landmarks.iter_mut().for_each(|p| *p = scaler.point(*p));
-            }
-            out.push(Picture {
-                index,
-                time: index as f64 / fps,
-                image,
-                landmarks,
-                face,
-                speaking,
-            });
-            self.next += 1;
+        Ok(())
+    }
+
+    fn take(&mut self, frames: Vec<LiveFrame>) -> Result<Drawing<'_, 's, 't>, LiveError> {
+        self.stage_frames(frames)?;
+        Ok(Drawing { screen: self })
+    }
+
+    /// Draws the next picture ready, if any: a settled frame over its footage frame, or the
+    /// footage as it is (a frame skipped, or dropped by a clear). Pictures are drawn only as
+    /// they are asked for, so a burst of frames (an utterance's end) holds one at a time.
+    pub fn next_picture(&mut self) -> Result<Option<Picture>, LiveError> {
+        if self.next >= self.session.next_frame() {
+            return Ok(None);
         }
-        Ok(out)
+        let fps = self.session.fps;
+        let index = self.next;
+        let loop_len = self.stage.len().max(1);
+        if index.is_multiple_of(loop_len) && index > 0 {
+            self.footage = self.footage.fresh();
+        }
+        let mut image = self.footage.next_frame()?;
+        while self.settled.front().is_some_and(|f| f.index < index) {
+            self.settled.pop_front();
+        }
+        let (face, speaking, mut landmarks) = match self.settled.front() {
+            Some(f) if f.index == index => {
+                let model = &self.stage.talker.model;
+                let params = model.layout().split(&f.values)?;
+                crate::render::Renderer::render_into(&self.renderer, params, &mut image)?;
+                let points = model.shape.instance(&params.pose, params.shape).points;
+                (true, f.speaking, points)
+            }
+            _ => (false, false, self.stage.landmarks[index % loop_len].points.clone()),
+        };
+        if let Some(scaler) = &self.scaler {
+            image = scaler.scale(&image);
+            landmarks.iter_mut().for_each(|p| *p = scaler.point(*p));
+        }
+        self.next += 1;
+        Ok(Some(Picture {
+            index,
+            time: index as f64 / fps,
+            image,
+            landmarks,
+            face,
+            speaking,
+        }))
+    }
+}
+
+/// The pictures a [`Screen`] call made ready, drawn one by one as they are iterated
+/// ([`Screen::next_picture`]); those not iterated stay ready for the next call.
+pub struct Drawing<'a, 's, 't> {
+    screen: &'a mut Screen<'s, 't>,
+}
+
+impl Drawing<'_, '_, '_> {
+    /// Every picture, drawn.
+    pub fn all(self) -> Result<Vec<Picture>, LiveError> {
+        self.collect()
+    }
+}
+
+impl Iterator for Drawing<'_, '_, '_> {
+    type Item = Result<Picture, LiveError>;
+    fn next(&mut self) -> Option<Self::Item> {
+        self.screen.next_picture().transpose()
     }
 }

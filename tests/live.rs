@@ -280,14 +280,14 @@ fn a_screen_draws_every_frame_over_the_footage() {
         pictures
     };
     // Half a second of quiet, then the clip, then its end.
-    let mut pictures = check(screen.idle_until(12).unwrap(), &mut own);
+    let mut pictures = check(screen.idle_until(12).unwrap().all().unwrap(), &mut own);
     assert_eq!(pictures.len(), 12);
     assert!(pictures.iter().all(|p| !p.face));
     for chunk in sound.samples.chunks(960) {
         screen.session().push_audio(chunk, sound.rate).unwrap();
-        pictures.extend(check(screen.pull().unwrap(), &mut own));
+        pictures.extend(check(screen.pull().unwrap().all().unwrap(), &mut own));
     }
-    pictures.extend(check(screen.finish().unwrap(), &mut own));
+    pictures.extend(check(screen.finish().unwrap().all().unwrap(), &mut own));
     for (i, p) in pictures.iter().enumerate() {
         assert_eq!(p.index, i, "one picture per frame, in order");
     }
@@ -297,17 +297,17 @@ fn a_screen_draws_every_frame_over_the_footage() {
     assert!(speaking >= 25, "{speaking} speaking");
     // Quiet again: the footage runs on; then the clip again, interrupted a second in.
     let n = pictures.len();
-    let quiet = check(screen.idle_until(n + 5).unwrap(), &mut own);
+    let quiet = check(screen.idle_until(n + 5).unwrap().all().unwrap(), &mut own);
     assert_eq!(quiet.len(), 5);
     assert!(quiet.iter().all(|p| !p.face));
     let mut again = Vec::new();
     for chunk in sound.samples.chunks(960).take(75) {
         screen.session().push_audio(chunk, sound.rate).unwrap();
-        again.extend(check(screen.pull().unwrap(), &mut own));
+        again.extend(check(screen.pull().unwrap().all().unwrap(), &mut own));
     }
     assert!(again.iter().any(|p| p.speaking), "the second utterance is heard");
     assert_eq!(again.first().map(|p| p.index), Some(n + 5));
     screen.clear();
-    let after = check(screen.idle_until(again.last().unwrap().index + 4).unwrap(), &mut own);
+    let after = check(screen.idle_until(again.last().unwrap().index + 4).unwrap().all().unwrap(), &mut own);
     assert!(!after.is_empty() && after.iter().all(|p| !p.face), "a face after the clear");
 }

@@ -14,10 +14,18 @@ Errors raise :class:`FacespaceError` with the library's message.
 from __future__ import annotations
 
 import json
+import os
+import pathlib
 from dataclasses import dataclass
-from typing import Iterable, List, Optional, Sequence, Tuple, Union
+from typing import Iterable, Iterator, Optional, Tuple, Union
 
 import numpy as np
+
+# A wheel carries the en-us acoustic model beside the package (see python/README.md); a build
+# from the source tree finds the committed one itself.
+_MODEL = pathlib.Path(__file__).parent / "models" / "en-us"
+if _MODEL.is_dir():
+    os.environ.setdefault("FACESPACE_ACOUSTIC_MODEL", str(_MODEL))
 
 from ._facespace import FacespaceError, LiveSession as _LiveSession, Talker as _Talker
 
@@ -155,10 +163,14 @@ class LiveSession(_Video):
         next word's start) once that sound has been pushed."""
         self._inner.push_words([(str(w), float(s)) for w, s in words])
 
-    def _frames(self, pictures: Sequence[tuple]) -> List[Frame]:
+    def _drawn(self) -> Iterator[Frame]:
         w, h = self.size
-        return [
-            Frame(
+        while True:
+            p = self._inner.next_picture()
+            if p is None:
+                return
+            i, t, b, points, face, speaking = p
+            yield Frame(
                 i,
                 t,
                 np.frombuffer(b, dtype=np.uint8).reshape(h, w, 3),
@@ -166,21 +178,24 @@ class LiveSession(_Video):
                 face,
                 speaking,
             )
-            for i, t, b, points, face, speaking in pictures
-        ]
 
-    def pull(self) -> List[Frame]:
-        """The frames settled since the last call, in order."""
-        return self._frames(self._inner.pull())
+    def pull(self) -> Iterator[Frame]:
+        """The frames settled since the last call, in order. They are drawn as they are
+        iterated (one picture in memory at a time); frames left un-iterated come first from
+        the next call."""
+        self._inner.pull()
+        return self._drawn()
 
-    def idle_until(self, index: int) -> List[Frame]:
+    def idle_until(self, index: int) -> Iterator[Frame]:
         """:meth:`pull`, and while nothing is said the footage as it is up to frame ``index``
         (not included): a video track keeps its rate between utterances."""
-        return self._frames(self._inner.idle_until(int(index)))
+        self._inner.idle_until(int(index))
+        return self._drawn()
 
-    def finish(self) -> List[Frame]:
-        """Ends the utterance: all its remaining frames."""
-        return self._frames(self._inner.finish())
+    def finish(self) -> Iterator[Frame]:
+        """Ends the utterance: all its remaining frames (drawn as they are iterated)."""
+        self._inner.finish()
+        return self._drawn()
 
     def clear(self) -> None:
         """An interruption: the next frame is the footage's own face."""

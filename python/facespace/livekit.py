@@ -143,20 +143,24 @@ class FacespaceVideoGenerator(VideoGenerator):
                 await asyncio.sleep(0)
                 continue
             ending, clears = self._ended, self._clears
+            # Settling runs the synthesis; each picture is then drawn as it is given out, both
+            # off the event loop.
             frames = await asyncio.to_thread(self._session.finish if ending else self._session.pull)
-            for k, frame in enumerate(frames):
-                if self._clears != clears:
-                    break
+            frame = await asyncio.to_thread(next, frames, None)
+            given = 0
+            while frame is not None and self._clears == clears:
+                after = await asyncio.to_thread(next, frames, None)
                 yield self._video(frame)
-                sound = self._sound_for(frame, ending and k == len(frames) - 1)
+                sound = self._sound_for(frame, ending and after is None)
                 if sound is not None:
                     yield sound
+                frame, given = after, given + 1
             if self._clears != clears:
                 continue
             if ending:
                 self._segment_start, self._ended = None, False
                 yield AudioSegmentEnd()
-            elif not frames:
+            elif not given:
                 try:
                     self._take(await asyncio.wait_for(self._queue.get(), 1 / self._talker.fps))
                 except asyncio.TimeoutError:

@@ -22,7 +22,7 @@ TTS services set them: from the clock at the speech's first audio frame.
 
 from __future__ import annotations
 
-from typing import Callable, List, Optional, Tuple
+from typing import Callable, Iterator, Optional, Tuple
 
 import numpy as np
 from pipecat.frames.frames import (
@@ -112,21 +112,29 @@ class FacespaceVideoProcessor(FrameProcessor):
         else:
             await self.push_frame(frame, direction)
 
-    async def _push(self, frames: List[FaceFrame], last: bool) -> None:
-        for k, face in enumerate(frames):
-            self.last_frame = face
-            if self._on_frame is not None:
-                self._on_frame(face)
-            h, w, _ = face.image.shape
-            await self.push_frame(OutputImageRawFrame(image=face.image.tobytes(), size=(w, h), format="RGB"))
-            if self._start is None or self._rate is None:
-                continue
-            if last and k == len(frames) - 1:
-                end = self._given + len(self._pending)
-            else:
-                end = int(round((face.index + 1 - self._start) / self._talker.fps * self._rate))
-            n = max(0, min(end - self._given, len(self._pending)))
-            if n:
-                chunk, self._pending = self._pending[:n], self._pending[n:]
-                self._given += n
-                await self.push_frame(OutputAudioRawFrame(audio=chunk.tobytes(), sample_rate=self._rate, num_channels=1))
+    async def _push(self, frames: Iterator[FaceFrame], last: bool) -> None:
+        """Pushes each frame (drawn as it is taken) and the sound under it; with ``last``, all
+        the speech's remaining sound goes after its last frame."""
+        face = next(frames, None)
+        while face is not None:
+            after = next(frames, None)
+            await self._give(face, last and after is None)
+            face = after
+
+    async def _give(self, face: FaceFrame, last: bool) -> None:
+        self.last_frame = face
+        if self._on_frame is not None:
+            self._on_frame(face)
+        h, w, _ = face.image.shape
+        await self.push_frame(OutputImageRawFrame(image=face.image.tobytes(), size=(w, h), format="RGB"))
+        if self._start is None or self._rate is None:
+            return
+        if last:
+            end = self._given + len(self._pending)
+        else:
+            end = int(round((face.index + 1 - self._start) / self._talker.fps * self._rate))
+        n = max(0, min(end - self._given, len(self._pending)))
+        if n:
+            chunk, self._pending = self._pending[:n], self._pending[n:]
+            self._given += n
+            await self.push_frame(OutputAudioRawFrame(audio=chunk.tobytes(), sample_rate=self._rate, num_channels=1))

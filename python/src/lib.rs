@@ -141,8 +141,8 @@ struct LiveSession {
 /// The longest side of a picture a session draws (8K).
 const MAX_SIDE: u32 = 7680;
 
-/// (index, time, RGB bytes, landmarks as float32 x, y bytes, face drawn, speaking).
-type Pictures = Vec<(usize, f64, Py<PyBytes>, Py<PyBytes>, bool, bool)>;
+/// A picture: (index, time, RGB bytes, landmarks as float32 x, y bytes, face drawn, speaking).
+type PictureTuple = (usize, f64, Py<PyBytes>, Py<PyBytes>, bool, bool);
 
 impl LiveSession {
     fn screen(&mut self) -> PyResult<&mut Screen<'static, 'static>> {
@@ -151,21 +151,16 @@ impl LiveSession {
             .ok_or_else(|| error("this session is closed"))
     }
 
-    fn pictures(py: Python<'_>, pictures: Vec<facespace::live::Picture>) -> Pictures {
-        pictures
-            .into_iter()
-            .map(|p| {
-                let bytes = PyBytes::new(py, p.image.as_raw()).unbind();
-                let points: Vec<u8> = p
-                    .landmarks
-                    .iter()
-                    .flat_map(|q| [q[0] as f32, q[1] as f32])
-                    .flat_map(f32::to_le_bytes)
-                    .collect();
-                let points = PyBytes::new(py, &points).unbind();
-                (p.index, p.time, bytes, points, p.face, p.speaking)
-            })
-            .collect()
+    fn picture(py: Python<'_>, p: facespace::live::Picture) -> PictureTuple {
+        let bytes = PyBytes::new(py, p.image.as_raw()).unbind();
+        let points: Vec<u8> = p
+            .landmarks
+            .iter()
+            .flat_map(|q| [q[0] as f32, q[1] as f32])
+            .flat_map(f32::to_le_bytes)
+            .collect();
+        let points = PyBytes::new(py, &points).unbind();
+        (p.index, p.time, bytes, points, p.face, p.speaking)
     }
 }
 
@@ -226,25 +221,42 @@ impl LiveSession {
             .map_err(error)
     }
 
-    /// The pictures settled so far (see `Pictures`).
-    fn pull(&mut self, py: Python<'_>) -> PyResult<Pictures> {
+    /// Takes the frames settled so far; returns how many pictures are ready to draw
+    /// (`next_picture`).
+    fn pull(&mut self, py: Python<'_>) -> PyResult<usize> {
         let screen = self.screen()?;
-        let p = py.allow_threads(|| screen.pull()).map_err(error)?;
-        Ok(Self::pictures(py, p))
+        py.allow_threads(|| {
+            screen.pull()?;
+            Ok::<_, facespace::live::LiveError>(screen.ready())
+        })
+            .map_err(error)
     }
 
     /// [`pull`], and the footage as it is up to frame `until` while nothing is said.
-    fn idle_until(&mut self, py: Python<'_>, until: usize) -> PyResult<Pictures> {
+    fn idle_until(&mut self, py: Python<'_>, until: usize) -> PyResult<usize> {
         let screen = self.screen()?;
-        let p = py.allow_threads(|| screen.idle_until(until)).map_err(error)?;
-        Ok(Self::pictures(py, p))
+        py.allow_threads(|| {
+            screen.idle_until(until)?;
+            Ok::<_, facespace::live::LiveError>(screen.ready())
+        })
+            .map_err(error)
     }
 
-    /// Ends the utterance: every picture of it.
-    fn finish(&mut self, py: Python<'_>) -> PyResult<Pictures> {
+    /// Ends the utterance: every picture of it is ready.
+    fn finish(&mut self, py: Python<'_>) -> PyResult<usize> {
         let screen = self.screen()?;
-        let p = py.allow_threads(|| screen.finish()).map_err(error)?;
-        Ok(Self::pictures(py, p))
+        py.allow_threads(|| {
+            screen.finish()?;
+            Ok::<_, facespace::live::LiveError>(screen.ready())
+        })
+            .map_err(error)
+    }
+
+    /// Draws the next picture ready (see `Picture`), or None.
+    fn next_picture(&mut self, py: Python<'_>) -> PyResult<Option<PictureTuple>> {
+        let screen = self.screen()?;
+        let p = py.allow_threads(|| screen.next_picture()).map_err(error)?;
+        Ok(p.map(|p| Self::picture(py, p)))
     }
 
     /// An interruption: the next picture is the footage's own face.

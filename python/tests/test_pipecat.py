@@ -60,7 +60,7 @@ def test_an_interruption_returns_to_the_footage(talker, clip):
     kinds = [type(f).__name__ for f in down]
     assert "InterruptionFrame" in kinds and "OutputImageRawFrame" in kinds[: kinds.index("InterruptionFrame")]
     # After the interruption the session is quiet: the next frame is the footage's own.
-    after = face._session.idle_until(face._session.next_frame + 1)
+    after = list(face._session.idle_until(face._session.next_frame + 1))
     assert after and not after[0].face
 
 

@@ -19,8 +19,8 @@ def test_frames_follow_the_sound(talker, clip):
     step = rate // 25  # 40 ms chunks
     for k in range(0, len(samples), step):
         session.push_audio(samples[k : k + step], rate)
-        frames += session.pull()
-    frames += session.finish()
+        frames += list(session.pull())
+    frames += list(session.finish())
     expected = len(samples) / rate * talker.fps
     assert abs(len(frames) - expected) <= 1, (len(frames), expected)
     assert [f.index for f in frames] == list(range(len(frames)))
@@ -39,7 +39,7 @@ def test_bytes_and_float_arrays_give_the_same_frames(talker, clip):
     a, b = talker.session(), talker.session()
     a.push_audio(samples.tobytes(), rate)
     b.push_audio(samples.astype(np.float32) / 32768.0, rate)
-    fa, fb = a.pull() + a.finish(), b.pull() + b.finish()
+    fa, fb = list(a.pull()) + list(a.finish()), list(b.pull()) + list(b.finish())
     assert len(fa) == len(fb)
     assert all(np.array_equal(x.image, y.image) for x, y in zip(fa, fb))
 
@@ -47,13 +47,13 @@ def test_bytes_and_float_arrays_give_the_same_frames(talker, clip):
 def test_an_interruption_returns_to_the_footage_at_once(talker, clip):
     samples, rate = clip
     session = talker.session()
-    quiet = session.idle_until(10)
+    quiet = list(session.idle_until(10))
     assert len(quiet) == 10 and not any(f.face for f in quiet)
     session.push_audio(samples[: rate * 2], rate)
-    spoken = session.pull()
+    spoken = list(session.pull())
     assert any(f.face for f in spoken)
     session.clear()
-    after = session.idle_until(session.next_frame + 3)
+    after = list(session.idle_until(session.next_frame + 3))
     assert after and not any(f.face for f in after), [f.face for f in after]
 
 
@@ -86,7 +86,7 @@ def test_bad_input_raises_with_the_library_message(talker, root):
         session.push_audio(np.zeros(1920, dtype=np.int16), 48000)
     session.close()
     with pytest.raises(facespace.FacespaceError, match="closed"):
-        session.pull()
+        list(session.pull())
     with pytest.raises(facespace.FacespaceError):
         facespace.Talker(str(root / "models/demo"))
     with pytest.raises(facespace.FacespaceError):
@@ -101,7 +101,7 @@ def test_pictures_in_the_size_asked_for(talker, clip, size):
     session = talker.session(size=size)
     assert session.size == size
     session.push_audio(samples[: rate * 2], rate)
-    frames = session.pull() + session.finish()
+    frames = list(session.pull()) + list(session.finish())
     w, h = size
     scale = min(w / talker.size[0], h / talker.size[1])
     bar = round((w - talker.size[0] * scale) / 2)
@@ -114,10 +114,10 @@ def test_pictures_in_the_size_asked_for(talker, clip, size):
             assert f.image[:, : bar - 1].max() == 0 and f.image[:, w - bar + 1 :].max() == 0
     native = talker.session()
     native.push_audio(samples[: rate * 2], rate)
-    first = (native.pull() + native.finish())[0]
+    first = (list(native.pull()) + list(native.finish()))[0]
     assert np.allclose(frames[0].landmarks, first.landmarks * scale + [bar, (h - talker.size[1] * scale) / 2], atol=1e-3)
     cover = talker.session(size=size, fit="cover")
-    assert cover.idle_until(1)[0].image.min(axis=(0, 1)).max() > 0
+    assert list(cover.idle_until(1))[0].image.min(axis=(0, 1)).max() > 0
 
 
 def test_given_words_close_the_lips_on_their_bilabials(talker):
@@ -133,8 +133,8 @@ def test_given_words_close_the_lips_on_their_bilabials(talker):
             while words and words[0][1] <= now:
                 session.push_words([words.pop(0)])
             session.push_audio(samples[k : k + step], rate)
-            frames += session.pull()
-        frames += session.finish()
+            frames += list(session.pull())
+        frames += list(session.finish())
         good, count, fails = closures(frames, phones, talker.fps)
         assert count >= 3 and not fails, (clip_id, fails)
 
@@ -161,9 +161,9 @@ def test_memory_does_not_grow_with_the_speech(talker, clip):
     while spoken < 36:
         for k in range(0, len(samples), step):
             session.push_audio(samples[k : k + step], rate)
-            session.pull()
-        session.finish()
-        session.idle_until(session.next_frame + 5)
+            list(session.pull())
+        list(session.finish())
+        list(session.idle_until(session.next_frame + 5))
         spoken += len(samples) / rate
         marks.append((spoken, rss_mb()))
     settled = next(m for s, m in marks if s >= 9)

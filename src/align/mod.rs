@@ -196,9 +196,16 @@ pub struct Aligner {
     bigram: std::sync::OnceLock<Vec<Vec<f64>>>,
 }
 
-/// The committed en-us model folder.
+/// Environment variable naming the en-us model folder to use instead of the committed one:
+/// a build that runs away from its source tree (a Python wheel) carries its own copy.
+pub const MODEL_DIR_VAR: &str = "FACESPACE_ACOUSTIC_MODEL";
+
+/// The en-us model folder: [`MODEL_DIR_VAR`]'s when set, else the committed one.
 pub fn default_model_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("models/en-us")
+    match std::env::var_os(MODEL_DIR_VAR) {
+        Some(dir) if !dir.is_empty() => PathBuf::from(dir),
+        _ => Path::new(env!("CARGO_MANIFEST_DIR")).join("models/en-us"),
+    }
 }
 
 impl Aligner {
