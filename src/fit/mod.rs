@@ -22,8 +22,8 @@ pub use track::{DEFAULT_REINIT_ERROR, TrackedFrame, Tracker};
 use crate::model::{FaceModel, ModelError};
 use crate::options::{self, InvalidOption};
 use crate::shape::{Landmarks, Point};
-use crate::warp::{self, GreyImage};
-use level::{Level, dot, project_out, scale_points, steepest_descent};
+use crate::warp::GreyImage;
+use level::{Level, dot, dot32, project_out, scale_points, steepest_descent, to_f64};
 
 /// What can go wrong in the AAM search.
 #[derive(Debug, Error)]
@@ -147,12 +147,13 @@ impl<'m> Fitter<'m> {
         let mut current = init.points.clone();
         let mut total = 0;
         let mut last = None;
-        for level in &self.levels {
+        for (k, level) in self.levels.iter().enumerate() {
             let img = &pyramid[level.factor.trailing_zeros() as usize];
             let start = Landmarks {
                 points: scale_points(&current, 1.0 / level.factor as f64),
             };
-            let (fitted, iterations, converged, error) = self.fit_level(level, img, &start)?;
+            let last_level = k + 1 == self.levels.len();
+            let (fitted, iterations, converged, error) = self.fit_level(level, img, &start, last_level)?;
             total += iterations;
             current = scale_points(&fitted.points, level.factor as f64);
             last = Some((converged, error));
@@ -166,32 +167,24 @@ impl<'m> Fitter<'m> {
         })
     }
 
+    /// Fits on one level from `init`: the landmarks, iterations, whether the steps converged,
+    /// and (when `residual`, else NaN: only the last level's is reported) the residual RMS.
     fn fit_level(
         &self,
         level: &Level,
         image: &GreyImage,
         init: &Landmarks,
+        residual: bool,
     ) -> Result<(Landmarks, usize, bool, f64), FitError> {
-        let frame = &level.frame;
         let mut current = self.constrain(init)?;
-        let mut texture = vec![0f32; frame.n_pixels()];
-        let error_at =
-            |current: &Landmarks, texture: &mut Vec<f32>| -> Result<Vec<f64>, FitError> {
-                warp::to_reference_grey_into(frame, image, &current.points, texture)
-                    .map_err(ModelError::from)?;
-                Ok(texture
-                    .iter()
-                    .zip(&level.a0)
-                    .map(|(&i, a)| i as f64 - a)
-                    .collect())
-            };
+        let mut e = vec![0f32; level.frame.n_pixels()];
         let mut iterations = 0;
         let mut converged = false;
         let tolerance = self.options.tolerance / level.factor as f64;
         while iterations < self.options.max_iterations {
             iterations += 1;
-            let e = error_at(&current, &mut texture)?;
-            let b = DVector::from_iterator(level.sd.len(), level.sd.iter().map(|row| dot(row, &e)));
+            level.error_into(image, &current.points, &mut e)?;
+            let b = DVector::from_iterator(level.sd.len(), level.sd.iter().map(|row| dot32(row, &e)));
             let (next, shift) = self.step(level, &current, &(&level.h_inv * b))?;
             current = next;
             if shift < tolerance {
@@ -202,7 +195,7 @@ impl<'m> Fitter<'m> {
         if level.factor == 1 {
             for _ in 0..self.options.refine_iterations {
                 iterations += 1;
-                let e = error_at(&current, &mut texture)?;
+                level.error_into(image, &current.points, &mut e)?;
                 let (next, shift) = self.refine_step(level, &current, &e)?;
                 current = next;
                 if shift < tolerance {
@@ -210,8 +203,13 @@ impl<'m> Fitter<'m> {
                 }
             }
         }
-        let e = error_at(&current, &mut texture)?;
-        Ok((current, iterations, converged, level.residual(&e)))
+        let residual = if residual {
+            level.error_into(image, &current.points, &mut e)?;
+            level.residual(&e)
+        } else {
+            f64::NAN
+        };
+        Ok((current, iterations, converged, residual))
     }
 
     /// Composes the inverse of the increment `dp` (in the level's motion basis) with the
@@ -257,12 +255,14 @@ impl<'m> Fitter<'m> {
         &self,
         level: &Level,
         current: &Landmarks,
-        e: &[f64],
+        e: &[f32],
     ) -> Result<(Landmarks, f64), FitError> {
-        let mut template = level.a0.clone();
-        let mut residual = e.to_vec();
-        for a in &level.appearance {
-            let lambda = dot(a, e);
+        let appearance: Vec<Vec<f64>> = level.appearance.iter().map(|a| to_f64(a)).collect();
+        let e = to_f64(e);
+        let mut template = to_f64(&level.a0);
+        let mut residual = e.clone();
+        for a in &appearance {
+            let lambda = dot(a, &e);
             template
                 .iter_mut()
                 .zip(a)
@@ -273,7 +273,7 @@ impl<'m> Fitter<'m> {
                 .for_each(|(r, v)| *r -= lambda * v);
         }
         let mut sd = steepest_descent(&level.frame, &template, &level.basis);
-        project_out(&mut sd, &level.appearance);
+        project_out(&mut sd, &appearance);
         let m = sd.len();
         let h = DMatrix::from_fn(m, m, |i, j| dot(&sd[i], &sd[j]));
         let b = DVector::from_iterator(m, sd.iter().map(|row| dot(row, &residual)));

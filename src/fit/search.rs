@@ -4,9 +4,8 @@ use image::RgbImage;
 
 use super::level::{Level, scale_points};
 use super::{FitError, Fitter};
-use crate::model::ModelError;
 use crate::shape::{Landmarks, Point};
-use crate::warp::{self, GreyImage};
+use crate::warp::GreyImage;
 
 impl Fitter<'_> {
     /// A first-frame start with no landmarks: the mean shape tried on a grid of positions
@@ -56,7 +55,7 @@ impl Fitter<'_> {
             let start = Landmarks {
                 points: scale_points(&placed, ratio / level.factor as f64),
             };
-            let (fitted, _, _, r) = self.fit_level(level, &coarse, &start)?;
+            let (fitted, _, _, r) = self.fit_level(level, &coarse, &start, true)?;
             if r < best.0 {
                 best = (r, fitted.points);
             }
@@ -117,15 +116,9 @@ impl Level {
         &self,
         image: &GreyImage,
         placed: &[Point],
-        texture: &mut [f32],
+        error: &mut [f32],
     ) -> Result<f64, FitError> {
-        warp::to_reference_grey_into(&self.frame, image, placed, texture)
-            .map_err(ModelError::from)?;
-        let e: Vec<f64> = texture
-            .iter()
-            .zip(&self.a0)
-            .map(|(&i, a)| i as f64 - a)
-            .collect();
-        Ok(self.residual(&e))
+        self.error_into(image, placed, error)?;
+        Ok(self.residual(error))
     }
 }

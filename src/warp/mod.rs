@@ -258,18 +258,55 @@ fn gather<T: Copy + Send + Sync, const C: usize>(
         });
 }
 
-/// [`to_reference_into`] for a grey image: one value per mask pixel.
+/// A reference frame's mask as runs of pixels on one row in one triangle, grouped into
+/// stretches of about [`Runs::GROUP`] pixels for threads: the fit warps its frame a few
+/// hundred times a second, and a run needs its triangle's map looked up once, not per pixel.
+#[derive(Clone, Debug)]
+pub struct Runs {
+    /// (first mask pixel, length, row, first column, triangle).
+    runs: Vec<(u32, u32, u32, u32, u32)>,
+    /// Each group's first run and first mask pixel; a last entry closes the last group.
+    groups: Vec<(usize, usize)>,
+}
+
+impl Runs {
+    /// Pixels a group holds, about.
+    pub const GROUP: usize = 2048;
+
+    /// The runs of `frame`'s mask (its pixels are row-major).
+    pub fn new(frame: &ReferenceFrame) -> Self {
+        let mut runs: Vec<(u32, u32, u32, u32, u32)> = Vec::new();
+        for (i, p) in frame.pixels.iter().enumerate() {
+            match runs.last_mut() {
+                Some(r) if r.2 == p.y && r.4 == p.triangle && r.3 + r.1 == p.x => r.1 += 1,
+                _ => runs.push((i as u32, 1, p.y, p.x, p.triangle)),
+            }
+        }
+        let mut groups = vec![(0, 0)];
+        for (k, r) in runs.iter().enumerate() {
+            if r.0 as usize >= groups.last().expect("non-empty").1 + Self::GROUP {
+                groups.push((k, r.0 as usize));
+            }
+        }
+        groups.push((runs.len(), frame.pixels.len()));
+        Runs { runs, groups }
+    }
+}
+
+/// [`to_reference_into`] for a grey image: one value per mask pixel, by `runs` (of `frame`).
 pub fn to_reference_grey_into(
     frame: &ReferenceFrame,
+    runs: &Runs,
     image: &GreyImage,
     landmarks: &[Point],
     out: &mut [f32],
 ) -> Result<(), WarpError> {
     check_landmarks(frame, landmarks)?;
-    if image.width == 0 || image.height == 0 {
+    let (w, h) = (image.width, image.height);
+    if w == 0 || h == 0 {
         return Err(WarpError::EmptyImage {
-            width: image.width as u32,
-            height: image.height as u32,
+            width: w as u32,
+            height: h as u32,
         });
     }
     if out.len() != frame.n_pixels() {
@@ -278,14 +315,39 @@ pub fn to_reference_grey_into(
             found: out.len(),
         });
     }
-    gather::<f32, 1>(
-        frame,
-        &image.data,
-        (image.width, image.height),
-        landmarks,
-        out,
-        |v| v,
-    );
+    let maps: Vec<([f64; 6], bool)> = source_maps(frame, landmarks)
+        .into_iter()
+        .zip(&frame.triangles)
+        .map(|(m, t)| (m, all_inside(&t.map(|v| landmarks[v as usize]), w, h, 1.0)))
+        .collect();
+    // Each group's stretch of the output.
+    let mut pieces = Vec::with_capacity(runs.groups.len());
+    let mut rest = out;
+    for g in runs.groups.windows(2) {
+        let (piece, tail) = rest.split_at_mut(g[1].1 - g[0].1);
+        pieces.push((g[0].0..g[1].0, piece));
+        rest = tail;
+    }
+    let data = &image.data;
+    pieces.into_par_iter().for_each(|(group, piece)| {
+        let base = runs.runs[group.start].0 as usize;
+        for &(first, len, y, x0, t) in &runs.runs[group] {
+            let (m, inside) = &maps[t as usize];
+            let py = f64::from(y);
+            let at = first as usize - base;
+            for (k, o) in piece[at..at + len as usize].iter_mut().enumerate() {
+                // The per-pixel expression of `gather`, for the same values to the bit.
+                let px = f64::from(x0 + k as u32);
+                let x = m[0] + m[1] * px + m[2] * py;
+                let y = m[3] + m[4] * px + m[5] * py;
+                *o = if *inside {
+                    sample_inside::<f32, 1>(data, w, x, y, |v| v)[0]
+                } else {
+                    sample::<f32, 1>(data, w, h, x, y, |v| v)[0]
+                };
+            }
+        }
+    });
     Ok(())
 }
 
@@ -353,6 +415,38 @@ pub fn to_reference_into(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The grey warp by runs gives, to the bit, what the per-pixel RGB warp gives on the same
+    /// image with R = G = B: inside the image, and with the face half off its edge (the
+    /// clamped sampler).
+    #[test]
+    fn grey_runs_match_the_per_pixel_warp() {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+        let model = crate::model::FaceModel::load(&root.join("models/demo/model")).unwrap();
+        let frame = &model.frame;
+        let runs = Runs::new(frame);
+        let rgb = RgbImage::from_fn(300, 240, |x, y| {
+            let v = ((x * 7 + y * 13 + x * y) % 256) as u8;
+            image::Rgb([v, v, v])
+        });
+        let grey = GreyImage::from_rgb(&rgb);
+        for (scale, dx, dy) in [(1.2, 20.0, 15.0), (1.5, -60.0, 100.0), (0.6, 250.0, -10.0)] {
+            let points: Vec<Point> = frame
+                .landmarks
+                .iter()
+                .map(|p| [p[0] * scale + dx, p[1] * scale + dy])
+                .collect();
+            let mut by_runs = vec![0f32; frame.n_pixels()];
+            to_reference_grey_into(frame, &runs, &grey, &points, &mut by_runs).unwrap();
+            let per_pixel = to_reference(frame, &rgb, &points).unwrap();
+            for (i, (g, c)) in by_runs.iter().zip(per_pixel.chunks_exact(3)).enumerate() {
+                assert_eq!(g.to_bits(), c[0].to_bits(), "pixel {i} at scale {scale}");
+            }
+        }
+        // Every mask pixel lies in exactly one run.
+        let covered: usize = runs.runs.iter().map(|r| r.1 as usize).sum();
+        assert_eq!(covered, frame.n_pixels());
+    }
 
     /// The unclamped sampler agrees with the clamped one wherever it may be used, on a
     /// 3-channel image with distinct texels, up to the image's last inner texel.
