@@ -421,6 +421,29 @@ impl<'t> Session<'t> {
         Ok(())
     }
 
+    /// For given words: the first phone of the first word waiting, as a segment after the
+    /// phones (a guess at its length), when the dictionary knows the word.
+    fn next_word_phone(&self) -> Option<Segment> {
+        let Phones::Read(reading) = &self.source else {
+            return None;
+        };
+        let (word, start) = reading.waiting.front()?;
+        let last = self.phones.last()?;
+        if (last.end - start).abs() > SLIVER {
+            return None;
+        }
+        let aligner = self.talker.default_aligner().ok()?;
+        let first = word.split_whitespace().next()?.to_string();
+        let prons = aligner.dict.pronunciations(&[first], &aligner.model).ok()?;
+        let ci = *prons.first()?.first()?.first()?;
+        let phone = Phone::parse(aligner.model.ci_names.get(usize::from(ci))?)?;
+        Some(Segment {
+            start: last.end,
+            end: last.end + 0.08,
+            phone,
+        })
+    }
+
     /// The recognised phones `heard` (recogniser seconds, from `offset`) added to the phones.
     fn extend(&mut self, heard: &[TimedPhone], offset: f64) {
         for p in shifted(heard, offset) {
@@ -462,6 +485,10 @@ impl<'t> Session<'t> {
             }
             _ => None,
         };
+        // Given words: the first phone of the next word (its dictionary's first pronunciation)
+        // is the right context of the last word aligned, so that word's frames need not wait
+        // for the next word's own alignment.
+        let next = next.or_else(|| self.next_word_phone());
         let known = self.phones.len() + usize::from(next.is_some());
         // A pause still going on is given out as far as it is heard, as if speech ended there
         // (its right context silence): the face rests during it instead of waiting for its end.
