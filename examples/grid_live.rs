@@ -60,6 +60,7 @@ fn main() {
     let systems = [
         "offline, aligned words",
         "live, aligned words given ahead",
+        "live, words given with their start times as the sound reaches them",
         "offline, phones recognised from the whole clip",
         "live, phones recognised as the sound comes",
         "offline synthesis of the phones recognised live",
@@ -108,6 +109,22 @@ fn main() {
             (as_frames(&frames), clock.elapsed().as_secs_f64())
         };
         let (given, _) = live(Some(&aligned), &mut Vec::new());
+        // The words with the corpus's start times, each given when the sound reaches it.
+        let read = {
+            let mut words = grid::timed_words(&grid, id).into_iter().peekable();
+            let mut session = Session::with_given_words(&talker);
+            let mut frames = Vec::new();
+            for (k, chunk) in audio.samples.chunks(CHUNK).enumerate() {
+                let now = ((k + 1) * CHUNK) as f64 / f64::from(CHUNK_RATE);
+                while let Some(w) = words.next_if(|w| w.1 <= now) {
+                    session.push_words(&[w]).unwrap();
+                }
+                session.push_audio(chunk, CHUNK_RATE).unwrap();
+                frames.extend(session.pull().unwrap());
+            }
+            frames.extend(session.finish().unwrap());
+            as_frames(&frames)
+        };
         let n_calls = calls.borrow().len();
         let (heard, took) = live(None, &mut waits);
         // Only the calls of the session from sound are timed.
@@ -127,6 +144,7 @@ fn main() {
         rows.push([
             offline(&aligned),
             given,
+            read,
             offline(&recognised),
             heard,
             offline(&live_phones),

@@ -14,6 +14,21 @@ pub fn words(grid: &Path, id: &str) -> String {
         .join(" ")
 }
 
+/// A clip's words with their start times, seconds (`align/ID.align`, 25 000 units a second),
+/// as a text-to-speech engine's word timestamps give them.
+pub fn timed_words(grid: &Path, id: &str) -> Vec<(String, f64)> {
+    std::fs::read_to_string(grid.join(format!("align/{id}.align")))
+        .unwrap()
+        .lines()
+        .filter_map(|l| {
+            let mut f = l.split_whitespace();
+            let start: f64 = f.next()?.parse().ok()?;
+            let word = f.nth(1)?;
+            (word != "sil" && word != "sp").then(|| (word.to_string(), start / 25_000.0))
+        })
+        .collect()
+}
+
 /// The clips of `split` (`SPLIT.txt`), at most `limit`, the damaged ones (`damaged.txt`) left
 /// out as `corpus from-videos` leaves them out.
 pub fn split(grid: &Path, split: &str, limit: usize) -> Vec<String> {
