@@ -204,3 +204,62 @@ class LiveSession(_Video):
     def close(self) -> None:
         """Ends the session; later calls raise :class:`FacespaceError`."""
         self._inner.close()
+
+
+class _Speech:
+    """A stretch of a host's speech (int16 PCM, any channel count) going into a live session,
+    and its sound handed back frame by frame so each frame goes out with the sound under it:
+    what the LiveKit and pipecat adapters share."""
+
+    def __init__(self, session: LiveSession) -> None:
+        self._session = session
+        self.start: Optional[int] = None
+        """The frame where the speech's sound starts; ``None`` between stretches."""
+        self.origin = 0.0
+        """Session seconds where the speech's sound starts."""
+        self.rate: Optional[int] = None
+        """The sound's sample rate (the last one pushed)."""
+        self._pending = np.zeros(0, dtype=np.int16)
+        self._given = 0
+
+    @property
+    def active(self) -> bool:
+        """Whether a stretch of speech is under way."""
+        return self.start is not None
+
+    def push(self, pcm: bytes, rate: int, channels: int) -> None:
+        """Takes a chunk of the speech's sound (mixed down to mono)."""
+        samples = np.frombuffer(pcm, dtype=np.int16)
+        if channels > 1:
+            samples = samples.reshape(-1, channels).mean(axis=1).astype(np.int16)
+        if self.start is None:
+            self.start, self._given = self._session.next_frame, 0
+            self.origin = self._session.seconds
+        self.rate = rate
+        self._session.push_audio(samples, rate)
+        self._pending = np.concatenate([self._pending, samples])
+
+    def under(self, frame: Frame, last: bool) -> Optional[np.ndarray]:
+        """The sound under ``frame`` not yet handed back (to the frame's end; with ``last``
+        all of it), or ``None``."""
+        if self.start is None or self.rate is None:
+            return None
+        if last:
+            end = self._given + len(self._pending)
+        else:
+            end = int(round((frame.index + 1 - self.start) / self._session.fps * self.rate))
+        n = max(0, min(end - self._given, len(self._pending)))
+        if n == 0:
+            return None
+        chunk, self._pending = self._pending[:n], self._pending[n:]
+        self._given += n
+        return chunk
+
+    def end(self) -> None:
+        """The stretch is over (its frames and sound handed back)."""
+        self.start = None
+
+    def drop(self) -> None:
+        """An interruption: the sound not yet handed back is dropped."""
+        self._pending = np.zeros(0, dtype=np.int16)
+        self.start = None

@@ -27,7 +27,7 @@ import numpy as np
 from livekit import rtc
 from livekit.agents.voice.avatar import AudioSegmentEnd, AvatarOptions, VideoGenerator
 
-from . import Frame, Talker
+from . import Frame, Talker, _Speech
 
 __all__ = ["FacespaceVideoGenerator"]
 
@@ -52,10 +52,7 @@ class FacespaceVideoGenerator(VideoGenerator):
         self._on_frame = on_frame
         self._sample_rate = sample_rate
         self._queue: "asyncio.Queue[Union[rtc.AudioFrame, AudioSegmentEnd]]" = asyncio.Queue()
-        self._pending = np.zeros(0, dtype=np.int16)  # the segment's sound not yet given out
-        self._rate: Optional[int] = None
-        self._segment_start: Optional[int] = None  # frame where the segment's sound starts
-        self._given = 0  # samples of the segment given out
+        self._speech = _Speech(self._session)  # the segment's sound, handed back under its frames
         self._ended = False
         self._clears = 0  # interruptions so far: a batch being given out stops at one
         self.last_frame: Optional[Frame] = None
@@ -79,8 +76,7 @@ class FacespaceVideoGenerator(VideoGenerator):
         while not self._queue.empty():
             self._queue.get_nowait()
         self._session.clear()
-        self._pending = np.zeros(0, dtype=np.int16)
-        self._segment_start = None
+        self._speech.drop()
         self._ended = False
         self._clears += 1
 
@@ -89,20 +85,13 @@ class FacespaceVideoGenerator(VideoGenerator):
 
     def _take(self, item: Union[rtc.AudioFrame, AudioSegmentEnd]) -> None:
         if isinstance(item, AudioSegmentEnd):
-            if self._segment_start is not None:
+            if self._speech.active:
                 self._ended = True
             return
-        samples = np.frombuffer(item.data, dtype=np.int16)
-        if item.num_channels > 1:
-            samples = samples.reshape(-1, item.num_channels).mean(axis=1).astype(np.int16)
-        if self._rate is not None and item.sample_rate != self._rate:
-            raise ValueError(f"audio at {item.sample_rate} Hz after {self._rate} Hz")
-        self._rate = item.sample_rate
-        if self._segment_start is None:
-            self._segment_start = self._session.next_frame
-            self._given = 0
-        self._session.push_audio(samples, item.sample_rate)
-        self._pending = np.concatenate([self._pending, samples])
+        rate = self._speech.rate
+        if rate is not None and item.sample_rate != rate:
+            raise ValueError(f"audio at {item.sample_rate} Hz after {rate} Hz")
+        self._speech.push(item.data, item.sample_rate, item.num_channels)
 
     def _video(self, frame: Frame) -> rtc.VideoFrame:
         self.last_frame = frame
@@ -117,18 +106,12 @@ class FacespaceVideoGenerator(VideoGenerator):
     def _sound_for(self, frame: Frame, last: bool) -> Optional[rtc.AudioFrame]:
         """The segment's sound under ``frame`` (to the end of the frame; all of it after the
         last frame), resampled to the output rate by taking the session's clock."""
-        if self._segment_start is None or self._rate is None:
+        chunk = self._speech.under(frame, last)
+        if chunk is None:
             return None
-        end = len(self._pending) + self._given if last else int(
-            round((frame.index + 1 - self._segment_start) / self._talker.fps * self._rate)
-        )
-        n = max(0, min(end - self._given, len(self._pending)))
-        if n == 0:
-            return None
-        chunk, self._pending = self._pending[:n], self._pending[n:]
-        self._given += n
-        if self._rate != self._sample_rate:
-            x = np.arange(int(round(n * self._sample_rate / self._rate))) * (self._rate / self._sample_rate)
+        rate, n = self._speech.rate, len(chunk)
+        if rate != self._sample_rate:
+            x = np.arange(int(round(n * self._sample_rate / rate))) * (rate / self._sample_rate)
             chunk = np.interp(x, np.arange(n), chunk.astype(np.float64)).round().astype(np.int16)
         return rtc.AudioFrame(chunk.tobytes(), self._sample_rate, 1, len(chunk))
 
@@ -136,7 +119,7 @@ class FacespaceVideoGenerator(VideoGenerator):
         while True:
             while not self._queue.empty():
                 self._take(self._queue.get_nowait())
-            if self._segment_start is None:
+            if not self._speech.active:
                 # Nothing said: the footage as it is, one frame at a time (the synchroniser paces).
                 for frame in self._session.idle_until(self._session.next_frame + 1):
                     yield self._video(frame)
@@ -158,7 +141,8 @@ class FacespaceVideoGenerator(VideoGenerator):
             if self._clears != clears:
                 continue
             if ending:
-                self._segment_start, self._ended = None, False
+                self._speech.end()
+                self._ended = False
                 yield AudioSegmentEnd()
             elif not given:
                 try:

@@ -24,7 +24,6 @@ from __future__ import annotations
 
 from typing import Callable, Iterator, Optional, Tuple
 
-import numpy as np
 from pipecat.frames.frames import (
     Frame,
     InterruptionFrame,
@@ -38,7 +37,7 @@ from pipecat.processors.frame_processor import FrameDirection, FrameProcessor
 
 from . import FacespaceError
 from . import Frame as FaceFrame
-from . import Talker
+from . import Talker, _Speech
 
 __all__ = ["FacespaceVideoProcessor"]
 
@@ -64,11 +63,7 @@ class FacespaceVideoProcessor(FrameProcessor):
         self._session = talker.session("words" if word_timestamps else "sound", size=size, fit=fit)
         self._words = word_timestamps
         self._on_frame = on_frame
-        self._pending = np.zeros(0, dtype=np.int16)
-        self._rate: Optional[int] = None
-        self._start: Optional[int] = None  # frame where the speech's sound starts
-        self._given = 0
-        self._origin = 0.0  # session seconds where the speech's sound starts
+        self._speech = _Speech(self._session)  # the TTS sound, handed back under its frames
         self._baseline: Optional[int] = None  # clock (ns) of the speech's first audio frame
         self._last_word_pts = 0
         self.last_frame: Optional[FaceFrame] = None
@@ -78,26 +73,19 @@ class FacespaceVideoProcessor(FrameProcessor):
         await super().process_frame(frame, direction)
         if isinstance(frame, InterruptionFrame):
             self._session.clear()
-            self._pending = np.zeros(0, dtype=np.int16)
-            self._start, self._baseline = None, None
+            self._speech.drop()
+            self._baseline = None
             await self.push_frame(frame, direction)
         elif isinstance(frame, TTSAudioRawFrame):
-            samples = np.frombuffer(frame.audio, dtype=np.int16)
-            if frame.num_channels > 1:
-                samples = samples.reshape(-1, frame.num_channels).mean(axis=1).astype(np.int16)
-            if self._start is None:
-                self._start, self._given = self._session.next_frame, 0
-                self._origin = self._session.seconds
+            if not self._speech.active:
                 # As pipecat's word timestamp tracker sets its baseline.
                 self._baseline = max(self._last_word_pts, self.get_clock().get_time())
-            self._rate = frame.sample_rate
-            self._session.push_audio(samples, frame.sample_rate)
-            self._pending = np.concatenate([self._pending, samples])
+            self._speech.push(frame.audio, frame.sample_rate, frame.num_channels)
             await self._push(self._session.pull(), last=False)
         elif isinstance(frame, TTSTextFrame):
             if self._words and frame.pts and self._baseline is not None:
                 self._last_word_pts = max(self._last_word_pts, frame.pts)
-                start = self._origin + (frame.pts - self._baseline) / 1e9
+                start = self._speech.origin + (frame.pts - self._baseline) / 1e9
                 try:
                     self._session.push_words([(frame.text, start)])
                 except FacespaceError:
@@ -105,9 +93,10 @@ class FacespaceVideoProcessor(FrameProcessor):
                 await self._push(self._session.pull(), last=False)
             await self.push_frame(frame, direction)
         elif isinstance(frame, TTSStoppedFrame):
-            if self._start is not None:
+            if self._speech.active:
                 await self._push(self._session.finish(), last=True)
-                self._start, self._baseline = None, None
+                self._speech.end()
+                self._baseline = None
             await self.push_frame(frame, direction)
         else:
             await self.push_frame(frame, direction)
@@ -127,14 +116,6 @@ class FacespaceVideoProcessor(FrameProcessor):
             self._on_frame(face)
         h, w, _ = face.image.shape
         await self.push_frame(OutputImageRawFrame(image=face.image.tobytes(), size=(w, h), format="RGB"))
-        if self._start is None or self._rate is None:
-            return
-        if last:
-            end = self._given + len(self._pending)
-        else:
-            end = int(round((face.index + 1 - self._start) / self._talker.fps * self._rate))
-        n = max(0, min(end - self._given, len(self._pending)))
-        if n:
-            chunk, self._pending = self._pending[:n], self._pending[n:]
-            self._given += n
-            await self.push_frame(OutputAudioRawFrame(audio=chunk.tobytes(), sample_rate=self._rate, num_channels=1))
+        chunk = self._speech.under(face, last)
+        if chunk is not None:
+            await self.push_frame(OutputAudioRawFrame(audio=chunk.tobytes(), sample_rate=self._speech.rate, num_channels=1))

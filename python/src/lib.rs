@@ -151,6 +151,18 @@ impl LiveSession {
             .ok_or_else(|| error("this session is closed"))
     }
 
+    /// Runs `step` (the screen's pull, finish or idle_until) with the GIL released; the
+    /// pictures it made ready are drawn one by one by `next_picture`. Returns how many.
+    fn settle(
+        &mut self,
+        py: Python<'_>,
+        step: impl FnOnce(&mut Screen<'static, 'static>) -> Result<(), facespace::live::LiveError> + Send,
+    ) -> PyResult<usize> {
+        let screen = self.screen()?;
+        py.allow_threads(|| step(screen).map(|()| screen.ready()))
+            .map_err(error)
+    }
+
     fn picture(py: Python<'_>, p: facespace::live::Picture) -> PictureTuple {
         let bytes = PyBytes::new(py, p.image.as_raw()).unbind();
         let points: Vec<u8> = p
@@ -224,32 +236,17 @@ impl LiveSession {
     /// Takes the frames settled so far; returns how many pictures are ready to draw
     /// (`next_picture`).
     fn pull(&mut self, py: Python<'_>) -> PyResult<usize> {
-        let screen = self.screen()?;
-        py.allow_threads(|| {
-            screen.pull()?;
-            Ok::<_, facespace::live::LiveError>(screen.ready())
-        })
-            .map_err(error)
+        self.settle(py, |s| s.pull().map(drop))
     }
 
     /// [`pull`], and the footage as it is up to frame `until` while nothing is said.
     fn idle_until(&mut self, py: Python<'_>, until: usize) -> PyResult<usize> {
-        let screen = self.screen()?;
-        py.allow_threads(|| {
-            screen.idle_until(until)?;
-            Ok::<_, facespace::live::LiveError>(screen.ready())
-        })
-            .map_err(error)
+        self.settle(py, |s| s.idle_until(until).map(drop))
     }
 
     /// Ends the utterance: every picture of it is ready.
     fn finish(&mut self, py: Python<'_>) -> PyResult<usize> {
-        let screen = self.screen()?;
-        py.allow_threads(|| {
-            screen.finish()?;
-            Ok::<_, facespace::live::LiveError>(screen.ready())
-        })
-            .map_err(error)
+        self.settle(py, |s| s.finish().map(drop))
     }
 
     /// Draws the next picture ready (see `Picture`), or None.
