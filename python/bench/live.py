@@ -84,6 +84,15 @@ def speak(session, samples, rate, words, offset, paced_from=None, on_frames=None
     consume(session.finish(), on_frames)
 
 
+def idle_second(session, start):
+    """A second of idle footage at the frame rate of a real-time clock started at `start`."""
+    for _ in range(int(session.fps)):
+        consume(session.idle_until(session.next_frame + 1), None)
+        wait = start + session.next_frame / session.fps - time.perf_counter()
+        if wait > 0:
+            time.sleep(wait)
+
+
 def throughput(size_name, given, repeats=4):
     """Frames per second with sound pushed as fast as it is drawn."""
     import facespace
@@ -124,11 +133,7 @@ def latency(size_name, given):
     for samples, rate, words in clips():
         speak(session, samples, rate, words if given == "words" else None, session.seconds, start, note)
         # Between utterances: idle footage at the frame rate for a second.
-        for _ in range(int(fps)):
-            consume(session.idle_until(session.next_frame + 1), None)
-            wait = start + session.next_frame / fps - time.perf_counter()
-            if wait > 0:
-                time.sleep(wait)
+        idle_second(session, start)
     lags.sort()
     q = lambda p: round(1000 * lags[min(len(lags) - 1, int(p * len(lags)))])
     return {"p50_ms": q(0.5), "p95_ms": q(0.95), "max_ms": round(1000 * lags[-1])}
@@ -150,18 +155,13 @@ def memory(minutes):
 
     talker = facespace.Talker(str(ROOT / "models/grid"))
     session = talker.session(size=(512, 512))
-    fps = talker.fps
     start = time.perf_counter()
     material = clips()
     marks, next_mark = [], 0.0
     while time.perf_counter() - start < minutes * 60:
         for samples, rate, _ in material:
             speak(session, samples, rate, None, session.seconds, start)
-            for _ in range(int(fps)):
-                consume(session.idle_until(session.next_frame + 1), None)
-                wait = start + session.next_frame / fps - time.perf_counter()
-                if wait > 0:
-                    time.sleep(wait)
+            idle_second(session, start)
             now = time.perf_counter() - start
             if now >= next_mark:
                 marks.append((round(now), round(rss_mb(), 1)))
