@@ -137,8 +137,9 @@ enum Phones<'t> {
 /// A session's given words and the sound they are aligned to.
 #[derive(Default)]
 struct Reading {
-    /// Words given and not yet aligned: (word, start), session seconds.
-    waiting: std::collections::VecDeque<(String, f64)>,
+    /// Words given and not yet aligned: (word, start in session seconds, the first phone of
+    /// its dictionary pronunciation — the right context of the word before it).
+    waiting: std::collections::VecDeque<(String, f64, Option<Phone>)>,
     /// The last words aligned, the left context of the next alignment.
     aligned: std::collections::VecDeque<(String, f64)>,
     /// The sound at 16 kHz from `sound_start` session seconds.
@@ -151,6 +152,13 @@ impl Reading {
     fn at(&self, t: f64) -> usize {
         let rate = f64::from(crate::align::frontend::SAMPLE_RATE);
         (((t - self.sound_start) * rate).round().max(0.0) as usize).min(self.sound.len())
+    }
+
+    /// Drops the sound before `t` session seconds.
+    fn drop_before(&mut self, t: f64) {
+        let cut = self.at(t);
+        self.sound.drain(..cut);
+        self.sound_start += cut as f64 / f64::from(crate::align::frontend::SAMPLE_RATE);
     }
 }
 
@@ -268,9 +276,7 @@ impl<'t> Session<'t> {
             Phones::Read(reading) => {
                 reading.sound.extend_from_slice(&speech);
                 // Sound no word comes for is kept for a while, then dropped (it stays silent).
-                let cut = reading.at(self.heard - MAX_UNREAD);
-                reading.sound.drain(..cut);
-                reading.sound_start += cut as f64 / f64::from(crate::align::frontend::SAMPLE_RATE);
+                reading.drop_before(self.heard - MAX_UNREAD);
                 self.read(false)?;
             }
             // Sound beyond the given phones is silence: the face rests while it plays.
@@ -319,8 +325,9 @@ impl<'t> Session<'t> {
         let mut previous = reading
             .waiting
             .back()
-            .or(reading.aligned.back())
-            .map_or(self.origin, |w| w.1)
+            .map(|w| w.1)
+            .or(reading.aligned.back().map(|w| w.1))
+            .unwrap_or(self.origin)
             .max(self.phones.last().map_or(self.origin, |p| p.end));
         for (index, (word, start)) in words.iter().enumerate() {
             if !start.is_finite() || *start < previous - 1e-6 {
@@ -333,11 +340,13 @@ impl<'t> Session<'t> {
             }
             previous = *start;
         }
+        let aligner = self.talker.default_aligner()?;
         for (word, start) in words {
             // Punctuation alone is no word; what a word carries around it is dropped.
-            let spoken = crate::align::dict::words(word).join(" ");
-            if !spoken.is_empty() {
-                reading.waiting.push_back((spoken, *start));
+            let spoken = crate::align::dict::words(word);
+            if let Some(first) = spoken.first() {
+                let phone = first_phone(aligner, first);
+                reading.waiting.push_back((spoken.join(" "), *start, phone));
             }
         }
         self.read(false)
@@ -350,9 +359,8 @@ impl<'t> Session<'t> {
             return Ok(());
         };
         let aligner = self.talker.default_aligner()?;
-        let rate = f64::from(crate::align::frontend::SAMPLE_RATE);
         let mut phones = Vec::new();
-        while let Some((word, start)) = reading.waiting.front().cloned() {
+        while let Some((word, start, _)) = reading.waiting.front().cloned() {
             let end = match reading.waiting.get(1) {
                 Some(next) if next.1 <= self.heard => next.1,
                 _ if to_end => self.heard,
@@ -365,7 +373,7 @@ impl<'t> Session<'t> {
                 .iter()
                 .filter(|w| w.1 >= end - WORD_WINDOW)
                 .collect();
-            // The first word after a pause-free start (or a clear) takes the silence before it.
+            // The session's first word (or the first after a clear) takes the silence before it.
             let lead = if reading.aligned.is_empty() { start - WORD_WINDOW } else { start };
             let from = context.first().map_or(lead, |w| w.1).max(reading.sound_start);
             let samples = &reading.sound[reading.at(from)..reading.at(end)];
@@ -397,9 +405,7 @@ impl<'t> Session<'t> {
                 reading.aligned.pop_front();
             }
             // Sound no later window reaches is dropped.
-            let cut = reading.at(end - WORD_WINDOW);
-            reading.sound.drain(..cut);
-            reading.sound_start += cut as f64 / rate;
+            reading.drop_before(end - WORD_WINDOW);
         }
         if to_end && reading.waiting.is_empty() {
             // Sound after the last word's stretch (or with no words at all): its phones heard.
@@ -427,20 +433,15 @@ impl<'t> Session<'t> {
         let Phones::Read(reading) = &self.source else {
             return None;
         };
-        let (word, start) = reading.waiting.front()?;
+        let (_, start, phone) = reading.waiting.front()?;
         let last = self.phones.last()?;
         if (last.end - start).abs() > SLIVER {
             return None;
         }
-        let aligner = self.talker.default_aligner().ok()?;
-        let first = word.split_whitespace().next()?.to_string();
-        let prons = aligner.dict.pronunciations(&[first], &aligner.model).ok()?;
-        let ci = *prons.first()?.first()?.first()?;
-        let phone = Phone::parse(aligner.model.ci_names.get(usize::from(ci))?)?;
         Some(Segment {
             start: last.end,
             end: last.end + 0.08,
-            phone,
+            phone: (*phone)?,
         })
     }
 
@@ -656,6 +657,13 @@ impl<'t> Session<'t> {
         self.given += out.len();
         Ok(out)
     }
+}
+
+/// The first phone of `word`'s first pronunciation in `aligner`'s dictionary, if it has one.
+fn first_phone(aligner: &crate::align::Aligner, word: &str) -> Option<Phone> {
+    let prons = aligner.dict.pronunciations(&[word.to_string()], &aligner.model).ok()?;
+    let ci = *prons.first()?.first()?.first()?;
+    Phone::parse(aligner.model.ci_names.get(usize::from(ci))?)
 }
 
 /// The phones recognised in `samples` (16 kHz) that start at `start` session seconds; none
@@ -942,8 +950,7 @@ impl<'s, 't> Screen<'s, 't> {
                 let model = &self.stage.talker.model;
                 let params = model.layout().split(&f.values)?;
                 crate::render::Renderer::render_into(&self.renderer, params, &mut image)?;
-                let points = model.shape.instance(&params.pose, params.shape).points;
-                (true, f.speaking, points)
+                (true, f.speaking, model.landmarks(params)?.points)
             }
             _ => (false, false, self.stage.landmarks[index % loop_len].points.clone()),
         };

@@ -158,7 +158,8 @@ impl<'m> Fitter<'m> {
             current = scale_points(&fitted.points, level.factor as f64);
             last = Some((converged, error));
         }
-        let (converged, error) = last.unwrap_or((false, f64::INFINITY));
+        let (converged, error) = last.unwrap_or((false, None));
+        let error = error.unwrap_or(f64::INFINITY);
         Ok(FitResult {
             landmarks: Landmarks { points: current },
             iterations: total,
@@ -168,14 +169,14 @@ impl<'m> Fitter<'m> {
     }
 
     /// Fits on one level from `init`: the landmarks, iterations, whether the steps converged,
-    /// and (when `residual`, else NaN: only the last level's is reported) the residual RMS.
+    /// and, when `residual` (only the last level's is reported), the residual RMS.
     fn fit_level(
         &self,
         level: &Level,
         image: &GreyImage,
         init: &Landmarks,
         residual: bool,
-    ) -> Result<(Landmarks, usize, bool, f64), FitError> {
+    ) -> Result<(Landmarks, usize, bool, Option<f64>), FitError> {
         let mut current = self.constrain(init)?;
         let mut e = vec![0f32; level.frame.n_pixels()];
         let mut iterations = 0;
@@ -205,9 +206,9 @@ impl<'m> Fitter<'m> {
         }
         let residual = if residual {
             level.error_into(image, &current.points, &mut e)?;
-            level.residual(&e)
+            Some(level.residual(&e))
         } else {
-            f64::NAN
+            None
         };
         Ok((current, iterations, converged, residual))
     }

@@ -56,6 +56,7 @@ impl Fitter<'_> {
                 points: scale_points(&placed, ratio / level.factor as f64),
             };
             let (fitted, _, _, r) = self.fit_level(level, &coarse, &start, true)?;
+            let r = r.unwrap_or(f64::INFINITY);
             if r < best.0 {
                 best = (r, fitted.points);
             }
