@@ -4,7 +4,7 @@
 //! on the talker's living frame (`live::Stage`) and drawn by the CPU renderer over its footage
 //! frame, decoded in order — at the footage's 360×288 and at 720×576 (the footage frame scaled
 //! up, the face drawn at twice the pose). Prints frames per second of the whole loop and the
-//! share of each part.
+//! share of each part; with the talker's recorded mouths (issue 38) as well.
 //!
 //! `cargo run --release --example live_render -- ../shared/data/grid-s1 [LIMIT] [SPLIT]`
 
@@ -14,7 +14,7 @@ mod grid;
 use std::time::{Duration, Instant};
 
 use facespace::live::{Session, Stage};
-use facespace::render::{CpuRenderer, DEFAULT_FEATHER, Edge, Renderer};
+use facespace::render::{CpuRenderer, DEFAULT_FEATHER, Edge};
 use facespace::talker::Talker;
 
 fn main() {
@@ -27,8 +27,11 @@ fn main() {
     let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
     let ids = grid::split(&grid, &split, limit);
     println!("GRID s1 {split}: {} clips, one core", ids.len());
-    for heard in [true, false] {
+    let mouths = talker.mouths().unwrap();
+    let runs = [(true, false), (false, false), (true, true)];
+    for (heard, recorded) in runs.into_iter().filter(|r| !r.1 || mouths.is_some()) {
         for scale in [1u32, 2] {
+            let mut chooser = mouths.map(|m| facespace::mouths::Chooser::new(m, &talker.model));
             let (mut session_t, mut place_t, mut decode_t, mut render_t) =
                 (Duration::ZERO, Duration::ZERO, Duration::ZERO, Duration::ZERO);
             let (mut frames_done, mut seconds) = (0usize, 0f64);
@@ -80,7 +83,9 @@ fn main() {
                             decode_t += t.elapsed();
                             let t = Instant::now();
                             let params = talker.model.layout().split(&f.values).unwrap();
-                            renderer.render_into(params, &mut canvas).unwrap();
+                            let pick = chooser.as_mut().filter(|_| recorded).map(|c| c.next(params));
+                            let detail = mouths.zip(pick.as_ref());
+                            renderer.render_with(params, detail, &mut canvas).unwrap();
                             render_t += t.elapsed();
                             frames_done += 1;
                         }
@@ -90,8 +95,9 @@ fn main() {
             let total = session_t + place_t + decode_t + render_t;
             let per = |d: Duration| d.as_secs_f64() * 1000.0 / frames_done as f64;
             println!(
-                "{} {}×{}: {frames_done} frames ({seconds:.1} s of sound) at {:.0} fps on one core — per frame: session {:.2} ms, placing {:.2} ms, footage {:.2} ms, rendering {:.2} ms",
+                "{}{} {}×{}: {frames_done} frames ({seconds:.1} s of sound) at {:.0} fps on one core — per frame: session {:.2} ms, placing {:.2} ms, footage {:.2} ms, rendering {:.2} ms",
                 if heard { "phones heard" } else { "phones given" },
+                if recorded { ", recorded mouths" } else { "" },
                 360 * scale,
                 288 * scale,
                 frames_done as f64 / total.as_secs_f64(),

@@ -114,6 +114,7 @@ pub mod manifest;
 pub mod live;
 pub mod mesh;
 pub mod model;
+pub mod mouths;
 pub mod npy;
 pub mod options;
 pub mod pca;

@@ -102,6 +102,9 @@ pub enum LiveError {
     /// The talker's footage could not be read.
     #[error("the talker's footage: {0}")]
     Footage(#[from] crate::video::VideoError),
+    /// The talker's recorded mouths could not be read.
+    #[error(transparent)]
+    Talker(#[from] Box<crate::talker::TalkerError>),
 }
 
 /// One frame of a live session: face-space values in the talker model's layout
@@ -707,6 +710,8 @@ pub struct Stage<'t> {
     landmarks: Vec<crate::shape::Landmarks>,
     articulators: Option<Vec<u32>>,
     lighting: Option<Vec<f32>>,
+    /// The talker's recorded mouths, drawn over the model's by a [`Screen`].
+    mouths: Option<&'t crate::mouths::Mouths>,
 }
 
 /// What a page shows at one frame: the footage frame (and, in a dissolve, the one it is
@@ -738,6 +743,7 @@ impl<'t> Stage<'t> {
             landmarks: backdrop.landmarks,
             articulators: talker.model.articulators(),
             lighting,
+            mouths: talker.mouths().map_err(Box::new)?,
         })
     }
 
@@ -827,6 +833,8 @@ pub struct Screen<'s, 't> {
     session: Session<'t>,
     stage: &'s Stage<'t>,
     renderer: crate::render::CpuRenderer<'t>,
+    /// Picks each drawn frame's recorded detail, when the talker keeps recorded mouths.
+    chooser: Option<crate::mouths::Chooser<'t>>,
     /// The stage's loop of footage, decoded in order.
     footage: crate::talker::footage::Shown,
     /// The next picture's index.
@@ -846,6 +854,9 @@ impl<'s, 't> Screen<'s, 't> {
             session,
             stage,
             renderer: crate::render::CpuRenderer::with_edge(&talker.model, edge),
+            chooser: stage
+                .mouths
+                .map(|m| crate::mouths::Chooser::new(m, &talker.model)),
             footage: talker.footage.shown(stage.plan()),
             next: 0,
             settled: std::collections::VecDeque::new(),
@@ -884,6 +895,9 @@ impl<'s, 't> Screen<'s, 't> {
     /// the sound already taken.
     pub fn clear(&mut self) {
         self.settled.clear();
+        if let Some(c) = &mut self.chooser {
+            c.reset();
+        }
         let next = self.next as f64 / self.session.fps;
         self.session.skip_to(self.session.seconds().max(next));
     }
@@ -949,10 +963,17 @@ impl<'s, 't> Screen<'s, 't> {
             Some(f) if f.index == index => {
                 let model = &self.stage.talker.model;
                 let params = model.layout().split(&f.values)?;
-                crate::render::Renderer::render_into(&self.renderer, params, &mut image)?;
+                let pick = self.chooser.as_mut().map(|c| c.next(params));
+                let detail = self.stage.mouths.zip(pick.as_ref());
+                self.renderer.render_with(params, detail, &mut image)?;
                 (true, f.speaking, model.landmarks(params)?.points)
             }
-            _ => (false, false, self.stage.landmarks[index % loop_len].points.clone()),
+            _ => {
+                if let Some(c) = &mut self.chooser {
+                    c.reset();
+                }
+                (false, false, self.stage.landmarks[index % loop_len].points.clone())
+            }
         };
         if let Some(scaler) = &self.scaler {
             image = scaler.scale(&image);

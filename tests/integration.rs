@@ -25,6 +25,7 @@ mod kill;
 mod live;
 mod live_page;
 mod model;
+mod mouths;
 mod pca;
 mod phonemes;
 mod python;

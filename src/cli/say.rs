@@ -51,6 +51,10 @@ pub struct SayArgs {
     /// such a request is refused, naming the worst words).
     #[arg(long)]
     accept_mismatch: bool,
+    /// Draw the appearance model's mouth even when the talker keeps recorded mouths (for A/B
+    /// comparisons; `talker mouths` keeps them).
+    #[arg(long)]
+    model_mouth: bool,
     /// Which of the living frames that join best (they open on different takes).
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -109,6 +113,7 @@ pub fn run(a: SayArgs) -> Result<()> {
         seed: a.seed,
         parts: a.parts.clone(),
         accept_mismatch: a.accept_mismatch,
+        model_mouth: a.model_mouth,
         ..SayRequest::new(speech)
     };
     let (bar, progress) = progress_bar();

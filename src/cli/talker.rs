@@ -17,6 +17,25 @@ pub enum TalkerCommand {
         after_help = "Example: facespace talker build --model out/model --codebook out/codebook --footage rec/a.mp4 rec/b.mp4 --name me -o out/me"
     )]
     Build(BuildArgs),
+    /// Keep recorded mouths in a talker (or drop them with --frames 0): the mouth is then
+    /// drawn with the talker's own teeth, lips and skin over the model's.
+    #[command(
+        after_help = "Example: facespace talker mouths --talker models/grid --from ../shared/data/grid-s1/clips"
+    )]
+    Mouths(MouthsArgs),
+}
+
+#[derive(Args)]
+pub struct MouthsArgs {
+    /// The talker folder.
+    #[arg(long)]
+    talker: PathBuf,
+    /// The folder of the codebook's recordings (NAME.mp4).
+    #[arg(long)]
+    from: PathBuf,
+    /// About how many recorded frames to keep (0: none).
+    #[arg(long, default_value_t = facespace::mouths::DEFAULT_FRAMES)]
+    frames: usize,
 }
 
 #[derive(Args)]
@@ -48,6 +67,14 @@ pub struct BuildArgs {
     /// --smoothing. --recordings keeps every 10th of its own recordings for this.
     #[arg(long, conflicts_with = "recordings")]
     validation: Option<PathBuf>,
+    /// A folder of the codebook's recordings (NAME.mp4) to keep recorded mouths from, so the
+    /// mouth is drawn with the talker's own teeth and skin (default: --footage-from's folder;
+    /// --recordings keeps them from its own).
+    #[arg(long, conflicts_with = "recordings")]
+    mouths_from: Option<PathBuf>,
+    /// About how many recorded frames of mouths to keep (0: none; the model's mouth).
+    #[arg(long, default_value_t = facespace::mouths::DEFAULT_FRAMES)]
+    mouth_frames: usize,
     /// How many takes --footage-from or --recordings use.
     #[arg(long, default_value_t = 16)]
     footage_clips: usize,
@@ -81,7 +108,27 @@ pub struct BuildArgs {
 pub fn run(command: TalkerCommand) -> Result<()> {
     match command {
         TalkerCommand::Build(a) => build(a),
+        TalkerCommand::Mouths(a) => mouths(a),
     }
+}
+
+fn mouths(a: MouthsArgs) -> Result<()> {
+    let clock = std::time::Instant::now();
+    let (bar, progress) = progress_bar();
+    let talker = facespace::talker::build::set_mouths(&a.talker, &a.from, a.frames, progress)
+        .with_context(|| format!("recorded mouths for {}", a.talker.display()))?;
+    bar.finish_and_clear();
+    match talker.mouths()? {
+        Some(m) => println!(
+            "{}: {} recorded mouths kept from {} sentences in {:.1} s",
+            a.talker.display(),
+            m.len(),
+            m.stretches.len(),
+            clock.elapsed().as_secs_f64()
+        ),
+        None => println!("{}: draws the model's mouth", a.talker.display()),
+    }
+    Ok(())
 }
 
 fn build(a: BuildArgs) -> Result<()> {
@@ -120,7 +167,11 @@ fn build(a: BuildArgs) -> Result<()> {
             },
             &a.output,
             &mut progress,
-        )?,
+        )
+        .map(|p| Parts {
+            mouth_frames: a.mouth_frames,
+            ..p
+        })?,
         (None, Some(codebook)) => {
             let model = super::load_model(&a.model)?;
             let cb = facespace::codebook::Codebook::load(codebook)
@@ -144,6 +195,8 @@ fn build(a: BuildArgs) -> Result<()> {
                     Some(dir) => Some(Validation::load(dir, &model, cb.fps)?),
                     None => None,
                 },
+                mouths_from: a.mouths_from.clone().or(a.footage_from.clone()),
+                mouth_frames: a.mouth_frames,
             }
         }
         (None, None) => anyhow::bail!("give --recordings, or --codebook with --footage"),

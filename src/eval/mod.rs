@@ -6,6 +6,7 @@
 
 pub mod mouth;
 pub mod quality;
+pub mod realism;
 pub mod seams;
 pub mod systems;
 

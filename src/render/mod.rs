@@ -7,6 +7,7 @@
 //! caller consumes the frames in order, so memory does not grow with the sequence.
 
 mod composite;
+pub mod sampled;
 pub mod scale;
 #[cfg(feature = "gpu")]
 pub mod gpu;
@@ -150,7 +151,23 @@ impl Renderer for CpuRenderer<'_> {
         params: FaceParams<'_>,
         canvas: &mut RgbImage,
     ) -> Result<(), RenderError> {
-        let r = self.model.reconstruct(params)?;
+        self.render_with(params, None, canvas)
+    }
+}
+
+impl CpuRenderer<'_> {
+    /// [`Renderer::render_into`], with recorded detail added to the model's texture when
+    /// `detail` is given ([`crate::mouths`]).
+    pub fn render_with(
+        &self,
+        params: FaceParams<'_>,
+        detail: Option<(&crate::mouths::Mouths, &crate::mouths::Pick)>,
+        canvas: &mut RgbImage,
+    ) -> Result<(), RenderError> {
+        let mut r = self.model.reconstruct(params)?;
+        if let Some((mouths, pick)) = detail {
+            mouths.add_detail(pick, &mut r.texture);
+        }
         let (frame, points) = (&self.model.frame, &r.landmarks.points);
         match &self.alpha {
             Some(alpha) => {

@@ -14,6 +14,7 @@ use super::{
 use crate::codebook::Codebook;
 use crate::corpus::Sentence;
 use crate::model::FaceModel;
+use crate::mouths::Mouths;
 use crate::{Progress, atomic};
 
 /// What a talker is made of.
@@ -27,6 +28,11 @@ pub struct Parts {
     pub footage: Vec<PathBuf>,
     /// Sentences of the talker kept out of the codebook, to choose the settings on.
     pub validation: Option<Validation>,
+    /// A folder of the codebook's recordings (`NAME.mp4`), from which recorded mouths are
+    /// kept ([`crate::mouths`]); `None`: the talker draws the model's mouth.
+    pub mouths_from: Option<PathBuf>,
+    /// About how many recorded frames to keep ([`crate::mouths::DEFAULT_FRAMES`]).
+    pub mouth_frames: usize,
 }
 
 /// Validation sentences: tracked with the model, never in the codebook.
@@ -209,7 +215,64 @@ pub fn parts_from_recordings(
             sentences: validation,
             about,
         }),
+        mouths_from: Some(recordings.dir.clone()),
+        mouth_frames: crate::mouths::DEFAULT_FRAMES,
     })
+}
+
+/// Keeps about `frames` recorded mouths of `codebook`'s sentences, recorded as `from/NAME.mp4`,
+/// in `out/mouths` (those already there for the model when about as many), and returns the
+/// part's name for the manifest.
+fn keep_mouths(
+    model: &FaceModel,
+    codebook: &Codebook,
+    from: &Path,
+    frames: usize,
+    out: &Path,
+    progress: impl FnMut(Progress),
+) -> Result<Option<String>, TalkerError> {
+    let dir = out.join("mouths");
+    // Kept when within a sentence of the number asked for.
+    let kept = Mouths::load(&dir, model)
+        .ok()
+        .filter(|m| m.len().abs_diff(frames) <= m.len() / m.stretches.len().max(1));
+    if kept.is_none() {
+        let recording = |name: &str| Some(from.join(format!("{name}.mp4"))).filter(|p| p.is_file());
+        Mouths::build(model, codebook, recording, frames, &dir, progress).map_err(|source| {
+            TalkerError::Mouths {
+                dir: out.to_path_buf(),
+                source: Box::new(source),
+            }
+        })?;
+    }
+    Ok(Some("mouths".into()))
+}
+
+/// Gives the talker `dir` recorded mouths kept from `from` (a folder of its codebook's
+/// recordings, `NAME.mp4`), about `frames` of them, or takes them away (`frames` = 0), keeping
+/// everything else; `talker.json` is rewritten last.
+pub fn set_mouths(
+    dir: &Path,
+    from: &Path,
+    frames: usize,
+    progress: impl FnMut(Progress),
+) -> Result<Talker, TalkerError> {
+    let talker = Talker::load(dir)?;
+    let mut manifest = talker.manifest.clone();
+    manifest.mouths = if frames == 0 {
+        None
+    } else {
+        keep_mouths(&talker.model, &talker.codebook, from, frames, dir, progress)?
+    };
+    write_manifest(dir, &manifest)?;
+    Talker::load(dir)
+}
+
+/// Writes `talker.json` into `dir` atomically.
+fn write_manifest(dir: &Path, manifest: &TalkerManifest) -> Result<(), TalkerError> {
+    let path = dir.join(MANIFEST);
+    let json = serde_json::to_vec_pretty(manifest).expect("talker manifest serialises");
+    atomic::write_file(&path, &json).map_err(|source| TalkerError::Io { path, source })
 }
 
 /// Whether `a` and `b` are the same folder.
@@ -264,6 +327,12 @@ pub fn build(
             },
         )?;
     }
+    let mouths = match &parts.mouths_from {
+        Some(from) if parts.mouth_frames > 0 => {
+            keep_mouths(&model, &codebook, from, parts.mouth_frames, out, &mut progress)?
+        }
+        _ => None,
+    };
     let mut settings = identity.settings.clone();
     if let Some(v) = &parts.validation {
         progress(Progress {
@@ -289,6 +358,7 @@ pub fn build(
         model: "model".into(),
         codebook: "codebook".into(),
         footage: "footage".into(),
+        mouths,
         settings,
         voice: identity.voice.clone(),
         provenance: Provenance {
@@ -297,9 +367,7 @@ pub fn build(
             facespace: env!("CARGO_PKG_VERSION").into(),
         },
     };
-    let path = out.join(MANIFEST);
-    let json = serde_json::to_vec_pretty(&manifest).expect("talker manifest serialises");
-    atomic::write_file(&path, &json).map_err(io(&path))?;
+    write_manifest(out, &manifest)?;
     Talker::load(out)
 }
 

@@ -22,6 +22,7 @@ use crate::codebook::{Codebook, CodebookError};
 use crate::manifest::{self, ManifestError};
 use crate::model::{FaceModel, ModelError};
 use crate::phonemes::{PhoneMap, PhonemeError, Segment};
+use crate::render::sampled::SampledRenderer;
 use crate::render::{DEFAULT_FEATHER, Edge, RenderError, RendererChoice};
 use crate::synth::backdrop::Backdrop;
 use crate::synth::blend::Blend;
@@ -128,6 +129,9 @@ pub struct TalkerManifest {
     pub codebook: String,
     /// The footage folder.
     pub footage: String,
+    /// The recorded mouths folder ([`crate::mouths`]), when the talker keeps them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mouths: Option<String>,
     /// The synthesis settings.
     pub settings: Settings,
     /// The voice for speech from text.
@@ -171,6 +175,14 @@ pub enum TalkerError {
         dir: PathBuf,
         /// The cause (boxed: the error enum travels in every result).
         source: Box<FootageError>,
+    },
+    /// The recorded mouths part.
+    #[error("talker {dir}: its {source}")]
+    Mouths {
+        /// The talker folder.
+        dir: PathBuf,
+        /// The cause (boxed: the error enum travels in every result).
+        source: Box<crate::mouths::MouthsError>,
     },
     /// A part made with another model than the talker's.
     #[error(
@@ -252,6 +264,8 @@ pub struct Talker {
     /// The aligner with the committed dictionary, loaded when first needed and kept, with the
     /// phone bigram it estimates, for every later request without extra dictionaries.
     aligner: std::sync::OnceLock<crate::align::Aligner>,
+    /// The recorded mouths, decoded when first drawn and kept.
+    mouths: std::sync::OnceLock<crate::mouths::Mouths>,
 }
 
 /// What the face speaks.
@@ -302,6 +316,9 @@ pub struct SayRequest {
     /// Use a recording's words even when they do not seem to be what is said
     /// ([`crate::align::WordFit::matches`]); by default such a request is refused.
     pub accept_mismatch: bool,
+    /// Draw the appearance model's mouth even when the talker keeps recorded mouths (the A/B
+    /// baseline of [`crate::mouths`]).
+    pub model_mouth: bool,
 }
 
 impl SayRequest {
@@ -315,6 +332,7 @@ impl SayRequest {
             seed: 0,
             parts: None,
             accept_mismatch: false,
+            model_mouth: false,
         }
     }
 }
@@ -382,6 +400,18 @@ impl Talker {
         let part = |name: &str| manifest::member(dir, name).map_err(manifest_error);
         let (model_dir, codebook_dir, footage_dir) =
             (part(&m.model)?, part(&m.codebook)?, part(&m.footage)?);
+        if let Some(mouths) = &m.mouths {
+            let path = part(mouths)?;
+            if !path.is_dir() {
+                return Err(TalkerError::Mouths {
+                    dir: dir.into(),
+                    source: Box::new(crate::mouths::MouthsError::Inconsistent {
+                        dir: path,
+                        reason: "the folder named in talker.json is missing".into(),
+                    }),
+                });
+            }
+        }
         // The three parts load side by side (the model's hash reads every array of it).
         let (model, codebook, footage) = std::thread::scope(|scope| {
             let model = scope.spawn(|| {
@@ -429,6 +459,7 @@ impl Talker {
             codebook,
             footage,
             aligner: std::sync::OnceLock::new(),
+            mouths: std::sync::OnceLock::new(),
         })
     }
 
@@ -439,6 +470,25 @@ impl Talker {
         }
         let loaded = crate::align::Aligner::load_default(&[])?;
         Ok(self.aligner.get_or_init(|| loaded))
+    }
+
+    /// The talker's recorded mouths, if it keeps them: decoded on first use (a second or so)
+    /// and kept.
+    pub fn mouths(&self) -> Result<Option<&crate::mouths::Mouths>, TalkerError> {
+        let Some(name) = &self.manifest.mouths else {
+            return Ok(None);
+        };
+        if let Some(m) = self.mouths.get() {
+            return Ok(Some(m));
+        }
+        let failed = |source| TalkerError::Mouths {
+            dir: self.dir.clone(),
+            source: Box::new(source),
+        };
+        let path = manifest::member(&self.dir, name)
+            .map_err(|e| failed(crate::mouths::MouthsError::Manifest(e)))?;
+        let loaded = crate::mouths::Mouths::load(&path, &self.model).map_err(failed)?;
+        Ok(Some(self.mouths.get_or_init(|| loaded)))
     }
 
     /// A live phone recogniser on the talker's kept aligner (16 kHz sound).
@@ -611,20 +661,29 @@ impl Talker {
         };
         let staging = atomic::StagingDir::new(atomic::parent_of(out)).map_err(io(out))?;
         let performance = self.perform(request, staging.path())?;
-        let chosen = crate::render::choose_renderer(
-            request.renderer,
-            &self.model,
-            Edge::Articulators(DEFAULT_FEATHER),
-        )?;
-        let renderer = chosen.renderer.as_ref();
+        let edge = Edge::Articulators(DEFAULT_FEATHER);
+        let chosen = crate::render::choose_renderer(request.renderer, &self.model, edge)?;
         let mut notes = performance.notes.clone();
-        notes.extend(chosen.note.clone());
         let frames = performance
             .utterance
             .variants()
             .first()
             .map(|(_, f)| (*f).clone())
             .ok_or(SynthError::Empty)?;
+        let mouths = if request.model_mouth { None } else { self.mouths()? };
+        let sampled = mouths.map(|m| SampledRenderer::new(&self.model, edge, m, &frames));
+        let renderer: &dyn crate::render::Renderer = match &sampled {
+            Some(s) => {
+                if request.renderer == RendererChoice::Gpu {
+                    notes.push("recorded mouths are drawn on the CPU (--model-mouth draws on the GPU)".into());
+                }
+                s
+            }
+            None => {
+                notes.extend(chosen.note.clone());
+                chosen.renderer.as_ref()
+            }
+        };
         let size = self.footage.size;
         let sound = performance.sound.as_deref();
         let mut sink = Sink::create(out, size.0, size.1, frames.fps(), sound)?;

@@ -35,6 +35,28 @@ pub struct Writer {
 impl Writer {
     /// `width` and `height` must be even (4:2:0).
     pub fn create(path: &Path, width: u32, height: u32, fps: f64) -> Result<Self, Mp4Error> {
+        Self::create_at(path, width, height, fps, None)
+    }
+
+    /// [`Writer::create`] at one quantiser for every frame (`qp`, 0–51; lower keeps more):
+    /// for video kept as data, whose fine detail is the point.
+    pub fn create_with_qp(
+        path: &Path,
+        width: u32,
+        height: u32,
+        fps: f64,
+        qp: u8,
+    ) -> Result<Self, Mp4Error> {
+        Self::create_at(path, width, height, fps, Some(qp))
+    }
+
+    fn create_at(
+        path: &Path,
+        width: u32,
+        height: u32,
+        fps: f64,
+        qp: Option<u8>,
+    ) -> Result<Self, Mp4Error> {
         if width == 0 || height == 0 || width % 2 == 1 || height % 2 == 1 {
             return Err(Mp4Error::OddSize { width, height });
         }
@@ -43,11 +65,17 @@ impl Writer {
         let timescale = (fps * f64::from(FRAME_TICKS)).round() as u32;
         // About 0.25 bit per pixel: visually clean for faces; the codec report measures it.
         let bits = (f64::from(width * height) * fps * 0.25) as u32;
+        // One quantiser: rate control on, with bits to spare, held to it (with rate control
+        // off OpenH264 keeps its own default quantiser whatever the range).
+        let (bits, mode, qp) = match qp {
+            Some(q) => (bits.saturating_mul(64), RateControlMode::Bufferbased, QpRange::new(q, q)),
+            None => (bits, RateControlMode::Off, QpRange::new(12, 36)),
+        };
         let config = EncoderConfig::new()
             .bitrate(BitRate::from_bps(bits.max(100_000)))
             .max_frame_rate(FrameRate::from_hz(fps as f32))
-            .rate_control_mode(RateControlMode::Off)
-            .qp(QpRange::new(12, 36))
+            .rate_control_mode(mode)
+            .qp(qp)
             .skip_frames(false)
             // Speed over a few per cent of size: the faces are smooth and mostly static.
             .complexity(Complexity::Low)
