@@ -50,7 +50,7 @@ pub const DEFAULT_FRAMES: usize = 3000;
 /// distance in the reference frame: a run plays on while its frames stay within this of the
 /// nearest, so the detail changes source rarely (each change is a small jump in the teeth
 /// and lip lines).
-pub const SWITCH_COST: f32 = 0.6;
+pub const SWITCH_COST: f32 = 1.2;
 
 /// The video's quantiser (OpenH264's least): the detail is a few grey levels, which H.264's default (26) and the
 /// talker videos' range (12–36) smooth away (BENCHMARKS.md: detail kept against QP).
@@ -59,7 +59,7 @@ pub const QP: u8 = 12;
 /// The detail's gain when drawn: each resampling on its way (the recording into the reference
 /// frame, the reference frame onto the picture) softens it; chosen on GRID s1's validation
 /// split by the discriminator ([`crate::eval::realism`]).
-pub const DETAIL_GAIN: f32 = 1.0;
+pub const DETAIL_GAIN: f32 = 1.25;
 
 /// What can go wrong with recorded mouths.
 #[derive(Debug, Error)]
@@ -222,6 +222,9 @@ impl Mouths {
             .expect(layout)
             .map_err(|e| MouthsError::Model(e.to_string()))?;
         let sentences = &codebook.sentences;
+        if sentences.is_empty() {
+            return Err(MouthsError::Model("the codebook has no sentences to keep mouths of".into()));
+        }
         let mean_len = sentences.iter().map(|s| s.frames.len()).sum::<usize>()
             / sentences.len().max(1);
         let count = budget.div_ceil(mean_len.max(1)).clamp(1, sentences.len().max(1));
@@ -241,7 +244,6 @@ impl Mouths {
             });
         }
         // Each kept sentence's frames, in the reference frame's window, and their own b_a.
-        let done = std::sync::atomic::AtomicUsize::new(0);
         let (w, h) = (window.width, window.height);
         let stage = "keeping recorded mouths";
         progress(Progress { stage, done: 0, total: count });
@@ -273,36 +275,23 @@ impl Mouths {
                     }
                     images.push(crop);
                 }
-                done.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                 let n = images.len();
                 Ok((images, b_a, n))
             })
             .collect::<Result<_, _>>()?;
         progress(Progress { stage, done: count, total: count });
-        std::fs::create_dir_all(out).map_err(|source| MouthsError::Io {
-            path: out.into(),
-            source,
-        })?;
-        let video = out.join(VIDEO);
-        let mp4_error = |source| VideoError::Mp4 {
-            path: video.clone(),
-            source,
-        };
-        let mut sink = crate::video::mp4::Writer::create_with_qp(&video, w, h, codebook.fps, QP)
-            .map_err(mp4_error)?;
-        let (mut stretches, mut appearance) = (Vec::new(), Vec::new());
-        for (&i, (images, b_a, n)) in chosen.iter().zip(&kept) {
-            for image in images {
-                sink.write(image).map_err(mp4_error)?;
-            }
-            appearance.extend_from_slice(b_a);
-            stretches.push(Stretch {
+        let stretches: Vec<Stretch> = chosen
+            .iter()
+            .zip(&kept)
+            .map(|(&i, k)| Stretch {
                 name: sentences[i].name.clone(),
-                frames: *n,
-            });
-        }
-        sink.finish(&video, None).map_err(mp4_error)?;
+                frames: k.2,
+            })
+            .collect();
         let frames: usize = stretches.iter().map(|s| s.frames).sum();
+        let appearance: Vec<f32> = kept.iter().flat_map(|k| k.1.iter().copied()).collect();
+        let appearance =
+            Array2::from_shape_vec((frames, layout.appearance), appearance).expect("b_a per frame");
         let keys: Vec<f32> = chosen
             .iter()
             .zip(&stretches)
@@ -311,12 +300,7 @@ impl Mouths {
                 (0..s.frames).flat_map(move |t| lip_key(model, f.params(t).shape))
             })
             .collect();
-        let npy_error = |e: npy::NpyError| MouthsError::Manifest(e.into());
-        let appearance =
-            Array2::from_shape_vec((frames, layout.appearance), appearance).expect("b_a per frame");
-        npy::write(&out.join("appearance.npy"), appearance.view()).map_err(npy_error)?;
         let keys = Array2::from_shape_vec((frames, 2 * LIPS.len()), keys).expect("a key per frame");
-        npy::write(&out.join("keys.npy"), keys.view()).map_err(npy_error)?;
         let manifest = Manifest {
             format: FORMAT.into(),
             version: MOUTHS_VERSION,
@@ -325,12 +309,35 @@ impl Mouths {
             window,
             stretches,
         };
-        let json = serde_json::to_vec_pretty(&manifest).expect("mouths manifest serialises");
-        let path = out.join(MANIFEST);
-        crate::atomic::write_file(&path, &json).map_err(|source| MouthsError::Io {
-            path: path.clone(),
+        // Written whole beside `out`, then swapped in: a store is never half old, half new.
+        let io = |source| MouthsError::Io {
+            path: out.into(),
             source,
-        })?;
+        };
+        crate::atomic::replace_dir(
+            out,
+            FORMAT,
+            |dir| {
+                let video = dir.join(VIDEO);
+                let mp4_error = |source| VideoError::Mp4 {
+                    path: out.join(VIDEO),
+                    source,
+                };
+                let mut sink =
+                    crate::video::mp4::Writer::create_with_qp(&video, w, h, codebook.fps, QP)
+                        .map_err(mp4_error)?;
+                for image in kept.iter().flat_map(|k| &k.0) {
+                    sink.write(image).map_err(mp4_error)?;
+                }
+                sink.finish(&video, None).map_err(mp4_error)?;
+                let npy_error = |e: npy::NpyError| MouthsError::Manifest(e.into());
+                npy::write(&dir.join("appearance.npy"), appearance.view()).map_err(npy_error)?;
+                npy::write(&dir.join("keys.npy"), keys.view()).map_err(npy_error)?;
+                let json = serde_json::to_vec_pretty(&manifest).expect("mouths manifest serialises");
+                crate::atomic::write_file(&dir.join(MANIFEST), &json).map_err(io)
+            },
+            io,
+        )?;
         Mouths::load(out, model)
     }
 

@@ -304,6 +304,7 @@ fn damaged_copy(damage: impl FnOnce(&Path)) -> tempfile::TempDir {
     let src = grid_talker_dir();
     std::os::unix::fs::symlink(src.join("model"), t.join("model")).unwrap();
     std::os::unix::fs::symlink(src.join("codebook"), t.join("codebook")).unwrap();
+    std::os::unix::fs::symlink(src.join("mouths"), t.join("mouths")).unwrap();
     std::fs::create_dir(t.join("footage")).unwrap();
     for e in std::fs::read_dir(src.join("footage")).unwrap() {
         let e = e.unwrap();
@@ -312,6 +313,32 @@ fn damaged_copy(damage: impl FnOnce(&Path)) -> tempfile::TempDir {
     std::fs::copy(src.join("talker.json"), t.join("talker.json")).unwrap();
     damage(t);
     dir
+}
+
+/// `talker mouths` from a folder without the codebook's recordings is refused, saying what to
+/// give, and leaves the talker as it was; `--frames 0` takes the part away.
+#[test]
+fn talker_mouths_needs_the_codebook_recordings() {
+    let dir = damaged_copy(|_| {});
+    let t = dir.path().to_str().unwrap();
+    let manifest = || std::fs::read_to_string(dir.path().join("talker.json")).unwrap();
+    let before = manifest();
+    assert!(before.contains("\"mouths\""));
+    let recordings = common::root().join("tests/data/grid");
+    let from = recordings.to_str().unwrap();
+    let o = common::facespace(&["talker", "mouths", "--talker", t, "--from", from]);
+    assert!(!o.status.success());
+    let text = common::text(&o);
+    assert!(
+        text.contains("have no recording") && text.contains("give the folder of the codebook's videos"),
+        "{text}"
+    );
+    assert_eq!(manifest(), before, "nothing written");
+    let o = common::facespace(&["talker", "mouths", "--talker", t, "--from", from, "--frames", "0"]);
+    assert!(o.status.success(), "{}", common::text(&o));
+    assert!(common::text(&o).contains("draws the model's mouth"));
+    assert!(!manifest().contains("\"mouths\""));
+    assert!(Talker::load(dir.path()).unwrap().mouths().unwrap().is_none());
 }
 
 /// A damaged talker is refused naming the part, and `say` writes nothing.

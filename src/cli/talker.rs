@@ -16,7 +16,7 @@ pub enum TalkerCommand {
     #[command(
         after_help = "Example: facespace talker build --model out/model --codebook out/codebook --footage rec/a.mp4 rec/b.mp4 --name me -o out/me"
     )]
-    Build(BuildArgs),
+    Build(Box<BuildArgs>),
     /// Keep recorded mouths in a talker (or drop them with --frames 0): the mouth is then
     /// drawn with the talker's own teeth, lips and skin over the model's.
     #[command(
@@ -107,7 +107,7 @@ pub struct BuildArgs {
 
 pub fn run(command: TalkerCommand) -> Result<()> {
     match command {
-        TalkerCommand::Build(a) => build(a),
+        TalkerCommand::Build(a) => build(*a),
         TalkerCommand::Mouths(a) => mouths(a),
     }
 }

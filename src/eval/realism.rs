@@ -213,16 +213,16 @@ impl Logistic {
     pub fn fit(x: &[Vec<f64>], y: &[bool], ridge: f64) -> Logistic {
         let d = x.first().map_or(0, Vec::len) + 1;
         let mut beta = nalgebra::DVector::<f64>::zeros(d);
-        let row = |i: usize| {
-            nalgebra::DVector::from_iterator(d, x[i].iter().copied().chain(std::iter::once(1.0)))
+        let row = |xi: &[f64]| {
+            nalgebra::DVector::from_iterator(d, xi.iter().copied().chain(std::iter::once(1.0)))
         };
         for _ in 0..50 {
             let mut grad = nalgebra::DVector::<f64>::zeros(d);
             let mut hess = nalgebra::DMatrix::<f64>::zeros(d, d);
-            for i in 0..x.len() {
-                let xi = row(i);
+            for (xi, &yi) in x.iter().zip(y) {
+                let xi = row(xi);
                 let p = 1.0 / (1.0 + (-xi.dot(&beta)).exp());
-                grad += &xi * (f64::from(u8::from(y[i])) - p);
+                grad += &xi * (f64::from(u8::from(yi)) - p);
                 hess += &xi * xi.transpose() * (p * (1.0 - p));
             }
             for k in 0..d - 1 {

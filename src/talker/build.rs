@@ -221,21 +221,22 @@ pub fn parts_from_recordings(
 }
 
 /// Keeps about `frames` recorded mouths of `codebook`'s sentences, recorded as `from/NAME.mp4`,
-/// in `out/mouths` (those already there for the model when about as many), and returns the
-/// part's name for the manifest.
+/// in `out/mouths` (with `reuse`, those already there for the model when about as many), and
+/// returns the part's name for the manifest.
 fn keep_mouths(
     model: &FaceModel,
     codebook: &Codebook,
     from: &Path,
     frames: usize,
     out: &Path,
+    reuse: bool,
     progress: impl FnMut(Progress),
 ) -> Result<Option<String>, TalkerError> {
     let dir = out.join("mouths");
     // Kept when within a sentence of the number asked for.
     let kept = Mouths::load(&dir, model)
         .ok()
-        .filter(|m| m.len().abs_diff(frames) <= m.len() / m.stretches.len().max(1));
+        .filter(|m| reuse && m.len().abs_diff(frames) <= m.len() / m.stretches.len().max(1));
     if kept.is_none() {
         let recording = |name: &str| Some(from.join(format!("{name}.mp4"))).filter(|p| p.is_file());
         Mouths::build(model, codebook, recording, frames, &dir, progress).map_err(|source| {
@@ -257,12 +258,12 @@ pub fn set_mouths(
     frames: usize,
     progress: impl FnMut(Progress),
 ) -> Result<Talker, TalkerError> {
-    let talker = Talker::load(dir)?;
+    // The talker as it is but for its mouths, which may be missing or damaged.
+    let talker = Talker::load_without_mouths(dir)?;
     let mut manifest = talker.manifest.clone();
-    manifest.mouths = if frames == 0 {
-        None
-    } else {
-        keep_mouths(&talker.model, &talker.codebook, from, frames, dir, progress)?
+    manifest.mouths = match frames {
+        0 => None,
+        _ => keep_mouths(&talker.model, &talker.codebook, from, frames, dir, false, progress)?,
     };
     write_manifest(dir, &manifest)?;
     Talker::load(dir)
@@ -329,7 +330,7 @@ pub fn build(
     }
     let mouths = match &parts.mouths_from {
         Some(from) if parts.mouth_frames > 0 => {
-            keep_mouths(&model, &codebook, from, parts.mouth_frames, out, &mut progress)?
+            keep_mouths(&model, &codebook, from, parts.mouth_frames, out, true, &mut progress)?
         }
         _ => None,
     };

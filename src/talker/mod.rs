@@ -391,12 +391,24 @@ impl Talker {
     /// Loads the talker folder `dir`: the manifest (its version checked), then each part,
     /// each checked against the model. An error names the part.
     pub fn load(dir: &Path) -> Result<Talker, TalkerError> {
+        Self::load_with(dir, true)
+    }
+
+    /// [`Talker::load`] as if it kept no recorded mouths (to make them again).
+    pub(crate) fn load_without_mouths(dir: &Path) -> Result<Talker, TalkerError> {
+        Self::load_with(dir, false)
+    }
+
+    fn load_with(dir: &Path, mouths: bool) -> Result<Talker, TalkerError> {
         let manifest_error = |source| TalkerError::Manifest {
             dir: dir.into(),
             source: Box::new(source),
         };
-        let m: TalkerManifest =
+        let mut m: TalkerManifest =
             manifest::read(&dir.join(MANIFEST), FORMAT, TALKER_VERSION).map_err(manifest_error)?;
+        if !mouths {
+            m.mouths = None;
+        }
         let part = |name: &str| manifest::member(dir, name).map_err(manifest_error);
         let (model_dir, codebook_dir, footage_dir) =
             (part(&m.model)?, part(&m.codebook)?, part(&m.footage)?);
@@ -660,7 +672,16 @@ impl Talker {
             move |source| TalkerError::Io { path, source }
         };
         let staging = atomic::StagingDir::new(atomic::parent_of(out)).map_err(io(out))?;
-        let performance = self.perform(request, staging.path())?;
+        // The recorded mouths decode (about a second) while the speech is heard and synthesised.
+        let (performance, mouths) = std::thread::scope(|scope| {
+            let mouths = scope.spawn(|| {
+                if request.model_mouth { Ok(None) } else { self.mouths() }
+            });
+            let performance = self.perform(request, staging.path());
+            let mouths = mouths.join().unwrap_or_else(|e| std::panic::resume_unwind(e));
+            (performance, mouths)
+        });
+        let performance = performance?;
         let edge = Edge::Articulators(DEFAULT_FEATHER);
         let chosen = crate::render::choose_renderer(request.renderer, &self.model, edge)?;
         let mut notes = performance.notes.clone();
@@ -670,7 +691,7 @@ impl Talker {
             .first()
             .map(|(_, f)| (*f).clone())
             .ok_or(SynthError::Empty)?;
-        let mouths = if request.model_mouth { None } else { self.mouths()? };
+        let mouths = mouths?;
         let sampled = mouths.map(|m| SampledRenderer::new(&self.model, edge, m, &frames));
         let renderer: &dyn crate::render::Renderer = match &sampled {
             Some(s) => {
