@@ -32,7 +32,7 @@ use facespace::mouths::Mouths;
 use facespace::render::sampled::SampledRenderer;
 use facespace::render::{CpuRenderer, DEFAULT_FEATHER, Edge, Renderer};
 use facespace::shape::Landmarks;
-use facespace::talker::{SayRequest, Speech, Talker};
+use facespace::talker::Talker;
 
 struct Drawn {
     crops: Vec<Vec<f32>>,
@@ -87,14 +87,7 @@ fn main() {
         let clip = grid.join(format!("clips/{id}.mp4"));
         let (real_images, _, real_marks) = track::tracked(model, &clip);
         let staging = tempfile::tempdir().unwrap();
-        let request = SayRequest {
-            accept_mismatch: true,
-            ..SayRequest::new(Speech::Recording {
-                audio: clip.clone(),
-                words: grid::words(&grid, id),
-            })
-        };
-        let p = talker.perform(&request, staging.path()).unwrap();
+        let p = grid::perform(&talker, &grid, id, staging.path());
         let frames = p.utterance.variants()[0].1.clone();
         let n = frames.len().min(real_images.len());
         let frames = frames.slice(0..n);

@@ -64,15 +64,7 @@ fn main() {
         let clip = grid.join(format!("clips/{id}.mp4"));
         let (real_images, real, _) = track::tracked(&talker.model, &clip);
         let staging = tempfile::tempdir().unwrap();
-        // The corpus's own words: scored as given, never refused.
-        let request = SayRequest {
-            accept_mismatch: true,
-            ..SayRequest::new(Speech::Recording {
-                audio: clip.clone(),
-                words: grid::words(&grid, id),
-            })
-        };
-        let p = talker.perform(&request, staging.path()).unwrap();
+        let p = grid::perform(&talker, &grid, id, staging.path());
         let mut rows = Vec::new();
         // The same recording without its words: phones recognised from the sound alone.
         let heard = talker

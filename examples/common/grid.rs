@@ -52,3 +52,23 @@ pub fn args() -> (std::path::PathBuf, usize, String) {
         .map_or(usize::MAX, |n| n.parse().unwrap_or(usize::MAX));
     (grid, limit, args.next().unwrap_or_else(|| "test".into()))
 }
+
+/// Clip `id` performed by `talker` from its recorded sound and words (`say --audio CLIP
+/// --text WORDS`, up to the pixels), its speech staged in `staging`. The corpus's own words:
+/// scored as given, never refused.
+pub fn perform(
+    talker: &facespace::talker::Talker,
+    grid: &Path,
+    id: &str,
+    staging: &Path,
+) -> facespace::talker::Performance {
+    use facespace::talker::{SayRequest, Speech};
+    let request = SayRequest {
+        accept_mismatch: true,
+        ..SayRequest::new(Speech::Recording {
+            audio: grid.join(format!("clips/{id}.mp4")),
+            words: words(grid, id),
+        })
+    };
+    talker.perform(&request, staging).unwrap()
+}

@@ -86,6 +86,17 @@ pub trait Renderer: Sync {
     fn render_into(&self, params: FaceParams<'_>, canvas: &mut RgbImage)
     -> Result<(), RenderError>;
 
+    /// Draws frame `t` of the sequence `frames` onto `canvas`: its point alone, unless the
+    /// renderer draws a sequence ([`sampled::SampledRenderer`]).
+    fn render_frame(
+        &self,
+        frames: &Frames,
+        t: usize,
+        canvas: &mut RgbImage,
+    ) -> Result<(), RenderError> {
+        self.render_into(frames.params(t), canvas)
+    }
+
     /// Draws frames `start..start + canvases.len()` of `frames` onto their canvases (the CPU
     /// renderers: rayon across frames).
     fn render_batch(
@@ -97,7 +108,7 @@ pub trait Renderer: Sync {
         canvases
             .par_iter_mut()
             .enumerate()
-            .try_for_each(|(k, canvas)| self.render_into(frames.params(start + k), canvas))
+            .try_for_each(|(k, canvas)| self.render_frame(frames, start + k, canvas))
     }
 
     /// What renders, for reports (e.g. "CPU", or a GPU adapter and backend).

@@ -2,7 +2,6 @@
 //! each frame's recorded detail, chosen for the whole sequence before it is drawn.
 
 use image::RgbImage;
-use rayon::prelude::*;
 
 use super::{CpuRenderer, Edge, RenderError, Renderer};
 use crate::facespace::{FaceParams, Frames};
@@ -67,20 +66,14 @@ impl Renderer for SampledRenderer<'_> {
         self.cpu.render_into(params, canvas)
     }
 
-    fn render_batch(
+    fn render_frame(
         &self,
         frames: &Frames,
-        start: usize,
-        canvases: &mut [RgbImage],
+        t: usize,
+        canvas: &mut RgbImage,
     ) -> Result<(), RenderError> {
-        canvases
-            .par_iter_mut()
-            .enumerate()
-            .try_for_each(|(k, canvas)| {
-                let t = start + k;
-                let detail = self.picks.get(t).map(|pick| (self.mouths, pick));
-                self.cpu.render_with(frames.params(t), detail, canvas)
-            })
+        let detail = self.picks.get(t).map(|pick| (self.mouths, pick));
+        self.cpu.render_with(frames.params(t), detail, canvas)
     }
 
     fn describe(&self) -> String {
