@@ -40,13 +40,14 @@ fn tracked(model: &FaceModel, id: &str) -> (Vec<RgbImage>, Frames) {
     (images, Frames::from_rows(model.layout(), 25.0, rows).unwrap())
 }
 
-/// Recorded mouths kept from the committed clip `bbbf9a`, in `dir`, with its frames.
-fn store(model: &FaceModel, dir: &Path) -> (Mouths, Vec<RgbImage>, Frames) {
-    let (images, frames) = tracked(model, "bbbf9a");
-    let labels = root().join("tests/data/grid/bbbf9a.lab");
+/// A one-sentence codebook of the committed clip `id` in `model`'s space, with the clip's
+/// frames and their tracked points.
+pub fn codebook_of(model: &FaceModel, id: &str) -> (Codebook, Vec<RgbImage>, Frames) {
+    let (images, frames) = tracked(model, id);
+    let labels = root().join(format!("tests/data/grid/{id}.lab"));
     let sentence = Sentence {
-        name: "bbbf9a".into(),
-        source: "tests/data/grid/bbbf9a.mp4".into(),
+        name: id.into(),
+        source: format!("tests/data/grid/{id}.mp4"),
         frames: frames.clone(),
         segments: phonemes::read_labels(&labels, None, &PhoneMap::default()).unwrap(),
     };
@@ -59,6 +60,12 @@ fn store(model: &FaceModel, dir: &Path) -> (Mouths, Vec<RgbImage>, Frames) {
         &mut facespace::no_progress,
     )
     .unwrap();
+    (codebook, images, frames)
+}
+
+/// Recorded mouths kept from the committed clip `bbbf9a`, in `dir`, with its frames.
+fn store(model: &FaceModel, dir: &Path) -> (Mouths, Vec<RgbImage>, Frames) {
+    let (codebook, images, frames) = codebook_of(model, "bbbf9a");
     let recordings = root().join("tests/data/grid");
     let mouths = Mouths::build(
         model,
