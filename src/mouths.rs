@@ -247,7 +247,7 @@ impl Mouths {
         let (w, h) = (window.width, window.height);
         let stage = "keeping recorded mouths";
         progress(Progress { stage, done: 0, total: count });
-        let kept: Vec<(Vec<RgbImage>, Vec<f32>, usize)> = chosen
+        let kept: Vec<(Vec<RgbImage>, Vec<f32>)> = chosen
             .par_iter()
             .map(|&i| -> Result<_, MouthsError> {
                 let s = &sentences[i];
@@ -275,8 +275,7 @@ impl Mouths {
                     }
                     images.push(crop);
                 }
-                let n = images.len();
-                Ok((images, b_a, n))
+                Ok((images, b_a))
             })
             .collect::<Result<_, _>>()?;
         progress(Progress { stage, done: count, total: count });
@@ -285,7 +284,7 @@ impl Mouths {
             .zip(&kept)
             .map(|(&i, k)| Stretch {
                 name: sentences[i].name.clone(),
-                frames: k.2,
+                frames: k.0.len(),
             })
             .collect();
         let frames: usize = stretches.iter().map(|s| s.frames).sum();

@@ -683,7 +683,6 @@ impl Talker {
         });
         let performance = performance?;
         let edge = Edge::Articulators(DEFAULT_FEATHER);
-        let chosen = crate::render::choose_renderer(request.renderer, &self.model, edge)?;
         let mut notes = performance.notes.clone();
         let frames = performance
             .utterance
@@ -691,19 +690,24 @@ impl Talker {
             .first()
             .map(|(_, f)| (*f).clone())
             .ok_or(SynthError::Empty)?;
-        let mouths = mouths?;
-        let sampled = mouths.map(|m| SampledRenderer::new(&self.model, edge, m, &frames));
-        let renderer: &dyn crate::render::Renderer = match &sampled {
-            Some(s) => {
+        // With recorded mouths the CPU draws, and no GPU is looked for.
+        let (sampled, chosen) = match mouths? {
+            Some(m) => {
                 if request.renderer == RendererChoice::Gpu {
                     notes.push("recorded mouths are drawn on the CPU (--model-mouth draws on the GPU)".into());
                 }
-                s
+                (Some(SampledRenderer::new(&self.model, edge, m, &frames)), None)
             }
             None => {
+                let chosen = crate::render::choose_renderer(request.renderer, &self.model, edge)?;
                 notes.extend(chosen.note.clone());
-                chosen.renderer.as_ref()
+                (None, Some(chosen))
             }
+        };
+        let renderer: &dyn crate::render::Renderer = match (&sampled, &chosen) {
+            (Some(s), _) => s,
+            (None, Some(c)) => c.renderer.as_ref(),
+            (None, None) => unreachable!("a renderer is chosen when no mouths are drawn"),
         };
         let size = self.footage.size;
         let sound = performance.sound.as_deref();
