@@ -710,8 +710,6 @@ pub struct Stage<'t> {
     landmarks: Vec<crate::shape::Landmarks>,
     articulators: Option<Vec<u32>>,
     lighting: Option<Vec<f32>>,
-    /// The talker's recorded mouths, drawn over the model's by a [`Screen`].
-    mouths: Option<&'t crate::mouths::Mouths>,
 }
 
 /// What a page shows at one frame: the footage frame (and, in a dissolve, the one it is
@@ -743,7 +741,6 @@ impl<'t> Stage<'t> {
             landmarks: backdrop.landmarks,
             articulators: talker.model.articulators(),
             lighting,
-            mouths: talker.mouths().map_err(Box::new)?,
         })
     }
 
@@ -846,22 +843,25 @@ pub struct Screen<'s, 't> {
 }
 
 impl<'s, 't> Screen<'s, 't> {
-    /// `session` drawn on `stage` (a stage of the session's talker).
-    pub fn new(session: Session<'t>, stage: &'s Stage<'t>) -> Self {
+    /// `session` drawn on `stage` (a stage of the session's talker). The talker's recorded
+    /// mouths are decoded here, for the first screen (about a second), not with the stage: a
+    /// page renders face-space itself and never needs them.
+    pub fn new(session: Session<'t>, stage: &'s Stage<'t>) -> Result<Self, LiveError> {
         let talker = stage.talker;
         let edge = crate::render::Edge::Articulators(crate::render::DEFAULT_FEATHER);
-        Screen {
+        Ok(Screen {
             session,
             stage,
             renderer: crate::render::CpuRenderer::with_edge(&talker.model, edge),
-            chooser: stage
-                .mouths
+            chooser: talker
+                .mouths()
+                .map_err(Box::new)?
                 .map(|m| crate::mouths::Chooser::new(m, &talker.model)),
             footage: talker.footage.shown(stage.plan()),
             next: 0,
             settled: std::collections::VecDeque::new(),
             scaler: None,
-        }
+        })
     }
 
     /// [`Screen::new`] with pictures of `size` (width, height): each drawn in the footage's
@@ -871,12 +871,12 @@ impl<'s, 't> Screen<'s, 't> {
         stage: &'s Stage<'t>,
         size: (u32, u32),
         fit: crate::render::scale::Fit,
-    ) -> Self {
+    ) -> Result<Self, LiveError> {
         let scaler = crate::render::scale::Scaler::new(stage.talker.footage.size, size, fit);
-        Screen {
+        Ok(Screen {
             scaler: (!scaler.is_identity()).then_some(scaler),
-            ..Self::new(session, stage)
-        }
+            ..Self::new(session, stage)?
+        })
     }
 
     /// The pictures' size.
@@ -963,8 +963,8 @@ impl<'s, 't> Screen<'s, 't> {
             Some(f) if f.index == index => {
                 let model = &self.stage.talker.model;
                 let params = model.layout().split(&f.values)?;
-                let pick = self.chooser.as_mut().map(|c| c.next(params));
-                let detail = self.stage.mouths.zip(pick.as_ref());
+                let chosen = self.chooser.as_mut().map(|c| (c.mouths(), c.next(params)));
+                let detail = chosen.as_ref().map(|(m, pick)| (*m, pick));
                 self.renderer.render_with(params, detail, &mut image)?;
                 (true, f.speaking, model.landmarks(params)?.points)
             }

@@ -154,9 +154,6 @@ pub struct Pick {
     pub frames: [(u32, f32); 2],
 }
 
-/// BT.601 luma weights.
-const LUMA: [f32; 3] = [0.299, 0.587, 0.114];
-
 /// The region [`crate::render::Edge::Articulators`] draws: mask-pixel indices with a
 /// positive alpha.
 fn region(model: &FaceModel) -> Result<Vec<u32>, MouthsError> {
@@ -380,7 +377,7 @@ impl Mouths {
         let pca = &model.appearance.pca;
         let luma = |v: &[f32], p: u32| {
             let o = 3 * p as usize;
-            LUMA[0] * v[o] + LUMA[1] * v[o + 1] + LUMA[2] * v[o + 2]
+            crate::video::luma([v[o], v[o + 1], v[o + 2]].map(f64::from)) as f32
         };
         let mean: Vec<f32> = pixels.iter().map(|&p| luma(&pca.mean, p)).collect();
         let basis: Vec<Vec<f32>> = (0..n_a)
@@ -418,9 +415,7 @@ impl Mouths {
                     for ((o, &p), m) in out.iter_mut().zip(&pixels).zip(&model_luma) {
                         let q = &model.frame.pixels[p as usize];
                         let px = image.get_pixel(q.x - window.x, q.y - window.y).0;
-                        let y = LUMA[0] * f32::from(px[0])
-                            + LUMA[1] * f32::from(px[1])
-                            + LUMA[2] * f32::from(px[2]);
+                        let y = crate::video::luma(px.map(f64::from)) as f32;
                         *o = (y - m).round().clamp(-127.0, 127.0) as i8;
                     }
                 });
@@ -548,6 +543,11 @@ impl<'m> Chooser<'m> {
                 Pick { frames: [(best, 1.0), (0, 0.0)] }
             }
         }
+    }
+
+    /// The recorded mouths it chooses from.
+    pub fn mouths(&self) -> &'m Mouths {
+        self.mouths
     }
 
     /// Forgets the run playing (after an interruption the next frame starts afresh).

@@ -258,7 +258,7 @@ fn a_screen_draws_every_frame_over_the_footage() {
     let talker = talker();
     let stage = Stage::new(talker, 0).unwrap();
     let (sound, _) = clip("bbbf9a");
-    let mut screen = Screen::new(Session::new(talker), &stage);
+    let mut screen = Screen::new(Session::new(talker), &stage).unwrap();
     // Footage as it is: the stage's loop decoded on its own.
     let mut footage = talker.footage.shown(stage.plan());
     let mut own = Vec::new();

@@ -42,6 +42,8 @@ fn load(path: &std::path::Path) -> Result<&'static Loaded, String> {
     let talker: &'static _ =
         Box::leak(Box::new(facespace::talker::Talker::load(&key).map_err(|e| e.to_string())?));
     let stage: &'static _ = Box::leak(Box::new(Stage::new(talker, 0).map_err(|e| e.to_string())?));
+    // Decoded now, with the talker, so a session's first picture does not wait for them.
+    talker.mouths().map_err(|e| e.to_string())?;
     let l: &'static Loaded = Box::leak(Box::new(Loaded { talker, stage }));
     loaded.insert(key, l);
     Ok(l)
@@ -99,7 +101,7 @@ impl Talker {
         };
         let talker = self.loaded.talker;
         let report = py
-            .allow_threads(|| talker.say(&SayRequest::new(speech), &out, |_| {}))
+            .allow_threads(|| talker.say(&SayRequest::new(speech), &out, |_| {}).map_err(Box::new))
             .map_err(error)?;
         serde_json::to_string(&report).map_err(error)
     }
@@ -121,7 +123,7 @@ impl Talker {
         if size.0 == 0 || size.1 == 0 || size.0 > MAX_SIDE || size.1 > MAX_SIDE {
             return Err(error(format!("size {size:?}: each side 1 to {MAX_SIDE} pixels")));
         }
-        let screen = Screen::with_size(session, self.loaded.stage, size, fit);
+        let screen = Screen::with_size(session, self.loaded.stage, size, fit).map_err(error)?;
         Ok(LiveSession {
             size: screen.size(),
             screen: Some(screen),
@@ -198,7 +200,7 @@ impl LiveSession {
 
     /// Takes sound: `samples` as little-endian float32 bytes (mono, −1…1) at `rate` Hz.
     fn push_f32(&mut self, py: Python<'_>, samples: &[u8], rate: u32) -> PyResult<()> {
-        if samples.len() % 4 != 0 {
+        if !samples.len().is_multiple_of(4) {
             return Err(error("float32 samples: the byte count must be a multiple of 4"));
         }
         let x: Vec<f32> = samples

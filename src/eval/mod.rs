@@ -45,9 +45,14 @@ pub fn pearson(a: &[f64], b: &[f64]) -> f64 {
 
 /// Population standard deviation (0 for fewer than one value).
 pub fn standard_deviation(v: &[f64]) -> f64 {
+    mean_and_sd(v).1
+}
+
+/// Mean and population standard deviation (0 and 0 for an empty slice).
+pub fn mean_and_sd(v: &[f64]) -> (f64, f64) {
     let n = v.len().max(1) as f64;
     let m = v.iter().sum::<f64>() / n;
-    (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / n).sqrt()
+    (m, (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / n).sqrt())
 }
 
 /// Dynamic time warping between two `frames × dims` series with Euclidean frame distance;

@@ -203,8 +203,7 @@ pub fn lip_motion(model: &FaceModel, frames: &Frames) -> f64 {
 /// the face) scores below the recorded one. Images under 3×3 pixels score 0.
 pub fn mouth_sharpness(images: &[image::RgbImage], landmarks: &[Vec<Point>]) -> f64 {
     let grey = |im: &image::RgbImage, x: u32, y: u32| {
-        let p = im.get_pixel(x, y).0;
-        0.299 * f64::from(p[0]) + 0.587 * f64::from(p[1]) + 0.114 * f64::from(p[2])
+        crate::video::luma(im.get_pixel(x, y).0.map(f64::from))
     };
     let mut total = 0.0;
     for (im, l) in images.iter().zip(landmarks) {
@@ -219,18 +218,28 @@ pub fn mouth_sharpness(images: &[image::RgbImage], landmarks: &[Vec<Point>]) -> 
         let clamp = |v: f64, hi: u32| (v.max(1.0) as u32).min(hi);
         let (x0, x1) = (clamp(x0 - 3.0, im.width() - 2), clamp(x1 + 3.0, im.width() - 2));
         let (y0, y1) = (clamp(y0 - 3.0, im.height() - 2), clamp(y1 + 3.0, im.height() - 2));
-        let (mut sum, mut n) = (0.0f64, 0.0f64);
-        for y in y0..=y1 {
-            for x in x0..=x1 {
-                let gx = grey(im, x + 1, y) - grey(im, x - 1, y);
-                let gy = grey(im, x, y + 1) - grey(im, x, y - 1);
-                sum += 0.5 * gx.hypot(gy);
-                n += 1.0;
-            }
-        }
-        total += sum / n.max(1.0);
+        total += mean_gradient(|x, y| grey(im, x, y), x0..=x1, y0..=y1);
     }
     total / images.len().max(1) as f64
+}
+
+/// The mean gradient magnitude (central differences) of `grey` over the pixels `xs × ys`,
+/// each of which has its four neighbours in the image.
+pub(crate) fn mean_gradient(
+    grey: impl Fn(u32, u32) -> f64,
+    xs: std::ops::RangeInclusive<u32>,
+    ys: std::ops::RangeInclusive<u32>,
+) -> f64 {
+    let (mut sum, mut n) = (0.0f64, 0.0f64);
+    for y in ys {
+        for x in xs.clone() {
+            let gx = grey(x + 1, y) - grey(x - 1, y);
+            let gy = grey(x, y + 1) - grey(x, y - 1);
+            sum += 0.5 * gx.hypot(gy);
+            n += 1.0;
+        }
+    }
+    sum / n.max(1.0)
 }
 
 /// Per appearance parameter, the synthesised within-sentence s.d. over the real one's.

@@ -113,8 +113,8 @@ impl Cropper {
                     self.origin[1] + self.step * (v as f64 + 0.5),
                 ];
                 let p = to_image.apply(r);
-                let [red, green, blue] = crate::warp::sample_bilinear(image, p[0] - 0.5, p[1] - 0.5);
-                out.push(0.299 * red + 0.587 * green + 0.114 * blue);
+                let rgb = crate::warp::sample_bilinear(image, p[0] - 0.5, p[1] - 0.5);
+                out.push(crate::video::luma(rgb.map(f64::from)) as f32);
             }
         }
         out
@@ -123,16 +123,9 @@ impl Cropper {
 
 /// Mean gradient magnitude (central differences) of a crop: its sharpness.
 pub fn sharpness(crop: &[f32]) -> f64 {
-    let (w, h) = CROP;
-    let mut sum = 0.0;
-    for y in 1..h - 1 {
-        for x in 1..w - 1 {
-            let gx = f64::from(crop[y * w + x + 1] - crop[y * w + x - 1]) / 2.0;
-            let gy = f64::from(crop[(y + 1) * w + x] - crop[(y - 1) * w + x]) / 2.0;
-            sum += (gx * gx + gy * gy).sqrt();
-        }
-    }
-    sum / ((w - 2) * (h - 2)) as f64
+    let (w, h) = (CROP.0 as u32, CROP.1 as u32);
+    let grey = |x: u32, y: u32| f64::from(crop[(y * w + x) as usize]);
+    super::mouth::mean_gradient(grey, 1..=w - 2, 1..=h - 2)
 }
 
 /// Mean absolute Laplacian of a crop: its finest detail.
@@ -167,10 +160,8 @@ pub fn temporal_change(crops: &[Vec<f32>]) -> f64 {
         / n as f64
 }
 
-fn mean_sd(v: impl Iterator<Item = f64> + Clone) -> (f64, f64) {
-    let n = v.clone().count().max(1) as f64;
-    let m = v.clone().sum::<f64>() / n;
-    (m, (v.map(|x| (x - m).powi(2)).sum::<f64>() / n).sqrt())
+fn mean_sd(v: impl Iterator<Item = f64>) -> (f64, f64) {
+    super::mean_and_sd(&v.collect::<Vec<_>>())
 }
 
 /// The features of one window of crops, with `pca` fitted on training crops: sharpness

@@ -106,7 +106,7 @@ pub fn measure(
 pub fn grey(image: &RgbImage) -> Vec<f64> {
     image
         .pixels()
-        .map(|p| 0.299 * f64::from(p.0[0]) + 0.587 * f64::from(p.0[1]) + 0.114 * f64::from(p.0[2]))
+        .map(|p| crate::video::luma(p.0.map(f64::from)))
         .collect()
 }
 

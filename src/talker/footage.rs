@@ -775,8 +775,7 @@ pub(crate) fn thumbnail(image: &RgbImage) -> Vec<f32> {
     let mut out = vec![0f32; (w * h) as usize];
     for y in 0..h * THUMB {
         for x in 0..w * THUMB {
-            let p = image.get_pixel(x, y).0;
-            let grey = 0.299 * f32::from(p[0]) + 0.587 * f32::from(p[1]) + 0.114 * f32::from(p[2]);
+            let grey = crate::video::luma(image.get_pixel(x, y).0.map(f64::from)) as f32;
             out[((y / THUMB) * w + x / THUMB) as usize] += grey;
         }
     }

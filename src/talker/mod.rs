@@ -268,6 +268,19 @@ pub struct Talker {
     mouths: std::sync::OnceLock<crate::mouths::Mouths>,
 }
 
+/// The value kept in `cell`, loaded by `load` the first time. A failed load is not kept (the
+/// next call tries again); two threads racing both load, and one result is kept.
+fn loaded_once<T, E>(
+    cell: &std::sync::OnceLock<T>,
+    load: impl FnOnce() -> Result<T, E>,
+) -> Result<&T, E> {
+    if let Some(v) = cell.get() {
+        return Ok(v);
+    }
+    let loaded = load()?;
+    Ok(cell.get_or_init(|| loaded))
+}
+
 /// What the face speaks.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Speech {
@@ -477,11 +490,7 @@ impl Talker {
 
     /// The talker's own aligner (the committed dictionary), loaded on first use and kept.
     pub(crate) fn default_aligner(&self) -> Result<&crate::align::Aligner, crate::align::AlignError> {
-        if let Some(a) = self.aligner.get() {
-            return Ok(a);
-        }
-        let loaded = crate::align::Aligner::load_default(&[])?;
-        Ok(self.aligner.get_or_init(|| loaded))
+        loaded_once(&self.aligner, || crate::align::Aligner::load_default(&[]))
     }
 
     /// The talker's recorded mouths, if it keeps them: decoded on first use (a second or so)
@@ -490,17 +499,15 @@ impl Talker {
         let Some(name) = &self.manifest.mouths else {
             return Ok(None);
         };
-        if let Some(m) = self.mouths.get() {
-            return Ok(Some(m));
-        }
-        let failed = |source| TalkerError::Mouths {
+        let load = || {
+            let path = manifest::member(&self.dir, name)
+                .map_err(crate::mouths::MouthsError::Manifest)?;
+            crate::mouths::Mouths::load(&path, &self.model)
+        };
+        loaded_once(&self.mouths, load).map(Some).map_err(|source| TalkerError::Mouths {
             dir: self.dir.clone(),
             source: Box::new(source),
-        };
-        let path = manifest::member(&self.dir, name)
-            .map_err(|e| failed(crate::mouths::MouthsError::Manifest(e)))?;
-        let loaded = crate::mouths::Mouths::load(&path, &self.model).map_err(failed)?;
-        Ok(Some(self.mouths.get_or_init(|| loaded)))
+        })
     }
 
     /// A live phone recogniser on the talker's kept aligner (16 kHz sound).

@@ -21,6 +21,13 @@ pub use source::{DEFAULT_FPS, Source, VideoInfo};
 use crate::atomic;
 use crate::options::InvalidOption;
 
+/// BT.601 luma of an RGB pixel, in its units: the one grey of every grey measure, the
+/// footage's thumbnails and the recorded mouths' detail.
+/// (f64: the measures compare it to analytic values; f32 callers round the result.)
+pub fn luma([r, g, b]: [f64; 3]) -> f64 {
+    0.299 * r + 0.587 * g + 0.114 * b
+}
+
 /// Image file extensions a frame or training folder may hold.
 pub const IMAGE_EXTENSIONS: &[&str] = &["png", "jpg", "jpeg", "ppm", "pgm", "pnm"];
 
