@@ -1,7 +1,9 @@
 //! Does the mouth look recorded? (issue 38; BENCHMARKS.md "Recorded mouths") GRID s1's clips
-//! of a split (recorded speech), each said by the committed talker from its own sound and words
-//! over his idle footage as `say` draws it, with the mouth from the appearance model (PCA)
-//! and with the detail of recorded mouths ([`facespace::mouths`]), against the clip itself:
+//! of a split (recorded speech), each synthesised by the committed talker from its own sound
+//! and words (its settings, as `say` hears and synthesises), with the mouth from the appearance
+//! model (PCA) and with the detail of recorded mouths ([`facespace::mouths`]), drawn two ways —
+//! over the clip's own video (its pose, anchored to its face and re-lit to it: the issue's
+//! test) and over the talker's idle footage as `say` draws it — against the clip itself:
 //!
 //! - the discriminator of [`facespace::eval::realism`]: a logistic regression on one-second
 //!   windows of head-stabilised grey mouth crops, cross-validated by sentence (0.5: cannot
@@ -13,7 +15,9 @@
 //! `cargo run --release --example grid_realism -- ../shared/data/grid-s1 [LIMIT|all] [SPLIT]
 //! [MOUTHS]` (SPLIT: `test`, the default, or `validation`; MOUTHS: a mouths folder other than
 //! the talker's, e.g. one built with other settings). `FACESPACE_SWITCH_COST` sets the
-//! chooser's switch cost (chosen on validation).
+//! chooser's switch cost and `FACESPACE_DETAIL_GAIN` the detail's gain (chosen on validation);
+//! `FACESPACE_FEATURES` adds each feature's accuracy alone, `FACESPACE_GEOMETRY` where the lips
+//! sit below the nose in each clip and each drawing (the footage's head pitch).
 
 #[path = "common/grid.rs"]
 mod grid;
@@ -32,6 +36,9 @@ use facespace::mouths::Mouths;
 use facespace::render::sampled::SampledRenderer;
 use facespace::render::{CpuRenderer, DEFAULT_FEATHER, Edge, Renderer};
 use facespace::shape::Landmarks;
+use facespace::codec::EncodeOptions;
+use facespace::synth::backdrop::{Backdrop, PoseMode};
+use facespace::synth::{Request, Smoothing, synthesise};
 use facespace::talker::Talker;
 
 struct Drawn {
@@ -52,17 +59,41 @@ fn main() {
         Some(dir) => Mouths::load(Path::new(dir), model).unwrap(),
         None => talker.mouths().unwrap().expect("the talker keeps recorded mouths").clone(),
     };
-    let mut mouths = mouths;
-    if let Ok(g) = std::env::var("FACESPACE_DETAIL_GAIN") {
-        mouths.gain = g.parse().unwrap();
+    // One store per detail gain compared (`FACESPACE_DETAIL_GAIN=1.25,1.5`).
+    let gains: Vec<f32> = std::env::var("FACESPACE_DETAIL_GAIN")
+        .map(|g| g.split(',').map(|v| v.parse().unwrap()).collect())
+        .unwrap_or(vec![mouths.gain]);
+    let stores: Vec<Mouths> = gains
+        .iter()
+        .map(|&gain| {
+            let mut m = mouths.clone();
+            m.gain = gain;
+            m
+        })
+        .collect();
+    // The systems scored against the recording, in the order they are drawn.
+    let mut systems = Vec::new();
+    for place in ["synthesis over the clip's own video", "say over the idle footage"] {
+        systems.push(format!("{place}, the model's mouth (PCA)"));
+        for g in &gains {
+            systems.push(format!("{place}, recorded mouths, detail gain {g}"));
+        }
     }
     let switch = std::env::var("FACESPACE_SWITCH_COST")
         .ok()
         .map(|v| v.parse::<f32>().unwrap());
+    // `FACESPACE_STRIP=ID:FIRST:OUT.jpg`: the README's strip of one sentence.
+    let strip = std::env::var("FACESPACE_STRIP").ok().map(|s| {
+        let parts: Vec<&str> = s.splitn(3, ':').collect();
+        (parts[0].to_string(), parts[1].parse::<usize>().unwrap(), parts[2].to_string())
+    });
     let cropper = Cropper::new(model).unwrap();
     let edge = Edge::Articulators(DEFAULT_FEATHER);
     let pca = CpuRenderer::with_edge(model, edge);
-    let ids = grid::split(&grid, &split, limit);
+    let mut ids = grid::split(&grid, &split, limit);
+    if let Some((id, ..)) = &strip {
+        ids = vec![id.clone()];
+    }
     let draw = |images: &[image::RgbImage], marks: &[Vec<[f64; 2]>]| -> Drawn {
         let rows: Vec<f32> = images
             .iter()
@@ -80,40 +111,87 @@ fn main() {
         }
     };
     // Per sentence: the recording, then each system.
-    let mut sentences: Vec<[Drawn; 3]> = Vec::new();
+    let mut sentences: Vec<Vec<Drawn>> = Vec::new();
     let mut switches = 0usize;
     let mut frames_total = 0usize;
+    let settings = &talker.manifest.settings;
     for id in &ids {
         let clip = grid.join(format!("clips/{id}.mp4"));
         let (real_images, _, real_marks) = track::tracked(model, &clip);
         let staging = tempfile::tempdir().unwrap();
         let p = grid::perform(&talker, &grid, id, staging.path());
-        let frames = p.utterance.variants()[0].1.clone();
-        let n = frames.len().min(real_images.len());
-        let frames = frames.slice(0..n);
-        let marks = facespace::eval::landmarks(model, &frames);
-        let mut sampled = SampledRenderer::new(model, edge, &mouths, &frames);
-        if let Some(s) = switch {
-            sampled = SampledRenderer::with_switch_cost(model, edge, &mouths, &frames, s);
-        }
-        switches += sampled.picks().iter().filter(|p| p.frames[1].1 > 0.0).count();
-        frames_total += n;
-        let images = |r: &dyn Renderer| {
-            facespace::render::images(r, &frames, p.backdrop.background().unwrap()).unwrap()
+        let n = p.utterance.variants()[0].1.len().min(real_images.len());
+        // The same phones synthesised over the clip's own video (its pose, anchored to its
+        // face, re-lit to it), as the issue's test draws them.
+        let own = Backdrop::video(
+            model,
+            &clip,
+            PoseMode::Replay,
+            n,
+            &EncodeOptions::default(),
+            facespace::no_progress,
+        )
+        .unwrap();
+        let request = Request {
+            pose: own.pose.clone(),
+            ..Request::new(p.target.clone(), 25.0, Smoothing::On(settings.smoothing))
         };
-        let (a, b) = (images(&pca), images(&sampled));
-        sentences.push([
-            draw(&real_images[..n], &real_marks[..n]),
-            draw(&a, &marks),
-            draw(&b, &marks),
-        ]);
+        let mut over_own =
+            synthesise(settings.synthesiser().as_ref(), &talker.codebook, request).unwrap();
+        own.anchor_region(model, &mut over_own).unwrap();
+        own.match_lighting(model, &talker.codebook, &mut over_own);
+        let mut drawn = vec![draw(&real_images[..n], &real_marks[..n])];
+        // Rows of the README's strip: the recording, then each system over its own video.
+        let mut strip_rows = vec![real_images[..n].to_vec()];
+        for (utterance, backdrop) in [(&over_own, &own), (&p.utterance, &p.backdrop)] {
+            let frames = utterance.variants()[0].1.slice(0..n);
+            let marks = facespace::eval::landmarks(model, &frames);
+            let mut renderers: Vec<Box<dyn Renderer + '_>> = vec![Box::new(pca.clone())];
+            for store in &stores {
+                let sampled = match switch {
+                    Some(s) => SampledRenderer::with_switch_cost(model, edge, store, &frames, s),
+                    None => SampledRenderer::new(model, edge, store, &frames),
+                };
+                switches += sampled.picks().iter().filter(|p| p.frames[1].1 > 0.0).count();
+                frames_total += n;
+                renderers.push(Box::new(sampled));
+            }
+            for r in &renderers {
+                let r = r.as_ref();
+                let images =
+                    facespace::render::images(r, &frames, backdrop.background().unwrap()).unwrap();
+                drawn.push(draw(&images, &marks));
+                if std::ptr::eq(backdrop, &own) {
+                    strip_rows.push(images);
+                }
+            }
+            if std::env::var_os("FACESPACE_GEOMETRY").is_some() {
+                // Where the lips sit below the nose tip, in interocular distances: a head's
+                // pitch moves them, and a similarity fitted to the eyes and nose cannot undo it.
+                let below = |m: &[Vec<[f64; 2]>]| {
+                    let mut acc = [0f64; 3];
+                    for l in m {
+                        let iod = (l[45][0] - l[36][0]).hypot(l[45][1] - l[36][1]);
+                        for (a, i) in acc.iter_mut().zip([51usize, 57, 48]) {
+                            *a += (l[i][1] - l[30][1]) / iod / m.len() as f64;
+                        }
+                    }
+                    acc.map(|v| format!("{v:.3}")).join(" ")
+                };
+                println!("{id}: lips 51 57 48 below the nose, real {}, drawn {}", below(&real_marks[..n]), below(&marks));
+            }
+        }
+        if let Some((_, first, out)) = strip.as_ref().filter(|s| s.0 == *id) {
+            save_strip(&strip_rows, &real_marks[*first + STRIP_FRAMES / 2], *first, out);
+        }
+        sentences.push(drawn);
         eprint!(".");
     }
     eprintln!();
     let reals: Vec<&Frames> = sentences.iter().map(|s| &s[0].projected).collect();
     let pc = MouthPc::fit(model, &reals).unwrap();
     println!(
-        "GRID s1 {split} split (recorded), {} sentences, `say --audio CLIP --text WORDS` over the talker's idle footage; {} recorded mouths kept, source changes on {:.1} % of frames:\n",
+        "GRID s1 {split} split (recorded), {} sentences, from each clip's sound and words; {} recorded mouths kept, source changes on {:.1} % of frames:\n",
         sentences.len(),
         mouths.len(),
         100.0 * switches as f64 / frames_total.max(1) as f64
@@ -133,21 +211,23 @@ fn main() {
         "| the recording, its even sentences against its odd ones (sanity) | {:.3} | 1 | 1 | 1 | 1 |",
         accuracy(&halves)
     );
-    let mean = |f: &dyn Fn(&[Drawn; 3]) -> f64| {
-        sentences.iter().map(f).sum::<f64>() / sentences.len() as f64
+    let mean = |f: &dyn Fn(&[Drawn]) -> f64| {
+        sentences.iter().map(|s| f(s)).sum::<f64>() / sentences.len() as f64
     };
-    for (k, name) in [(1, "say, the mouth from the model (PCA)"), (2, "say, recorded mouths")] {
-        let pairs: Vec<Pair> = sentences
+    let pairs_of = |k: usize| -> Vec<Pair> {
+        sentences
             .iter()
             .map(|s| Pair {
                 a: s[0].crops.clone(),
                 b: s[k].crops.clone(),
             })
-            .collect();
+            .collect()
+    };
+    for (k, name) in systems.iter().enumerate().map(|(k, n)| (k + 1, n)) {
         let sharp = |d: &Drawn| d.crops.iter().map(|c| sharpness(c)).sum::<f64>() / d.crops.len() as f64;
         println!(
             "| {name} | {:.3} | {:.2} | {:.2} | {:.3} | {:.3} |",
-            accuracy(&pairs),
+            accuracy(&pairs_of(k)),
             mean(&|s| sharp(&s[k]) / sharp(&s[0])),
             mean(&|s| temporal_change(&s[k].crops) / temporal_change(&s[0].crops)),
             mean(&|s| pearson(&pc.series(&s[k].projected), &pc.series(&s[0].projected))),
@@ -155,37 +235,38 @@ fn main() {
         );
     }
     if std::env::var_os("FACESPACE_FEATURES").is_some() {
-        for k in [1, 2] {
-            let pairs: Vec<Pair> = sentences
-                .iter()
-                .map(|s| Pair { a: s[0].crops.clone(), b: s[k].crops.clone() })
-                .collect();
+        for (k, name) in systems.iter().enumerate().map(|(k, n)| (k + 1, n)) {
+            let pairs = pairs_of(k);
             let each: Vec<String> = FEATURES
                 .iter()
                 .enumerate()
-                .map(|(f, name)| format!("{name} {:.2}", accuracy_on(&pairs, &[f])))
+                .map(|(f, feature)| format!("{feature} {:.2}", accuracy_on(&pairs, &[f])))
                 .collect();
-            println!("system {k}, one feature at a time: {}", each.join(", "));
-        }
-        let sample: Vec<&[f32]> = sentences
-            .iter()
-            .flat_map(|s| s[0].crops.iter().step_by(5))
-            .map(Vec::as_slice)
-            .collect();
-        let pca = facespace::pca::PcaModel::fit(&sample, facespace::pca::Components::Count(5)).unwrap();
-        for k in 0..3 {
-            let mut sum = vec![0.0; FEATURES.len()];
-            let mut n = 0.0;
-            for s in &sentences {
-                for w in s[k].crops.chunks_exact(25) {
-                    let f = facespace::eval::realism::features(w, &pca);
-                    sum.iter_mut().zip(&f).for_each(|(a, b)| *a += b);
-                    n += 1.0;
-                }
-            }
-            let each: Vec<String> = FEATURES.iter().zip(&sum).map(|(name, v)| format!("{name} {:.3}", v / n)).collect();
-            println!("side {k} mean features: {}", each.join(", "));
+            println!("{name}, one feature at a time: {}", each.join(", "));
         }
     }
     println!("\n({:.0} s on this machine)", clock.elapsed().as_secs_f64());
+}
+
+/// Consecutive frames in the README's strip.
+const STRIP_FRAMES: usize = 6;
+
+/// `STRIP_FRAMES` frames from `first` of each row (the recording, then each system), as 3×
+/// crops of one box around the lips of `lips` (the recording's middle frame), one row each.
+fn save_strip(rows: &[Vec<image::RgbImage>], lips: &[[f64; 2]], first: usize, out: &str) {
+    let mouth = &lips[48..68];
+    let cx = mouth.iter().map(|p| p[0]).sum::<f64>() / 20.0;
+    let cy = mouth.iter().map(|p| p[1]).sum::<f64>() / 20.0;
+    let (w, h) = (64u32, 44u32);
+    let (x0, y0) = ((cx - w as f64 / 2.0).round() as u32, (cy - h as f64 / 2.0).round() as u32);
+    let (sw, sh) = (3 * w, 3 * h);
+    let mut strip = image::RgbImage::new(sw * STRIP_FRAMES as u32 + (STRIP_FRAMES as u32 - 1) * 4, sh * rows.len() as u32 + (rows.len() as u32 - 1) * 4);
+    for (r, row) in rows.iter().enumerate() {
+        for k in 0..STRIP_FRAMES {
+            let crop = image::imageops::crop_imm(&row[first + k], x0, y0, w, h).to_image();
+            let big = image::imageops::resize(&crop, sw, sh, image::imageops::FilterType::Nearest);
+            image::imageops::replace(&mut strip, &big, i64::from(k as u32 * (sw + 4)), i64::from(r as u32 * (sh + 4)));
+        }
+    }
+    strip.save(out).unwrap();
 }
