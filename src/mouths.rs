@@ -9,7 +9,9 @@
 //! texture's luma less the model's own reconstruction of that frame, so only what the model
 //! cannot draw — is added to the synthesised texture in the reference frame. The model keeps
 //! the colour, lighting and low frequencies it tracks and re-lights; the recording gives the
-//! rest, warped to the synthesised shape by the same piecewise affine warp.
+//! rest, warped to the synthesised shape by the same piecewise affine warp. The recordings
+//! are taken into the reference frame by bicubic sampling ([`crate::warp::sample_cubic`]):
+//! the detail is resampled once more when drawn, and two bilinear passes lose the finest of it.
 //!
 //! The folder: `mouths.json`, `mouths.mp4` (the region drawn over the face — the lips and jaw
 //! of [`crate::render::Edge::Articulators`] — of every kept frame in the reference frame, as
@@ -59,8 +61,9 @@ pub const QP: u8 = 12;
 /// The detail's gain when drawn: each resampling on its way (the recording into the reference
 /// frame, the reference frame onto the picture) softens it. Chosen on GRID s1's validation
 /// split by the discriminator ([`crate::eval::realism`]) with the synthesis drawn over each
-/// clip's own video (1.25 / 1.5 / 1.75: 0.89 / 0.76 / 0.86; BENCHMARKS "Recorded mouths").
-pub const DETAIL_GAIN: f32 = 1.5;
+/// clip's own video (a bicubic store, gain 1 / 1.25 / 1.5: 0.91 / 0.69 / 0.88; BENCHMARKS
+/// "Recorded mouths").
+pub const DETAIL_GAIN: f32 = 1.25;
 
 /// What can go wrong with recorded mouths.
 #[derive(Debug, Error)]
@@ -261,7 +264,10 @@ impl Mouths {
                     let landmarks = model
                         .landmarks(params)
                         .map_err(|e| MouthsError::Model(e.to_string()))?;
-                    crate::warp::to_reference_into(&model.frame, &image, &landmarks.points, &mut texture)
+                    // Sampled bicubically: the detail is resampled again when drawn, and two
+                    // bilinear passes smooth away what a viewer (and the discriminator) sees.
+                    let (frame, cubic) = (&model.frame, crate::warp::Sampling::Cubic);
+                    crate::warp::to_reference_with(frame, &image, &landmarks.points, &mut texture, cubic)
                         .map_err(|e| MouthsError::Model(e.to_string()))?;
                     b_a.extend(model.appearance.project(&texture));
                     let mut crop = RgbImage::new(w, h);
