@@ -255,14 +255,15 @@ fn source_maps(frame: &ReferenceFrame, landmarks: &[Point]) -> Vec<[f64; 6]> {
         .collect()
 }
 
-/// Gathers `C`-channel samples of `data` (`w × h`) at each mask pixel's source point.
-fn gather<T: Copy + Send + Sync, const C: usize>(
+/// Gathers `C`-channel samples at each mask pixel's source point in an image of `w × h`:
+/// `sample(x, y, inside)`, `inside` when the pixel's triangle lies wholly in the image (no
+/// clamping needed).
+fn gather<const C: usize>(
     frame: &ReferenceFrame,
-    data: &[T],
     (w, h): (usize, usize),
     landmarks: &[Point],
     out: &mut [f32],
-    to_f32: impl Fn(T) -> f32 + Sync,
+    sample: impl Fn(f64, f64, bool) -> [f32; C] + Sync,
 ) {
     const CHUNK: usize = 2048;
     // A triangle whose image vertices all lie inside needs no clamping at any of its pixels
@@ -280,11 +281,7 @@ fn gather<T: Copy + Send + Sync, const C: usize>(
                 let (px, py) = (f64::from(p.x), f64::from(p.y));
                 let x = m[0] + m[1] * px + m[2] * py;
                 let y = m[3] + m[4] * px + m[5] * py;
-                o.copy_from_slice(&if *inside {
-                    sample_inside::<T, C>(data, w, x, y, &to_f32)
-                } else {
-                    sample::<T, C>(data, w, h, x, y, &to_f32)
-                });
+                o.copy_from_slice(&sample(x, y, *inside));
             }
         });
 }
@@ -453,25 +450,17 @@ pub fn to_reference_with(
             found: out.len(),
         });
     }
-    let size = (image.width() as usize, image.height() as usize);
+    let (w, h) = (image.width() as usize, image.height() as usize);
+    let (data, to_f32) = (image.as_raw(), |v: u8| v as f32);
     match sampling {
-        Sampling::Bilinear => {
-            gather::<u8, 3>(frame, image.as_raw(), size, landmarks, out, |v| v as f32);
-        }
-        Sampling::Cubic => {
-            let maps = source_maps(frame, landmarks);
-            out.par_chunks_mut(2048 * 3)
-                .zip(frame.pixels.par_chunks(2048))
-                .for_each(|(out, pixels)| {
-                    for (o, p) in out.chunks_exact_mut(3).zip(pixels) {
-                        let m = &maps[p.triangle as usize];
-                        let (px, py) = (f64::from(p.x), f64::from(p.y));
-                        let x = m[0] + m[1] * px + m[2] * py;
-                        let y = m[3] + m[4] * px + m[5] * py;
-                        o.copy_from_slice(&sample_cubic(image, x, y));
-                    }
-                });
-        }
+        Sampling::Bilinear => gather(frame, (w, h), landmarks, out, |x, y, inside| {
+            if inside {
+                sample_inside::<u8, 3>(data, w, x, y, to_f32)
+            } else {
+                sample::<u8, 3>(data, w, h, x, y, to_f32)
+            }
+        }),
+        Sampling::Cubic => gather(frame, (w, h), landmarks, out, |x, y, _| sample_cubic(image, x, y)),
     }
     Ok(())
 }
