@@ -698,23 +698,20 @@ impl Talker {
             .map(|(_, f)| (*f).clone())
             .ok_or(SynthError::Empty)?;
         // With recorded mouths the CPU draws, and no GPU is looked for.
-        let (sampled, chosen) = match mouths? {
+        let (sampled, chosen);
+        let renderer: &dyn crate::render::Renderer = match mouths? {
             Some(m) => {
                 if request.renderer == RendererChoice::Gpu {
                     notes.push("recorded mouths are drawn on the CPU (--model-mouth draws on the GPU)".into());
                 }
-                (Some(SampledRenderer::new(&self.model, edge, m, &frames)), None)
+                sampled = SampledRenderer::new(&self.model, edge, m, &frames);
+                &sampled
             }
             None => {
-                let chosen = crate::render::choose_renderer(request.renderer, &self.model, edge)?;
+                chosen = crate::render::choose_renderer(request.renderer, &self.model, edge)?;
                 notes.extend(chosen.note.clone());
-                (None, Some(chosen))
+                chosen.renderer.as_ref()
             }
-        };
-        let renderer: &dyn crate::render::Renderer = match (&sampled, &chosen) {
-            (Some(s), _) => s,
-            (None, Some(c)) => c.renderer.as_ref(),
-            (None, None) => unreachable!("a renderer is chosen when no mouths are drawn"),
         };
         let size = self.footage.size;
         let sound = performance.sound.as_deref();
