@@ -18,6 +18,8 @@
 //! chooser's switch cost and `FACESPACE_DETAIL_GAIN` the detail's gain (chosen on validation);
 //! `FACESPACE_FEATURES` adds each feature's accuracy alone, `FACESPACE_GEOMETRY` where the lips
 //! sit below the nose in each clip and each drawing (the footage's head pitch).
+//! `FACESPACE_TALKER=T` scores another talker than the committed GRID one, e.g. the 720×576
+//! one built from `examples/grid_upscale`'s folder (given as GRID).
 
 #[path = "common/grid.rs"]
 mod grid;
@@ -26,7 +28,7 @@ mod track;
 
 use std::path::Path;
 
-use facespace::eval::mouth::{MouthPc, inner_mouth_height};
+use facespace::eval::mouth::{MouthPc, inner_mouth_height, mouth_sharpness};
 use facespace::eval::pearson;
 use facespace::eval::realism::{
     Cropper, FEATURES, Pair, accuracy, accuracy_on, sharpness, temporal_change,
@@ -46,6 +48,8 @@ struct Drawn {
     /// Each drawn frame projected back into the model at its landmarks.
     projected: Frames,
     heights: Vec<f64>,
+    /// The mouth's sharpness in the full-size frames (`eval::mouth::mouth_sharpness`).
+    sharpness: f64,
 }
 
 fn main() {
@@ -53,7 +57,10 @@ fn main() {
     let other = std::env::args().nth(4);
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let clock = std::time::Instant::now();
-    let talker = Talker::load(&root.join("models/grid")).unwrap();
+    let talker = match std::env::var_os("FACESPACE_TALKER") {
+        Some(t) => Talker::load(Path::new(&t)).unwrap(),
+        None => Talker::load(&root.join("models/grid")).unwrap(),
+    };
     let model = &talker.model;
     let mouths = match &other {
         Some(dir) => Mouths::load(Path::new(dir), model).unwrap(),
@@ -108,6 +115,7 @@ fn main() {
             crops: cropper.crops(images, marks),
             projected: Frames::from_rows(model.layout(), 25.0, rows).unwrap(),
             heights: marks.iter().map(|m| inner_mouth_height(m)).collect(),
+            sharpness: mouth_sharpness(images, marks),
         }
     };
     // Per sentence: the recording, then each system.
@@ -191,15 +199,16 @@ fn main() {
     let reals: Vec<&Frames> = sentences.iter().map(|s| &s[0].projected).collect();
     let pc = MouthPc::fit(model, &reals).unwrap();
     println!(
-        "GRID s1 {split} split (recorded), {} sentences, from each clip's sound and words; {} recorded mouths kept, source changes on {:.1} % of frames:\n",
+        "GRID s1 {split} split (recorded), {} sentences, from each clip's sound and words, talker {:?}; {} recorded mouths kept, source changes on {:.1} % of frames:\n",
         sentences.len(),
+        talker.manifest.name,
         mouths.len(),
         100.0 * switches as f64 / frames_total.max(1) as f64
     );
     println!(
-        "| system | discriminator accuracy | crop sharpness × real | temporal change × real | r_pca eq. 16 (pixels) | r_h inner |"
+        "| system | discriminator accuracy | crop sharpness × real | full-size mouth sharpness × real | temporal change × real | r_pca eq. 16 (pixels) | r_h inner |"
     );
-    println!("|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|");
     let halves: Vec<Pair> = sentences
         .chunks_exact(2)
         .map(|s| Pair {
@@ -208,7 +217,7 @@ fn main() {
         })
         .collect();
     println!(
-        "| the recording, its even sentences against its odd ones (sanity) | {:.3} | 1 | 1 | 1 | 1 |",
+        "| the recording, its even sentences against its odd ones (sanity) | {:.3} | 1 | 1 | 1 | 1 | 1 |",
         accuracy(&halves)
     );
     let mean = |f: &dyn Fn(&[Drawn]) -> f64| {
@@ -226,9 +235,10 @@ fn main() {
     for (k, name) in systems.iter().enumerate().map(|(k, n)| (k + 1, n)) {
         let sharp = |d: &Drawn| d.crops.iter().map(|c| sharpness(c)).sum::<f64>() / d.crops.len() as f64;
         println!(
-            "| {name} | {:.3} | {:.2} | {:.2} | {:.3} | {:.3} |",
+            "| {name} | {:.3} | {:.2} | {:.2} | {:.2} | {:.3} | {:.3} |",
             accuracy(&pairs_of(k)),
             mean(&|s| sharp(&s[k]) / sharp(&s[0])),
+            mean(&|s| s[k].sharpness / s[0].sharpness),
             mean(&|s| temporal_change(&s[k].crops) / temporal_change(&s[0].crops)),
             mean(&|s| pearson(&pc.series(&s[k].projected), &pc.series(&s[0].projected))),
             mean(&|s| pearson(&s[k].heights, &s[0].heights)),
@@ -252,12 +262,23 @@ fn main() {
 const STRIP_FRAMES: usize = 6;
 
 /// `STRIP_FRAMES` frames from `first` of each row (the recording, then each system), as 3×
-/// crops of one box around the lips of `lips` (the recording's middle frame), one row each.
+/// crops of one box around the lips of `lips` (the recording's middle frame), one row each;
+/// beside `OUT`, `OUT-full.png`: the middle frame of every row at full size, side by side.
 fn save_strip(rows: &[Vec<image::RgbImage>], lips: &[[f64; 2]], first: usize, out: &str) {
     let mouth = &lips[48..68];
     let cx = mouth.iter().map(|p| p[0]).sum::<f64>() / 20.0;
     let cy = mouth.iter().map(|p| p[1]).sum::<f64>() / 20.0;
-    let (w, h) = (64u32, 44u32);
+    // A box 1.6 mouths wide (64×44 at 360×288), so a larger face gets a larger box.
+    let width = mouth.iter().map(|p| p[0]).fold(f64::MIN, f64::max)
+        - mouth.iter().map(|p| p[0]).fold(f64::MAX, f64::min);
+    let w = (1.6 * width / 2.0).round() as u32 * 2;
+    let h = (w as f64 * 44.0 / 64.0).round() as u32;
+    let middle = rows
+        .iter()
+        .map(|row| row[first + STRIP_FRAMES / 2].clone())
+        .reduce(|a, b| facespace::video::side_by_side(&a, &b))
+        .unwrap();
+    middle.save(format!("{}-full.png", out.trim_end_matches(".jpg").trim_end_matches(".png"))).unwrap();
     let (x0, y0) = ((cx - w as f64 / 2.0).round() as u32, (cy - h as f64 / 2.0).round() as u32);
     let (sw, sh) = (3 * w, 3 * h);
     let mut strip = image::RgbImage::new(sw * STRIP_FRAMES as u32 + (STRIP_FRAMES as u32 - 1) * 4, sh * rows.len() as u32 + (rows.len() as u32 - 1) * 4);
