@@ -38,6 +38,11 @@ use crate::phonemes::{Phone, Segment};
 use crate::synth::{Request, SynthError, Synthesiser, Smoothing};
 use crate::talker::Talker;
 
+/// Seconds of sound under which an utterance the recogniser finds no path through is
+/// silence rather than an error: a phone's three states need 30 ms, and a stretch this short
+/// holds no mouth movement a frame would show.
+const SHORTEST_UTTERANCE: f64 = 0.1;
+
 /// Seconds of settled phones before the next frame that each synthesis window reaches back
 /// over, so that the spline and the blend's left context see what came before.
 pub const WINDOW_BEFORE: f64 = 1.0;
@@ -524,7 +529,14 @@ impl<'t> Session<'t> {
             *sounding = None;
             if let Some(mut r) = recogniser.take() {
                 let mut heard = r.push(&tail)?;
-                heard.extend(r.finish()?);
+                let short = r.seconds() < SHORTEST_UTTERANCE;
+                match r.finish() {
+                    Ok(rest) => heard.extend(rest),
+                    // Too short for any phone's states (a speech engine's last few ms):
+                    // silence, not a lost path.
+                    Err(AlignError::NoPath | AlignError::EmptyAudio { .. }) if short => {}
+                    Err(e) => return Err(e.into()),
+                }
                 self.extend(&heard, start);
             }
         }

@@ -203,6 +203,31 @@ fn clear_returns_to_the_idle_face_at_the_next_frame() {
         .unwrap();
 }
 
+/// Stretches of sound too short to hold a phone (a text-to-speech engine's last few
+/// milliseconds) end without an error — silence, not a lost path — and the session takes the
+/// next utterance as if they had not been: its frames follow in order and the lips move.
+#[test]
+fn a_stretch_too_short_for_a_phone_ends_quietly() {
+    let t = talker();
+    let (sound, _) = clip("bbbf9a");
+    let mut session = Session::new(t);
+    let mut frames = Vec::new();
+    for ms in [1, 10, 20, 30] {
+        session.push_audio(&sound.samples[..sound.rate as usize * ms / 1000], sound.rate).unwrap();
+        frames.extend(session.finish().unwrap_or_else(|e| panic!("{ms} ms: {e}")));
+    }
+    for chunk in sound.samples.chunks(960) {
+        session.push_audio(chunk, sound.rate).unwrap();
+        frames.extend(session.pull().unwrap());
+    }
+    frames.extend(session.finish().unwrap());
+    let first = frames[0].index;
+    assert!(frames.iter().enumerate().all(|(i, f)| f.index == first + i), "frames in order, once each");
+    let h = heights(&frames);
+    let widest = h.iter().fold(0f64, |m, &x| m.max(x));
+    assert!(frames.iter().any(|f| f.speaking) && widest > h[0] + 3.0, "the lips move: widest {widest} px");
+}
+
 /// Bad input is refused with a clear error and the session stays usable: an absurd or a
 /// changed sample rate, non-finite samples, phones going back in time.
 #[test]

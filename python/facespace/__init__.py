@@ -255,9 +255,13 @@ class _Speech:
         self._given += n
         return chunk
 
-    def end(self) -> None:
-        """The stretch is over (its frames and sound handed back)."""
+    def end(self) -> Optional[np.ndarray]:
+        """The stretch is over: the sound not yet handed back (a stretch whose last frame came
+        before its sound's end, or that gave no frame at all), or ``None``. It goes out now, so
+        none of it lands under the next stretch's first frame."""
+        rest, self._pending = self._pending, np.zeros(0, dtype=np.int16)
         self.start = None
+        return rest if len(rest) else None
 
     def drop(self) -> None:
         """An interruption: the sound not yet handed back is dropped."""

@@ -103,10 +103,9 @@ class FacespaceVideoGenerator(VideoGenerator):
         rgba[..., 3] = 255
         return rtc.VideoFrame(w, h, rtc.VideoBufferType.RGBA, rgba.tobytes())
 
-    def _sound_for(self, frame: Frame, last: bool) -> Optional[rtc.AudioFrame]:
-        """The segment's sound under ``frame`` (to the end of the frame; all of it after the
-        last frame), resampled to the output rate by taking the session's clock."""
-        chunk = self._speech.under(frame, last)
+    def _sound(self, chunk: Optional[np.ndarray]) -> Optional[rtc.AudioFrame]:
+        """A piece of the segment's sound (``_Speech.under`` or ``end``), resampled to the
+        output rate by taking the session's clock."""
         if chunk is None:
             return None
         rate, n = self._speech.rate, len(chunk)
@@ -117,7 +116,8 @@ class FacespaceVideoGenerator(VideoGenerator):
 
     async def _stream(self) -> AsyncIterator[Union[rtc.VideoFrame, rtc.AudioFrame, AudioSegmentEnd]]:
         while True:
-            while not self._queue.empty():
+            # Up to a segment's end: what follows it is the next segment's, queued until then.
+            while not self._ended and not self._queue.empty():
                 self._take(self._queue.get_nowait())
             if not self._speech.active:
                 # Nothing said: the footage as it is, one frame at a time (the synchroniser paces).
@@ -134,14 +134,16 @@ class FacespaceVideoGenerator(VideoGenerator):
             while frame is not None and self._clears == clears:
                 after = await asyncio.to_thread(next, frames, None)
                 yield self._video(frame)
-                sound = self._sound_for(frame, ending and after is None)
+                sound = self._sound(self._speech.under(frame, ending and after is None))
                 if sound is not None:
                     yield sound
                 frame, given = after, given + 1
             if self._clears != clears:
                 continue
             if ending:
-                self._speech.end()
+                rest = self._sound(self._speech.end())
+                if rest is not None:
+                    yield rest
                 self._ended = False
                 yield AudioSegmentEnd()
             elif not given:

@@ -24,6 +24,8 @@ from __future__ import annotations
 
 from typing import Callable, Iterator, Optional, Tuple
 
+import numpy as np
+
 from pipecat.frames.frames import (
     Frame,
     InterruptionFrame,
@@ -95,7 +97,7 @@ class FacespaceVideoProcessor(FrameProcessor):
         elif isinstance(frame, TTSStoppedFrame):
             if self._speech.active:
                 await self._push(self._session.finish(), last=True)
-                self._speech.end()
+                await self._push_sound(self._speech.end())
                 self._baseline = None
             await self.push_frame(frame, direction)
         else:
@@ -116,6 +118,9 @@ class FacespaceVideoProcessor(FrameProcessor):
             self._on_frame(face)
         h, w, _ = face.image.shape
         await self.push_frame(OutputImageRawFrame(image=face.image.tobytes(), size=(w, h), format="RGB"))
-        chunk = self._speech.under(face, last)
+        await self._push_sound(self._speech.under(face, last))
+
+    async def _push_sound(self, chunk: Optional[np.ndarray]) -> None:
+        """A piece of the speech's sound (``_Speech.under`` or ``end``), if any."""
         if chunk is not None:
             await self.push_frame(OutputAudioRawFrame(audio=chunk.tobytes(), sample_rate=self._speech.rate, num_channels=1))

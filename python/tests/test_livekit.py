@@ -52,6 +52,36 @@ def test_frames_and_sound_stay_together(talker, clip):
     assert faces >= video - 1
 
 
+def test_a_stretch_shorter_than_a_frame_gives_its_sound_back_before_its_end(talker, clip):
+    """10 ms of sound, then a whole clip, both pushed before a frame is taken: two segments
+    still, the 10 ms out before the first one's end (not under the next segment's first
+    frame), and the clip's sound keeping to its frames."""
+    samples, rate = clip
+    short = samples[: rate // 100]
+
+    async def run():
+        gen = FacespaceVideoGenerator(talker, sample_rate=rate)
+        await speak(gen, short, rate)
+        await speak(gen, samples, rate)
+        heard, ends, video, worst = [0, 0], 0, 0, 0.0
+        async for item in gen:
+            if isinstance(item, avatar.AudioSegmentEnd):
+                ends += 1
+                if ends == 2:
+                    break
+            elif isinstance(item, rtc.AudioFrame):
+                heard[ends] += item.samples_per_channel
+            elif ends == 1 and gen.last_frame.face:
+                video += 1
+                worst = max(worst, abs(heard[1] / rate - (video - 1) / talker.fps))
+        return heard, worst
+
+    # Merged segments would never end a second time: bounded, so that fails rather than hangs.
+    heard, worst = asyncio.run(asyncio.wait_for(run(), 60))
+    assert heard == [len(short), len(samples)]
+    assert worst <= 1 / talker.fps + 1e-9, worst
+
+
 def test_an_interruption_returns_to_the_footage_at_once(talker, clip):
     samples, rate = clip
 

@@ -46,6 +46,27 @@ def test_images_and_sound_stay_together(talker, clip):
     assert any(isinstance(f, frames_mod.TTSStoppedFrame) for f in down)
 
 
+def test_a_stretch_shorter_than_a_frame_gives_its_sound_back_before_it_stops(talker, clip):
+    """10 ms of TTS sound, then a whole clip: the 10 ms go out before the first TTSStopped
+    passes on (not under the next speech's first image)."""
+    samples, rate = clip
+    short = samples[: rate // 100]
+    face = FacespaceVideoProcessor(talker)
+    sent = [
+        frames_mod.TTSStartedFrame(), *tts(short, rate), frames_mod.TTSStoppedFrame(),
+        frames_mod.TTSStartedFrame(), *tts(samples, rate), frames_mod.TTSStoppedFrame(),
+    ]
+    down, _ = asyncio.run(test_utils.run_test(face, frames_to_send=sent))
+    heard, stops = [0, 0], 0
+    for f in down:
+        if isinstance(f, frames_mod.TTSStoppedFrame):
+            stops += 1
+        elif isinstance(f, frames_mod.OutputAudioRawFrame) and stops < 2:
+            heard[stops] += f.num_frames
+    assert stops == 2
+    assert heard == [len(short), len(samples)]
+
+
 def test_an_interruption_returns_to_the_footage(talker, clip):
     samples, rate = clip
     face = FacespaceVideoProcessor(talker)
