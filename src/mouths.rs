@@ -32,6 +32,7 @@ use crate::facespace::FaceParams;
 use crate::manifest::{self, ManifestError};
 use crate::model::FaceModel;
 use crate::shape::Similarity;
+use crate::video::mp4::Reader;
 use crate::video::{Source, VideoError};
 use crate::{Progress, npy};
 
@@ -372,12 +373,24 @@ impl Mouths {
         if keys.iter().chain(appearance.iter()).any(|v| !v.is_finite()) {
             return Err(inconsistent("an array holds a value that is not finite".into()));
         }
-        let mut source = Source::open(&manifest::member(dir, VIDEO)?)?;
-        let info = source.info();
-        if (info.width, info.height) != (m.window.width, m.window.height) {
+        let video = manifest::member(dir, VIDEO)?;
+        let open = || {
+            Reader::open(&video).map_err(|source| VideoError::Mp4 {
+                path: video.clone(),
+                source,
+            })
+        };
+        let reader = open()?;
+        if (reader.width, reader.height) != (m.window.width, m.window.height) {
             return Err(inconsistent(format!(
                 "{VIDEO} is {}×{}, the manifest says {}×{}",
-                info.width, info.height, m.window.width, m.window.height
+                reader.width, reader.height, m.window.width, m.window.height
+            )));
+        }
+        if reader.frame_count() != frames {
+            return Err(inconsistent(format!(
+                "{VIDEO} has {} frames, the manifest {frames}",
+                reader.frame_count()
             )));
         }
         // The model's luma over the region: mean and one row per component.
@@ -390,47 +403,55 @@ impl Mouths {
         let basis: Vec<Vec<f32>> = (0..n_a)
             .map(|k| pixels.iter().map(|&p| luma(pca.component(k), p)).collect())
             .collect();
-        // Decoded a batch at a time (a whole store decoded at once would be ~100 MB).
-        const BATCH: usize = 64;
+        // Decoded in pieces side by side, each from a sync frame with a decoder of its own,
+        // about one piece per thread: decoding is most of loading.
+        let syncs = reader.sync_frames();
+        if frames > 0 && syncs.first() != Some(&0) {
+            return Err(inconsistent(format!("{VIDEO} does not start with a sync frame")));
+        }
+        let piece = frames.div_ceil(rayon::current_num_threads().max(1)).max(1);
+        let mut starts: Vec<usize> = Vec::new();
+        for &f in syncs.iter().filter(|&&f| f < frames) {
+            if starts.last().is_none_or(|&s| f >= s + piece) {
+                starts.push(f);
+            }
+        }
         let n = pixels.len();
         let window = m.window;
         let mut detail = vec![0i8; frames * n];
-        let mut decoded = 0;
-        for out in detail.chunks_mut(BATCH * n) {
-            let mut batch = Vec::with_capacity(BATCH);
-            while batch.len() < out.len() / n {
-                match source.next_frame()? {
-                    Some(image) => batch.push(image),
-                    None => break,
+        let mut pieces = Vec::with_capacity(starts.len());
+        let mut rest = detail.as_mut_slice();
+        for (k, &first) in starts.iter().enumerate() {
+            let end = starts.get(k + 1).copied().unwrap_or(frames);
+            let (out, after) = rest.split_at_mut((end - first) * n);
+            pieces.push((first, out));
+            rest = after;
+        }
+        pieces.into_par_iter().try_for_each(|(first, out)| -> Result<(), MouthsError> {
+            let mut reader = open()?;
+            let mp4_error = |source| VideoError::Mp4 {
+                path: video.clone(),
+                source,
+            };
+            reader.seek(first).map_err(mp4_error)?;
+            let mut model_luma = vec![0f32; n];
+            for (k, out) in out.chunks_exact_mut(n).enumerate() {
+                let image = reader.next_frame().map_err(mp4_error)?.ok_or_else(|| {
+                    inconsistent(format!("{VIDEO} ends before frame {}", first + k))
+                })?;
+                model_luma.copy_from_slice(&mean);
+                for (row, &bk) in basis.iter().zip(appearance.row(first + k).iter()) {
+                    model_luma.iter_mut().zip(row).for_each(|(o, &r)| *o += bk * r);
+                }
+                for ((o, &p), m) in out.iter_mut().zip(&pixels).zip(&model_luma) {
+                    let q = &model.frame.pixels[p as usize];
+                    let px = image.get_pixel(q.x - window.x, q.y - window.y).0;
+                    let y = crate::video::luma(px.map(f64::from)) as f32;
+                    *o = (y - m).round().clamp(-127.0, 127.0) as i8;
                 }
             }
-            if batch.len() < out.len() / n {
-                return Err(inconsistent(format!(
-                    "{VIDEO} has {} frames, the manifest {frames}",
-                    decoded + batch.len()
-                )));
-            }
-            out.par_chunks_mut(n)
-                .zip(batch.par_iter())
-                .enumerate()
-                .for_each(|(k, (out, image))| {
-                    let b = appearance.row(decoded + k);
-                    let mut model_luma = mean.clone();
-                    for (row, &bk) in basis.iter().zip(b.iter()) {
-                        model_luma.iter_mut().zip(row).for_each(|(o, &r)| *o += bk * r);
-                    }
-                    for ((o, &p), m) in out.iter_mut().zip(&pixels).zip(&model_luma) {
-                        let q = &model.frame.pixels[p as usize];
-                        let px = image.get_pixel(q.x - window.x, q.y - window.y).0;
-                        let y = crate::video::luma(px.map(f64::from)) as f32;
-                        *o = (y - m).round().clamp(-127.0, 127.0) as i8;
-                    }
-                });
-            decoded += batch.len();
-        }
-        if source.next_frame()?.is_some() {
-            return Err(inconsistent(format!("{VIDEO} has more frames than the manifest's {frames}")));
-        }
+            Ok(())
+        })?;
         let mut next = Vec::with_capacity(frames);
         for s in &m.stretches {
             let start = next.len() as u32;

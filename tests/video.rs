@@ -116,6 +116,38 @@ fn audio_is_carried_from_mp4_to_mp4() {
     assert!(!video::extract_audio(&silent, &dir.path().join("none.m4a")).unwrap());
 }
 
+/// A decoder started at a sync frame gives the same pictures as one that decoded everything
+/// before it (so a video can be decoded in pieces side by side); elsewhere it is refused.
+#[test]
+fn decoding_from_a_sync_frame_matches_decoding_from_the_start() {
+    use facespace::video::mp4::{Mp4Error, Reader};
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("gops.mp4");
+    // Our writer starts a picture group every two seconds: at 10 fps, frames 0, 20 and 40.
+    let frames: Vec<RgbImage> = (0..45).map(|i| pattern(i, 64, 48)).collect();
+    write(&path, &frames, 10.0, None);
+    let mut whole = Reader::open(&path).unwrap();
+    assert_eq!(whole.sync_frames(), [0, 20, 40]);
+    let mut all = Vec::new();
+    while let Some(f) = whole.next_frame().unwrap() {
+        all.push(f);
+    }
+    for start in [40, 20, 0] {
+        let mut piece = Reader::open(&path).unwrap();
+        piece.seek(start).unwrap();
+        let mut from = Vec::new();
+        while let Some(f) = piece.next_frame().unwrap() {
+            from.push(f);
+        }
+        assert!(from == all[start..], "from frame {start}");
+    }
+    let mut r = Reader::open(&path).unwrap();
+    assert!(matches!(r.seek(7), Err(Mp4Error::NotSync(7))));
+    assert!(matches!(r.seek(45), Err(Mp4Error::NotSync(45))));
+    // Still usable after a refused seek.
+    assert!(r.next_frame().unwrap().unwrap() == all[0]);
+}
+
 #[test]
 fn y4m_and_frame_folders_round_trip() {
     let dir = tempfile::tempdir().unwrap();

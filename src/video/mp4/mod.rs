@@ -42,6 +42,9 @@ pub enum Mp4Error {
     /// A sample the track lists is absent.
     #[error("sample {0} is missing (truncated file?)")]
     MissingSample(u32),
+    /// A decoder cannot start at this frame (not a sync sample, or past the end).
+    #[error("frame {0} is not a sync sample: decoding cannot start there")]
+    NotSync(usize),
     /// A sample's NAL length prefixes do not fit it.
     #[error("sample {0}: malformed NAL lengths")]
     BadNal(u32),

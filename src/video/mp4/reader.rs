@@ -13,6 +13,8 @@ use super::{Mp4Error, Mp4File, open, track_of};
 pub struct Reader {
     file: Mp4File,
     track: u32,
+    /// The parameter sets, as Annex B: what a decoder is given before the first sample.
+    head: Vec<u8>,
     next_sample: u32,
     samples: u32,
     length_size: usize,
@@ -54,19 +56,16 @@ impl Reader {
             t.frame_rate()
         };
         let (width, height) = (u32::from(t.width()), u32::from(t.height()));
-        let mut decoder = Decoder::with_api_config(
-            openh264::OpenH264API::from_source(),
-            DecoderConfig::new().flush_after_decode(Flush::NoFlush),
-        )?;
         let mut head = Vec::new();
         for nal in [sps, pps] {
             head.extend_from_slice(&[0, 0, 0, 1]);
             head.extend_from_slice(nal);
         }
-        decoder.decode(&head)?;
+        let decoder = decoder_after(&head)?;
         Ok(Reader {
             file,
             track,
+            head,
             next_sample: 1,
             samples,
             length_size,
@@ -77,6 +76,29 @@ impl Reader {
             width,
             height,
         })
+    }
+
+    /// The frames (0-based) a decoder can start at: the sync samples (every frame when the
+    /// track does not list them).
+    pub fn sync_frames(&self) -> Vec<usize> {
+        let stbl = &self.file.tracks()[&self.track].trak.mdia.minf.stbl;
+        match &stbl.stss {
+            Some(stss) => stss.entries.iter().map(|&s| s as usize - 1).collect(),
+            None => (0..self.samples as usize).collect(),
+        }
+    }
+
+    /// Decodes from `frame` on, which must be one of [`Reader::sync_frames`]: pieces of one
+    /// video decoded side by side.
+    pub fn seek(&mut self, frame: usize) -> Result<(), Mp4Error> {
+        if frame >= self.samples as usize || !self.sync_frames().contains(&frame) {
+            return Err(Mp4Error::NotSync(frame));
+        }
+        self.decoder = decoder_after(&self.head)?;
+        self.next_sample = frame as u32 + 1;
+        self.pending.clear();
+        self.flushed = false;
+        Ok(())
     }
 
     /// Frames in the track (one per sample).
@@ -115,6 +137,16 @@ impl Reader {
         }
         Ok(self.pending.pop_front())
     }
+}
+
+/// A decoder that has taken the parameter sets `head`.
+fn decoder_after(head: &[u8]) -> Result<Decoder, Mp4Error> {
+    let mut decoder = Decoder::with_api_config(
+        openh264::OpenH264API::from_source(),
+        DecoderConfig::new().flush_after_decode(Flush::NoFlush),
+    )?;
+    decoder.decode(head)?;
+    Ok(decoder)
 }
 
 fn to_rgb(yuv: &openh264::decoder::DecodedYUV<'_>) -> RgbImage {
