@@ -439,6 +439,15 @@ impl Mouths {
                 let image = reader.next_frame().map_err(mp4_error)?.ok_or_else(|| {
                     inconsistent(format!("{VIDEO} ends before frame {}", first + k))
                 })?;
+                if image.dimensions() != (window.width, window.height) {
+                    return Err(inconsistent(format!(
+                        "{VIDEO}'s frame {} is {:?}, its header says {}×{}",
+                        first + k,
+                        image.dimensions(),
+                        window.width,
+                        window.height
+                    )));
+                }
                 model_luma.copy_from_slice(&mean);
                 for (row, &bk) in basis.iter().zip(appearance.row(first + k).iter()) {
                     model_luma.iter_mut().zip(row).for_each(|(o, &r)| *o += bk * r);

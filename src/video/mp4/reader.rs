@@ -83,7 +83,8 @@ impl Reader {
     pub fn sync_frames(&self) -> Vec<usize> {
         let stbl = &self.file.tracks()[&self.track].trak.mdia.minf.stbl;
         match &stbl.stss {
-            Some(stss) => stss.entries.iter().map(|&s| s as usize - 1).collect(),
+            // Sample numbers count from 1 (a 0 is malformed and left out).
+            Some(stss) => stss.entries.iter().filter_map(|&s| (s as usize).checked_sub(1)).collect(),
             None => (0..self.samples as usize).collect(),
         }
     }
