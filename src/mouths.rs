@@ -374,12 +374,11 @@ impl Mouths {
             return Err(inconsistent("an array holds a value that is not finite".into()));
         }
         let video = manifest::member(dir, VIDEO)?;
-        let open = || {
-            Reader::open(&video).map_err(|source| VideoError::Mp4 {
-                path: video.clone(),
-                source,
-            })
+        let mp4_error = |source| VideoError::Mp4 {
+            path: video.clone(),
+            source,
         };
+        let open = || Reader::open(&video).map_err(mp4_error);
         let reader = open()?;
         if (reader.width, reader.height) != (m.window.width, m.window.height) {
             return Err(inconsistent(format!(
@@ -429,10 +428,6 @@ impl Mouths {
         }
         pieces.into_par_iter().try_for_each(|(first, out)| -> Result<(), MouthsError> {
             let mut reader = open()?;
-            let mp4_error = |source| VideoError::Mp4 {
-                path: video.clone(),
-                source,
-            };
             reader.seek(first).map_err(mp4_error)?;
             let mut model_luma = vec![0f32; n];
             for (k, out) in out.chunks_exact_mut(n).enumerate() {
