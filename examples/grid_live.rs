@@ -69,7 +69,7 @@ fn main() {
     let (mut reals, mut rows) = (Vec::new(), Vec::new());
     let mut waits: Vec<f64> = Vec::new();
     // Seconds each chunk's push and pull took, live from sound.
-    let calls = std::cell::RefCell::new(Vec::new());
+    let mut calls = Vec::new();
     let (mut spent, mut sound) = (0.0, 0.0);
     for id in &ids {
         let clip = grid.join(format!("clips/{id}.mp4"));
@@ -82,7 +82,8 @@ fn main() {
             .segments();
         let recognised =
             facespace::align::segments(&aligner.recognise(&speech16.samples, SAMPLE_RATE, &lm).unwrap());
-        let live = |given: Option<&[Segment]>, waits: &mut Vec<f64>| -> (Frames, f64) {
+        // The frames, the seconds the session took, and each chunk's push and pull.
+        let live = |given: Option<&[Segment]>, waits: &mut Vec<f64>| -> (Frames, f64, Vec<f64>) {
             let clock = std::time::Instant::now();
             let mut session = match given {
                 Some(phones) => {
@@ -92,7 +93,7 @@ fn main() {
                 }
                 None => Session::new(&talker),
             };
-            let mut frames = Vec::new();
+            let (mut frames, mut calls) = (Vec::new(), Vec::new());
             for chunk in audio.samples.chunks(CHUNK) {
                 let call = std::time::Instant::now();
                 session.push_audio(chunk, CHUNK_RATE).unwrap();
@@ -103,12 +104,12 @@ fn main() {
                     waits.push(session.seconds() - f.time + took);
                     frames.push(f);
                 }
-                calls.borrow_mut().push(took);
+                calls.push(took);
             }
             frames.extend(session.finish().unwrap());
-            (as_frames(&frames), clock.elapsed().as_secs_f64())
+            (as_frames(&frames), clock.elapsed().as_secs_f64(), calls)
         };
-        let (given, _) = live(Some(&aligned), &mut Vec::new());
+        let (given, _, _) = live(Some(&aligned), &mut Vec::new());
         // The words with the corpus's start times, each given when the sound reaches it.
         let read = {
             let mut words = grid::timed_words(&grid, id).into_iter().peekable();
@@ -125,11 +126,9 @@ fn main() {
             frames.extend(session.finish().unwrap());
             as_frames(&frames)
         };
-        let n_calls = calls.borrow().len();
-        let (heard, took) = live(None, &mut waits);
-        // Only the calls of the session from sound are timed.
-        calls.borrow_mut().drain(..n_calls);
-        let kept = calls.borrow().len();
+        // Only the session from sound is timed.
+        let (heard, took, heard_calls) = live(None, &mut waits);
+        calls.extend(heard_calls);
         spent += took;
         sound += audio.seconds();
         let mut recogniser = aligner.recogniser(SAMPLE_RATE, &lm).unwrap();
@@ -139,8 +138,7 @@ fn main() {
         }
         phones.extend(recogniser.finish().unwrap());
         let live_phones = facespace::align::segments(&facespace::align::merge_pieces(phones));
-        let (given_recognised, _) = live(Some(&recognised), &mut Vec::new());
-        calls.borrow_mut().truncate(kept);
+        let (given_recognised, _, _) = live(Some(&recognised), &mut Vec::new());
         rows.push([
             offline(&aligned),
             given,
@@ -190,7 +188,7 @@ fn main() {
     println!(
         "\nlive from sound, 20 ms chunks: sound in to frame out (the sound's wait plus the chunk's computing) median / 95 % / most {}; each chunk's push and pull {}; the session computes at {:.0}× real time (one thread)",
         quantiles(&mut waits),
-        quantiles(&mut calls.borrow_mut()),
+        quantiles(&mut calls),
         sound / spent
     );
 }

@@ -7,6 +7,7 @@
 //! right context, C = 1, needs that phone — the recogniser's guess at the phone now sounding
 //! stands in for it; wider contexts wait for more), or in a pause as far as the pause is heard
 //! (as if the speech had ended there, so the face rests without waiting for the next word),
+//! or at the latest [`LATEST`] after its sound (from the phone as far as it is heard),
 //! and it is made by the
 //! same synthesis as an offline utterance ([`crate::synth::synthesise`] with the talker's
 //! settings) run over a window of the latest phones: the smoothing spline over the window is
@@ -51,6 +52,13 @@ pub const WINDOW_BEFORE: f64 = 1.0;
 /// forward over: phones given far ahead (a text-to-speech engine's whole sentence) would
 /// otherwise make every window as long as the rest of the sentence.
 pub const WINDOW_AFTER: f64 = 1.0;
+
+/// Seconds of sound a frame from a recognised phone waits at most for that phone to end
+/// (with the recogniser's lag): past it the frame is made from the phone as far as it is
+/// heard, with no right context. Chosen on 30 of GRID s1's validation clips (BENCHMARKS
+/// "Live"): 0.12 / 0.15 / 0.17 / no limit gave 95 % sound-to-frame waits of 162 / 179 /
+/// 200 / 275 ms and mouth r_pca 0.450 / 0.463 / 0.465 / 0.474.
+pub const LATEST: f64 = 0.15;
 
 /// Sample rates a session takes, Hz (the sound is resampled to the recogniser's 16 kHz).
 pub const RATES: [u32; 5] = [8_000, 16_000, 22_050, 24_000, 48_000];
@@ -507,10 +515,21 @@ impl<'t> Session<'t> {
         let settled = match known.checked_sub(1 + context) {
             _ if pausing => self.phones[self.phones.len() - 1].end,
             Some(k) => self.phones[k].end,
-            None => return Ok(Vec::new()),
+            None => self.origin,
         };
         // Never ahead of the sound: an interruption takes back nothing already shown.
-        self.frames_until(settled.min(self.heard), next)
+        let mut frames = self.frames_until(settled.min(self.heard), next, None)?;
+        // A frame waits at most LATEST for its phone's end: past it, the phone still sounding
+        // is taken to last as far as it is heard, with nothing after it.
+        // (Before any phone is settled, the one sounding is all there is.)
+        let deadline = self.heard - LATEST;
+        if let Phones::Heard { sounding, .. } = self.source
+            && deadline > settled
+        {
+            let open = if self.phones.is_empty() { sounding } else { next };
+            frames.extend(self.frames_until(deadline, open, Some(self.heard))?);
+        }
+        Ok(frames)
     }
 
     /// Ends the speech: every frame up to the end of the phones (with no right context
@@ -542,7 +561,7 @@ impl<'t> Session<'t> {
         }
         self.read(true)?;
         let end = self.phones.last().map_or(self.origin, |p| p.end);
-        self.frames_until(end, None)
+        self.frames_until(end, None, None)
     }
 
     /// Drops what is being said (an interruption): the next frame is the idle face, and the
@@ -616,11 +635,17 @@ impl<'t> Session<'t> {
 
     /// The frames from the next one up to (not including) time `until`, synthesised over a
     /// window of the phones (and the `next` one guessed after them) that reaches
-    /// [`WINDOW_BEFORE`] before the first of them and [`WINDOW_AFTER`] beyond the last.
-    fn frames_until(&mut self, until: f64, next: Option<Segment>) -> Result<Vec<LiveFrame>, LiveError> {
+    /// [`WINDOW_BEFORE`] before the first of them and [`WINDOW_AFTER`] beyond the last; the
+    /// window's last phone lasts at least to `stretch` (a phone still sounding).
+    fn frames_until(
+        &mut self,
+        until: f64,
+        next: Option<Segment>,
+        stretch: Option<f64>,
+    ) -> Result<Vec<LiveFrame>, LiveError> {
         let first_time = self.given as f64 / self.fps;
         let last = ((until * self.fps) - 1e-6).ceil() as usize;
-        if last <= self.given || self.phones.is_empty() {
+        if last <= self.given {
             return Ok(Vec::new());
         }
         let reach = (first_time - WINDOW_BEFORE).max(self.origin);
@@ -630,10 +655,13 @@ impl<'t> Session<'t> {
             .iter()
             .position(|p| p.start >= until + WINDOW_AFTER)
             .unwrap_or(self.phones.len())
-            .max(w0 + 1);
+            .max((w0 + 1).min(self.phones.len()));
         let next = next.filter(|_| w1 == self.phones.len());
+        let Some(first) = self.phones.get(w0).or(next.as_ref()) else {
+            return Ok(Vec::new());
+        };
         // The window starts on the frame grid, at or before its first phone.
-        let start = ((self.phones[w0].start * self.fps) + 1e-6).floor() / self.fps;
+        let start = ((first.start * self.fps) + 1e-6).floor() / self.fps;
         let mut target: Vec<Segment> = self.phones[w0..w1]
             .iter()
             .chain(&next)
@@ -644,6 +672,9 @@ impl<'t> Session<'t> {
             })
             .collect();
         target[0].start = 0.0;
+        if let (Some(end), Some(open)) = (stretch, target.last_mut()) {
+            open.end = open.end.max(end - start);
+        }
         let smoothing = Smoothing::On(self.talker.manifest.settings.smoothing);
         let utterance = crate::synth::synthesise(
             self.synthesiser.as_ref(),

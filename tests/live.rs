@@ -104,6 +104,29 @@ fn the_sound_alone_moves_the_lips() {
     assert!(live.iter().filter(|f| f.speaking).count() * 3 > live.len(), "speaking on too few frames");
 }
 
+/// From the sound alone no frame waits for its phone's end longer than `live::LATEST` after
+/// its sound arrived, plus the 20 ms chunk it arrives in: within the 200 ms live avatars
+/// promise, a long vowel's first frames leave while it still sounds. The check can fail:
+/// without the limit 11 of the first clip's frames waited longer, up to 320 ms.
+#[test]
+fn no_frame_waits_long_for_its_phone_to_end() {
+    for id in ["bbbf9a", "bbwtzp", "bbbs7a"] {
+        let (sound, _) = clip(id);
+        let mut session = Session::new(talker());
+        let mut late = Vec::new();
+        for chunk in sound.samples.chunks(960) {
+            session.push_audio(chunk, sound.rate).unwrap();
+            for f in session.pull().unwrap() {
+                let wait = session.seconds() - f.time;
+                if wait > (facespace::live::LATEST + 0.02).min(0.2) + 1e-9 {
+                    late.push((f.index, (wait * 1000.0).round()));
+                }
+            }
+        }
+        assert!(late.is_empty(), "{id}: frames (index, ms waited) {late:?}");
+    }
+}
+
 /// The words of a GRID clip with their start times (its `.align`, 25 000 units a second),
 /// as a text-to-speech engine's word timestamps give them.
 fn words(id: &str) -> Vec<(String, f64)> {
