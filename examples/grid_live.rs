@@ -167,18 +167,23 @@ fn main() {
         settings.context,
         settings.smoothing
     );
-    println!("| system | r_pca eq. 16 | r_h inner |");
-    println!("|---|---|---|");
+    // Mean change of the inner-mouth height from frame to frame: jumps between batches show.
+    let change = |h: &[f64]| h.windows(2).map(|w| (w[1] - w[0]).abs()).sum::<f64>() / (h.len() - 1) as f64;
+    println!("| system | r_pca eq. 16 | r_h inner | frame-to-frame change of r_h's height × real |");
+    println!("|---|---|---|---|");
     for (k, name) in systems.iter().enumerate() {
-        let (mut r_pca, mut r_h) = (0.0, 0.0);
+        let (mut r_pca, mut r_h, mut moved, mut real_moved) = (0.0, 0.0, 0.0, 0.0);
         for (row, real) in rows.iter().zip(&reals) {
             let n = row[k].len().min(real.len());
             let (a, b) = (row[k].slice(0..n), real.slice(0..n));
+            let (ha, hb) = (height(&a), height(&b));
             r_pca += pearson(&pc.series(&a), &pc.series(&b));
-            r_h += pearson(&height(&a), &height(&b));
+            r_h += pearson(&ha, &hb);
+            moved += change(&ha);
+            real_moved += change(&hb);
         }
         let m = rows.len() as f64;
-        println!("| {name} | {:.3} | {:.3} |", r_pca / m, r_h / m);
+        println!("| {name} | {:.3} | {:.3} | {:.2} |", r_pca / m, r_h / m, moved / real_moved);
     }
     let quantiles = |v: &mut Vec<f64>| {
         v.sort_by(f64::total_cmp);

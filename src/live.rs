@@ -12,6 +12,8 @@
 //! same synthesis as an offline utterance ([`crate::synth::synthesise`] with the talker's
 //! settings) run over a window of the latest phones: the smoothing spline over the window is
 //! the fixed-lag smoother, the frames near its end leave before later speech can pull them.
+//! A batch's first frame takes half the difference between the last frame shown and the
+//! batch's own at that frame, so that batches join without a jump.
 //!
 //! ```no_run
 //! use facespace::live::Session;
@@ -206,6 +208,8 @@ pub struct Session<'t> {
     origin: f64,
     /// Frames given out.
     given: usize,
+    /// The last frame given out, while speech goes on (what the next batch continues from).
+    shown: Option<Vec<f32>>,
 }
 
 impl<'t> Session<'t> {
@@ -246,6 +250,7 @@ impl<'t> Session<'t> {
             phones: Vec::new(),
             origin: 0.0,
             given: 0,
+            shown: None,
         }
     }
 
@@ -569,6 +574,7 @@ impl<'t> Session<'t> {
     pub fn clear(&mut self) {
         self.origin = self.given as f64 / self.fps;
         self.phones.clear();
+        self.shown = None;
         if let Phones::Heard {
             recogniser,
             offset,
@@ -684,6 +690,15 @@ impl<'t> Session<'t> {
         let frames: &Frames = utterance.variants()[0].1;
         let offset = (start * self.fps).round() as usize;
         let mut out = Vec::with_capacity(last - self.given);
+        // The batch's first frame takes half the difference between the last frame shown and
+        // this batch's own at that frame, so that a batch that disagrees with the last (a
+        // phone recognised anew, a frame made before its phone ended) joins it without a jump.
+        let lead = match (&self.shown, self.given.checked_sub(offset + 1)) {
+            (Some(shown), Some(i)) if i < frames.len() => {
+                Some(shown.iter().zip(frames.row(i)).map(|(a, b)| 0.5 * (a - b)).collect::<Vec<f32>>())
+            }
+            _ => None,
+        };
         for index in self.given..last {
             let Some(i) = index.checked_sub(offset).filter(|&i| i < frames.len()) else {
                 break;
@@ -693,14 +708,21 @@ impl<'t> Session<'t> {
                 .iter()
                 .find(|p| time - start < p.end)
                 .is_some_and(|p| p.phone != Phone::SIL);
+            let mut values = frames.row(i).to_vec();
+            if let Some(d) = lead.as_ref().filter(|_| index == self.given) {
+                values.iter_mut().zip(d).for_each(|(v, d)| *v += d);
+            }
             out.push(LiveFrame {
                 index,
                 time,
-                values: frames.row(i).to_vec(),
+                values,
                 speaking,
             });
         }
         self.given += out.len();
+        if let Some(f) = out.last() {
+            self.shown = Some(f.values.clone());
+        }
         Ok(out)
     }
 }

@@ -127,6 +127,38 @@ fn no_frame_waits_long_for_its_phone_to_end() {
     }
 }
 
+/// From the sound alone, batches join without jumps: over three clips the inner mouth's mean
+/// change from frame to frame is under 1.35× the offline synthesis's of the phones the session
+/// settled on (which has no joins; the live face's is 1.28×). The check can fail: without the
+/// join, frames made before their phone ended jump to the next batch (1.42×).
+#[test]
+fn batches_join_without_jumps() {
+    let t = talker();
+    let settings = &t.manifest.settings;
+    let change = |h: &[f64]| h.windows(2).map(|w| (w[1] - w[0]).abs()).sum::<f64>() / (h.len() - 1) as f64;
+    let (mut live_moved, mut offline_moved) = (0.0, 0.0);
+    for id in ["bbbf9a", "bbwtzp", "bbbs7a"] {
+        let (sound, _) = clip(id);
+        let mut session = Session::new(t);
+        let mut frames = Vec::new();
+        for chunk in sound.samples.chunks(960) {
+            session.push_audio(chunk, sound.rate).unwrap();
+            frames.extend(session.pull().unwrap());
+        }
+        frames.extend(session.finish().unwrap());
+        let request = Request::new(session.phones().to_vec(), t.footage.fps, Smoothing::On(settings.smoothing));
+        let offline = facespace::synth::synthesise(settings.synthesiser().as_ref(), &t.codebook, request).unwrap();
+        let offline: Vec<f64> = facespace::eval::landmarks(&t.model, offline.variants()[0].1)
+            .iter()
+            .map(|p| inner_mouth_height(p))
+            .collect();
+        live_moved += change(&heights(&frames));
+        offline_moved += change(&offline);
+    }
+    let ratio = live_moved / offline_moved;
+    assert!(ratio < 1.35, "the live mouth moves {ratio:.2}× as much as offline from frame to frame");
+}
+
 /// The words of a GRID clip with their start times (its `.align`, 25 000 units a second),
 /// as a text-to-speech engine's word timestamps give them.
 fn words(id: &str) -> Vec<(String, f64)> {

@@ -11,7 +11,7 @@ timestamps (Cartesia, ElevenLabs, Rime, …: ``TTSTextFrame`` s whose ``pts`` is
 start) and ``word_timestamps=True``: then each word is aligned to its own stretch of the
 sound, so the lips close on the sound's own /p b m/. The words' times are taken as pipecat's
 TTS services set them: from the clock at the speech's first audio frame. The trade: from the
-sound a frame leaves within 200 ms of its sound (BENCHMARKS "Python package": 157–161 ms at
+sound a frame leaves within 200 ms of its sound (BENCHMARKS "Python package": 153–161 ms at
 95 % on one core); with word timestamps it waits for the next word's start (about a word,
 the last word for the sentence's end), which costs nothing when the TTS delivers its sound
 ahead of playback, as streaming services do.
