@@ -690,15 +690,6 @@ impl<'t> Session<'t> {
         let frames: &Frames = utterance.variants()[0].1;
         let offset = (start * self.fps).round() as usize;
         let mut out = Vec::with_capacity(last - self.given);
-        // The batch's first frame takes half the difference between the last frame shown and
-        // this batch's own at that frame, so that a batch that disagrees with the last (a
-        // phone recognised anew, a frame made before its phone ended) joins it without a jump.
-        let lead = match (&self.shown, self.given.checked_sub(offset + 1)) {
-            (Some(shown), Some(i)) if i < frames.len() => {
-                Some(shown.iter().zip(frames.row(i)).map(|(a, b)| 0.5 * (a - b)).collect::<Vec<f32>>())
-            }
-            _ => None,
-        };
         for index in self.given..last {
             let Some(i) = index.checked_sub(offset).filter(|&i| i < frames.len()) else {
                 break;
@@ -709,8 +700,13 @@ impl<'t> Session<'t> {
                 .find(|p| time - start < p.end)
                 .is_some_and(|p| p.phone != Phone::SIL);
             let mut values = frames.row(i).to_vec();
-            if let Some(d) = lead.as_ref().filter(|_| index == self.given) {
-                values.iter_mut().zip(d).for_each(|(v, d)| *v += d);
+            // The batch's first frame takes half the difference between the last frame shown
+            // and this batch's own at that frame, so that a batch that disagrees with the last
+            // (a phone recognised anew, a frame made before its phone ended) joins it without
+            // a jump.
+            if let (true, Some(shown), Some(before)) = (index == self.given, &self.shown, i.checked_sub(1)) {
+                let own = frames.row(before);
+                values.iter_mut().zip(shown.iter().zip(own)).for_each(|(v, (s, o))| *v += 0.5 * (s - o));
             }
             out.push(LiveFrame {
                 index,
