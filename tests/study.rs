@@ -129,11 +129,21 @@ fn make_study_with(
     create(dir, &model, &cb, &heldout, conds, viewers, task).unwrap()
 }
 
-/// The demo model, a codebook of the demo corpus's training split, one test sentence.
+/// The demo model, a codebook of the demo corpus's training split, one test sentence cut
+/// after its first 0.8 s of phones (the study server makes a viewer play every clip in real
+/// time, so the browser test lasts about 40 times a clip).
 fn fixture() -> (FaceModel, Codebook, Vec<Heldout>) {
     let (model, generated, cb) = common::demo_corpus_codebook();
     let mut test = generated.part(Split::Test);
     test.truncate(1);
+    for sentence in &mut test {
+        let keep = 1 + sentence.segments.iter().position(|s| s.end >= 0.8).unwrap();
+        sentence.segments.truncate(keep);
+        let end = sentence.segments[keep - 1].end;
+        let fps = facespace::corpus::demo::CorpusOptions::default().fps;
+        let frames = ((end * fps).round() as usize).min(sentence.frames.len());
+        sentence.frames = sentence.frames.slice(0..frames);
+    }
     let heldout = test
         .into_iter()
         .map(|sentence| Heldout {
