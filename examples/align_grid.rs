@@ -14,19 +14,8 @@ use facespace::align::{self, Aligner};
 use facespace::audio;
 use facespace::phonemes::{self, PhoneMap};
 
-fn transcript(align_file: &Path) -> Vec<(f64, f64, String)> {
-    std::fs::read_to_string(align_file)
-        .unwrap()
-        .lines()
-        .filter_map(|l| {
-            let mut it = l.split_whitespace();
-            let s: f64 = it.next()?.parse().ok()?;
-            let e: f64 = it.next()?.parse().ok()?;
-            let w = it.next()?.to_owned();
-            (w != "sil" && w != "sp").then_some((s / 25_000.0, e / 25_000.0, w))
-        })
-        .collect()
-}
+#[path = "common/grid.rs"]
+mod grid;
 
 /// Index pairs of a longest common subsequence of two phone sequences (by phone).
 fn lcs(a: &[phonemes::Segment], b: &[phonemes::Segment]) -> Vec<(usize, usize)> {
@@ -122,7 +111,7 @@ fn main() {
     let mut audio_seconds = 0.0;
     let mut texts = Vec::new();
     for (id, a) in ids.iter().zip(&decoded) {
-        let words = transcript(&grid.join("align").join(format!("{id}.align")));
+        let words = grid::read_align(&grid.join("align").join(format!("{id}.align")));
         let text: Vec<&str> = words.iter().map(|w| w.2.as_str()).collect();
         let text = text.join(" ");
         texts.push(format!("{id}\t{text}"));

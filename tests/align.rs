@@ -4,6 +4,9 @@
 
 use crate::common;
 
+#[path = "../examples/common/grid.rs"]
+mod grid_align;
+
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
@@ -96,18 +99,9 @@ fn grid_clips_align_within_tolerance_of_their_reference_labels() {
             phone_d.push((a.start - b.start).abs());
         }
         phone_d.push((r.last().unwrap().end - o.last().unwrap().end).abs());
-        let words: Vec<(f64, f64)> = std::fs::read_to_string(grid().join(format!("{id}.align")))
-            .unwrap()
-            .lines()
-            .filter_map(|l| {
-                let v: Vec<&str> = l.split_whitespace().collect();
-                (v[2] != "sil" && v[2] != "sp").then(|| {
-                    (
-                        v[0].parse::<f64>().unwrap() / 25e3,
-                        v[1].parse::<f64>().unwrap() / 25e3,
-                    )
-                })
-            })
+        let words: Vec<(f64, f64)> = grid_align::read_align(&grid().join(format!("{id}.align")))
+            .into_iter()
+            .map(|(start, end, _)| (start, end))
             .collect();
         assert_eq!(result.words.len(), words.len());
         for (w, (s, e)) in result.words.iter().zip(&words) {

@@ -3,29 +3,37 @@
 
 use std::path::Path;
 
-/// A clip's words: `align/ID.align` without `sil` / `sp`.
-pub fn words(grid: &Path, id: &str) -> String {
-    std::fs::read_to_string(grid.join(format!("align/{id}.align")))
-        .unwrap()
-        .lines()
-        .filter_map(|l| l.split_whitespace().nth(2))
-        .filter(|w| *w != "sil" && *w != "sp")
-        .collect::<Vec<_>>()
-        .join(" ")
-}
-
-/// A clip's words with their start times, seconds (`align/ID.align`, 25 000 units a second),
-/// as a text-to-speech engine's word timestamps give them.
-pub fn timed_words(grid: &Path, id: &str) -> Vec<(String, f64)> {
-    std::fs::read_to_string(grid.join(format!("align/{id}.align")))
-        .unwrap()
+/// The words of a GRID `.align` file, `sil` and `sp` left out: (start, end, word), seconds
+/// (the file counts 25 000 units a second). Shared with `tests/align.rs` by path.
+pub fn read_align(path: &Path) -> Vec<(f64, f64, String)> {
+    std::fs::read_to_string(path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
         .lines()
         .filter_map(|l| {
             let mut f = l.split_whitespace();
             let start: f64 = f.next()?.parse().ok()?;
-            let word = f.nth(1)?;
-            (word != "sil" && word != "sp").then(|| (word.to_string(), start / 25_000.0))
+            let end: f64 = f.next()?.parse().ok()?;
+            let word = f.next()?;
+            (word != "sil" && word != "sp").then(|| (start / 25_000.0, end / 25_000.0, word.to_owned()))
         })
+        .collect()
+}
+
+/// A clip's words (`align/ID.align`).
+pub fn words(grid: &Path, id: &str) -> String {
+    read_align(&grid.join(format!("align/{id}.align")))
+        .into_iter()
+        .map(|(_, _, word)| word)
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// A clip's words with their start times, seconds (`align/ID.align`), as a text-to-speech
+/// engine's word timestamps give them.
+pub fn timed_words(grid: &Path, id: &str) -> Vec<(String, f64)> {
+    read_align(&grid.join(format!("align/{id}.align")))
+        .into_iter()
+        .map(|(start, _, word)| (word, start))
         .collect()
 }
 
