@@ -23,8 +23,6 @@
 
 #[path = "common/grid.rs"]
 mod grid;
-#[path = "common/track.rs"]
-mod track;
 
 use std::path::Path;
 
@@ -125,12 +123,15 @@ fn main() {
     let settings = &talker.manifest.settings;
     for id in &ids {
         let clip = grid.join(format!("clips/{id}.mp4"));
-        let (real_images, _, real_marks) = track::tracked(model, &clip);
+        let real_images: Vec<image::RgbImage> = facespace::video::Source::open(&clip)
+            .and_then(|source| source.collect())
+            .unwrap();
         let staging = tempfile::tempdir().unwrap();
         let p = grid::perform(&talker, &grid, id, staging.path());
         let n = p.utterance.variants()[0].1.len().min(real_images.len());
         // The same phones synthesised over the clip's own video (its pose, anchored to its
-        // face, re-lit to it), as the test draws them.
+        // face, re-lit to it), as the test draws them. Its tracking gives the
+        // recording's landmarks too (the clip is tracked once).
         let own = Backdrop::video(
             model,
             &clip,
@@ -148,6 +149,7 @@ fn main() {
             synthesise(settings.synthesiser().as_ref(), &talker.codebook, request).unwrap();
         own.anchor_region(model, &mut over_own).unwrap();
         own.match_lighting(model, &talker.codebook, &mut over_own);
+        let real_marks: Vec<Vec<[f64; 2]>> = own.landmarks.iter().map(|l| l.points.clone()).collect();
         let mut drawn = vec![draw(&real_images[..n], &real_marks[..n])];
         // Rows of the README's strip: the recording, then each system over its own video.
         let mut strip_rows = vec![real_images[..n].to_vec()];
