@@ -62,7 +62,9 @@ fn watched_run(args: &[&str], out: &Path) -> (Duration, Option<Duration>) {
 /// Kill moments for a run of `full` whose write starts at `staged`: 3 spread over the work
 /// before the write, 7 over the write itself and just past the end (where a kill can leave
 /// a half-written file), each at a seeded random point of its own stretch, so every part of
-/// the run is hit without 20 blind tries.
+/// the run is hit without 20 blind tries. A command that stages from its first moments (the
+/// demo writes into its staging folder as it goes) has no work before its write to speak
+/// of: all 10 fall over the write, not 3 on one instant.
 fn kill_moments(full: Duration, staged: Option<Duration>, rng: &mut common::Rng) -> Vec<Duration> {
     let (lo, end) = (full.mul_f64(0.05), full.mul_f64(1.05));
     let write = staged.unwrap_or(lo).clamp(lo, end);
@@ -74,8 +76,9 @@ fn kill_moments(full: Duration, staged: Option<Duration>, rng: &mut common::Rng)
             })
             .collect::<Vec<_>>()
     };
-    let mut moments = spread(lo, write, 3, rng);
-    moments.extend(spread(write, end, 7, rng));
+    let before = if write > lo { 3 } else { 0 };
+    let mut moments = spread(lo, write, before, rng);
+    moments.extend(spread(write, end, 10 - before, rng));
     moments
 }
 
