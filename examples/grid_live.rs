@@ -168,7 +168,7 @@ fn main() {
         settings.smoothing
     );
     // Mean change of the inner-mouth height from frame to frame: jumps between batches show.
-    let change = |h: &[f64]| h.windows(2).map(|w| (w[1] - w[0]).abs()).sum::<f64>() / (h.len() - 1) as f64;
+    let change = facespace::eval::mean_step;
     println!("| system | r_pca eq. 16 | r_h inner | frame-to-frame change of r_h's height × real |");
     println!("|---|---|---|---|");
     for (k, name) in systems.iter().enumerate() {

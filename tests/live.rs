@@ -135,7 +135,7 @@ fn no_frame_waits_long_for_its_phone_to_end() {
 fn batches_join_without_jumps() {
     let t = talker();
     let settings = &t.manifest.settings;
-    let change = |h: &[f64]| h.windows(2).map(|w| (w[1] - w[0]).abs()).sum::<f64>() / (h.len() - 1) as f64;
+    let change = facespace::eval::mean_step;
     let (mut live_moved, mut offline_moved) = (0.0, 0.0);
     for id in ["bbbf9a", "bbwtzp", "bbbs7a"] {
         let (sound, _) = clip(id);

@@ -55,6 +55,12 @@ pub fn mean_and_sd(v: &[f64]) -> (f64, f64) {
     (m, (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / n).sqrt())
 }
 
+/// Mean absolute change from one value to the next (0 for fewer than two values): how much a
+/// series moves a frame, where a jump between a live session's batches shows.
+pub fn mean_step(v: &[f64]) -> f64 {
+    v.windows(2).map(|w| (w[1] - w[0]).abs()).sum::<f64>() / (v.len().max(2) - 1) as f64
+}
+
 /// Dynamic time warping between two `frames × dims` series with Euclidean frame distance;
 /// the total cost of the best path divided by its length.
 pub fn dtw(a: &[f64], b: &[f64], dims: usize) -> f64 {
@@ -227,6 +233,14 @@ mod tests {
         // Hand-computed: x = (1,2,3,4), y = (1,3,2,4): r = 0.8.
         assert!((pearson(&[1.0, 2.0, 3.0, 4.0], &[1.0, 3.0, 2.0, 4.0]) - 0.8).abs() < 1e-12);
         assert_eq!(pearson(&[1.0, 1.0], &[1.0, 2.0]), 0.0);
+    }
+
+    /// By hand: 1 → 3 → 2 → 2 moves 2, 1 and 0: a mean step of 1.
+    #[test]
+    fn mean_step_known_values() {
+        assert_eq!(mean_step(&[1.0, 3.0, 2.0, 2.0]), 1.0);
+        assert_eq!(mean_step(&[5.0]), 0.0);
+        assert_eq!(mean_step(&[]), 0.0);
     }
 
     /// Levenshtein's textbook cases: kitten → sitting 3, flaw → lawn 2, to or from nothing
