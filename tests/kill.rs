@@ -259,15 +259,7 @@ fn killed_decodes_tracks_and_synthesis_leave_whole_outputs() {
             assert_eq!(frame_count(&s.join("frames")), n);
         },
     );
-    let held = dir.path().join("held");
-    std::fs::create_dir(&held).unwrap();
-    for ext in ["npy", "lab"] {
-        std::fs::copy(
-            dir.path().join(format!("corpus/heldout/demo55.{ext}")),
-            held.join(format!("demo55.{ext}")),
-        )
-        .unwrap();
-    }
+    one_heldout(dir.path());
     let study = dir.path().join("study");
     killed_runs(
         &[
@@ -302,6 +294,16 @@ fn killed_decodes_tracks_and_synthesis_leave_whole_outputs() {
 }
 
 /// A JSON file that parses.
+/// `dir/held`: the first held-out sentence of the demo corpus at `dir/corpus`, alone.
+fn one_heldout(dir: &Path) {
+    let held = dir.join("held");
+    std::fs::create_dir(&held).unwrap();
+    for ext in ["npy", "lab"] {
+        let name = format!("demo55.{ext}");
+        std::fs::copy(dir.join("corpus/heldout").join(&name), held.join(&name)).unwrap();
+    }
+}
+
 fn json(path: &Path) -> serde_json::Value {
     let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     serde_json::from_str(&text).unwrap_or_else(|e| panic!("damaged {}: {e}", path.display()))
@@ -440,15 +442,7 @@ fn killed_exports_reports_and_the_demo_leave_whole_outputs() {
     );
     // One held-out sentence (for `eval` and the study): the writers are the same, each run
     // a sixth of the work.
-    let held = dir.path().join("held");
-    std::fs::create_dir(&held).unwrap();
-    for ext in ["npy", "lab"] {
-        std::fs::copy(
-            dir.path().join(format!("corpus/heldout/demo55.{ext}")),
-            held.join(format!("demo55.{ext}")),
-        )
-        .unwrap();
-    }
+    one_heldout(dir.path());
     killed_runs(
         &[
             "eval",
