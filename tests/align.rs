@@ -4,9 +4,6 @@
 
 use crate::common;
 
-#[path = "../examples/common/grid.rs"]
-mod grid_align;
-
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
@@ -99,7 +96,7 @@ fn grid_clips_align_within_tolerance_of_their_reference_labels() {
             phone_d.push((a.start - b.start).abs());
         }
         phone_d.push((r.last().unwrap().end - o.last().unwrap().end).abs());
-        let words: Vec<(f64, f64)> = grid_align::read_align(&grid().join(format!("{id}.align")))
+        let words: Vec<(f64, f64)> = common::grid::read_align(&grid().join(format!("{id}.align")))
             .into_iter()
             .map(|(start, end, _)| (start, end))
             .collect();

@@ -293,7 +293,6 @@ fn killed_decodes_tracks_and_synthesis_leave_whole_outputs() {
     );
 }
 
-/// A JSON file that parses.
 /// `dir/held`: the first held-out sentence of the demo corpus at `dir/corpus`, alone.
 fn one_heldout(dir: &Path) {
     let held = dir.join("held");
@@ -304,6 +303,7 @@ fn one_heldout(dir: &Path) {
     }
 }
 
+/// A JSON file that parses.
 fn json(path: &Path) -> serde_json::Value {
     let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     serde_json::from_str(&text).unwrap_or_else(|e| panic!("damaged {}: {e}", path.display()))

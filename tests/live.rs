@@ -162,14 +162,9 @@ fn batches_join_without_jumps() {
 /// The words of a GRID clip with their start times (its `.align`, 25 000 units a second),
 /// as a text-to-speech engine's word timestamps give them.
 fn words(id: &str) -> Vec<(String, f64)> {
-    let text = std::fs::read_to_string(common::root().join(format!("tests/data/grid/{id}.align"))).unwrap();
-    text.lines()
-        .filter_map(|l| {
-            let mut f = l.split_whitespace();
-            let start: f64 = f.next()?.parse().ok()?;
-            let (_, word) = (f.next()?, f.next()?);
-            (word != "sil").then(|| (word.to_string(), start / 25_000.0))
-        })
+    common::grid::read_align(&common::root().join(format!("tests/data/grid/{id}.align")))
+        .into_iter()
+        .map(|(start, _, word)| (word, start))
         .collect()
 }
 

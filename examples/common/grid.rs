@@ -4,7 +4,7 @@
 use std::path::Path;
 
 /// The words of a GRID `.align` file, `sil` and `sp` left out: (start, end, word), seconds
-/// (the file counts 25 000 units a second). Shared with `tests/align.rs` by path.
+/// (the file counts 25 000 units a second). The tests include this file too (`tests/common`).
 pub fn read_align(path: &Path) -> Vec<(f64, f64, String)> {
     std::fs::read_to_string(path)
         .unwrap_or_else(|e| panic!("{}: {e}", path.display()))

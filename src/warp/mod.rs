@@ -201,12 +201,12 @@ impl GreyImage {
     /// `((a + b) + c) + d`, so every value is the same to the bit as a per-pixel sum.
     pub fn half(&self) -> Self {
         let (w, h) = ((self.width / 2).max(1), (self.height / 2).max(1));
+        let row = |r: usize| {
+            let r = r.min(self.height - 1) * self.width;
+            &self.data[r..r + self.width]
+        };
         let mut data = Vec::with_capacity(w * h);
         for y in 0..h {
-            let row = |r: usize| {
-                let r = r.min(self.height - 1) * self.width;
-                &self.data[r..r + self.width]
-            };
             let (top, bottom) = (row(2 * y), row(2 * y + 1));
             if self.width >= 2 {
                 data.extend(

@@ -2,6 +2,9 @@
 #![allow(dead_code)]
 
 pub mod cdp;
+/// The GRID helpers the examples share (`read_align`: one reader of `.align` files).
+#[path = "../../examples/common/grid.rs"]
+pub mod grid;
 
 use std::path::{Path, PathBuf};
 
