@@ -185,6 +185,7 @@ impl Server {
             return Err(HttpError::NotLoopback(*a));
         }
         let listener = std::net::TcpListener::bind(first).map_err(|e| bind(e.to_string()))?;
+        deepen_backlog(&listener);
         listener
             .set_nonblocking(true)
             .map_err(|e| bind(e.to_string()))?;
@@ -290,6 +291,26 @@ struct EventLoop {
     port: u16,
     /// A resource notice was given and not yet cleared.
     noticed: bool,
+}
+
+/// Connections the kernel completes and queues before the server accepts them. The standard
+/// library listens with 128: a burst of connections (a flood, or a page's many fetches)
+/// fills that before the server thread is scheduled, and each SYN past it is dropped and
+/// retried by its client only a second later — a normal client kept waiting. (Linux caps
+/// it at `net.core.somaxconn`, 4096 by default.)
+pub const BACKLOG: i32 = 4096;
+
+/// Listens on `listener` again with [`BACKLOG`]: on a listening socket `listen` only changes
+/// the queue's length. Best effort: where it fails the standard library's 128 stays.
+fn deepen_backlog(listener: &std::net::TcpListener) {
+    #[cfg(unix)]
+    {
+        use std::os::fd::AsRawFd;
+        // SAFETY: listen takes the descriptor `listener` owns and keeps open while it lives.
+        unsafe {
+            libc::listen(listener.as_raw_fd(), BACKLOG);
+        }
+    }
 }
 
 /// Connections the open-file limit leaves room for (64 descriptors kept for files).
