@@ -229,13 +229,18 @@ impl Drop for StagingDir {
 }
 
 /// Runs `read` on the folder `dir` until the folder was not replaced while it ran (its inode
-/// the same before and after; at most 5 tries): a reader of a folder swapped in whole by
+/// and change time the same before and after; at most 5 tries): a reader of a folder swapped in whole by
 /// [`replace_dir`] gets one version or tries again, never a mix.
 pub fn read_consistent<T, E>(dir: &Path, mut read: impl FnMut() -> Result<T, E>) -> Result<T, E> {
     #[cfg(unix)]
     let identity = || {
         use std::os::unix::fs::MetadataExt;
-        std::fs::metadata(dir).ok().map(|m| (m.dev(), m.ino()))
+        // The change time too: a folder removed by one swap can hand its inode number to a
+        // folder swapped in later (two swaps during one read then looked like none), but a
+        // rename sets the change time of what it moves, to the nanosecond.
+        std::fs::metadata(dir)
+            .ok()
+            .map(|m| (m.dev(), m.ino(), m.ctime(), m.ctime_nsec()))
     };
     #[cfg(not(unix))]
     let identity = || None::<()>;
