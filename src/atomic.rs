@@ -229,8 +229,8 @@ impl Drop for StagingDir {
 }
 
 /// Runs `read` on the folder `dir` until the folder was not replaced while it ran (its inode
-/// and change time the same before and after; at most 5 tries): a reader of a folder swapped in whole by
-/// [`replace_dir`] gets one version or tries again, never a mix.
+/// and change time the same before and after; at most 5 tries): a reader of a folder swapped
+/// in whole by [`replace_dir`] gets one version or tries again, never a mix.
 pub fn read_consistent<T, E>(dir: &Path, mut read: impl FnMut() -> Result<T, E>) -> Result<T, E> {
     #[cfg(unix)]
     let identity = || {
