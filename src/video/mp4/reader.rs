@@ -153,8 +153,51 @@ fn decoder_after(head: &[u8]) -> Result<Decoder, Mp4Error> {
 fn to_rgb(yuv: &openh264::decoder::DecodedYUV<'_>) -> RgbImage {
     let (w, h) = yuv.dimensions();
     let mut rgb = vec![0u8; w * h * 3];
-    yuv.write_rgb8(&mut rgb);
+    if w % 8 == 0 && h >= 2 {
+        // openh264's SIMD path.
+        yuv.write_rgb8(&mut rgb);
+    } else {
+        // openh264 would take its scalar path, whose `mul_add`s are software calls on a
+        // CPU build without FMA (a talker's 126-wide mouth store spent most of its loading
+        // there): the same pixels, computed as below.
+        yuv420_to_rgb([yuv.y(), yuv.u(), yuv.v()], (w, h), yuv.strides(), &mut rgb);
+    }
     RgbImage::from_raw(w as u32, h as u32, rgb).expect("buffer sized for the frame")
+}
+
+/// Limited-range BT.601, YUV 4:2:0 to RGB, to the bit as openh264's scalar path
+/// (`formats::yuv2rgb::write_yuv420_float`) gives it: `Y_MUL·(y − 16)` rounded to f32, then
+/// the fused multiply-adds `RV·v + y`, `GV·v + (GU·u + y)` and `BU·u + y`, each rounded
+/// once to f32, clamped to 0..=255 and truncated. Those sums are exact in f64 (each term a
+/// multiple of 2⁻²⁵ — the ulp of the smallest coefficient — below 2¹⁰: 35 bits), so one
+/// rounding from f64 to f32 is the fused result.
+fn yuv420_to_rgb(
+    [y_plane, u_plane, v_plane]: [&[u8]; 3],
+    (width, height): (usize, usize),
+    (y_stride, u_stride, v_stride): (usize, usize, usize),
+    rgb: &mut [u8],
+) {
+    const Y_MUL: f32 = 255.0 / 219.0;
+    const RV_MUL: f32 = 255.0 / 224.0 * 1.402;
+    const GV_MUL: f32 = -255.0 / 224.0 * 1.402 * 0.299 / 0.587;
+    const GU_MUL: f32 = -255.0 / 224.0 * 1.772 * 0.114 / 0.587;
+    const BU_MUL: f32 = 255.0 / 224.0 * 1.772;
+    let luma: [f64; 256] = std::array::from_fn(|y| f64::from(Y_MUL * (y as f32 - 16.0)));
+    let byte = |v: f64| (v as f32).clamp(0.0, 255.0) as u8;
+    for (row, out) in rgb.chunks_exact_mut(3 * width).take(height).enumerate() {
+        let ys = &y_plane[row * y_stride..][..width];
+        let us = &u_plane[row / 2 * u_stride..];
+        let vs = &v_plane[row / 2 * v_stride..];
+        for (x, (px, &y)) in out.chunks_exact_mut(3).zip(ys).enumerate() {
+            let u = f64::from(us[x / 2]) - 128.0;
+            let v = f64::from(vs[x / 2]) - 128.0;
+            let y = luma[y as usize];
+            let gu = f64::from((f64::from(GU_MUL) * u + y) as f32);
+            px[0] = byte(f64::from(RV_MUL) * v + y);
+            px[1] = byte(f64::from(GV_MUL) * v + gu);
+            px[2] = byte(f64::from(BU_MUL) * u + y);
+        }
+    }
 }
 
 /// Length-prefixed NAL units (MP4) → start-code-prefixed (Annex B).
@@ -173,4 +216,57 @@ fn to_annex_b(mut bytes: &[u8], length_size: usize) -> Option<Vec<u8>> {
         bytes = &bytes[length_size + n..];
     }
     Some(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// openh264's scalar expression itself (`write_yuv420_float`), fused multiply-adds and all.
+    fn fused(y: u8, u: u8, v: u8) -> [u8; 3] {
+        const Y_MUL: f32 = 255.0 / 219.0;
+        const RV_MUL: f32 = 255.0 / 224.0 * 1.402;
+        const GV_MUL: f32 = -255.0 / 224.0 * 1.402 * 0.299 / 0.587;
+        const GU_MUL: f32 = -255.0 / 224.0 * 1.772 * 0.114 / 0.587;
+        const BU_MUL: f32 = 255.0 / 224.0 * 1.772;
+        let (u, v) = (f32::from(u) - 128.0, f32::from(v) - 128.0);
+        let y = Y_MUL * (f32::from(y) - 16.0);
+        [
+            RV_MUL.mul_add(v, y),
+            GV_MUL.mul_add(v, GU_MUL.mul_add(u, y)),
+            BU_MUL.mul_add(u, y),
+        ]
+        .map(|c| c.clamp(0.0, 255.0) as u8)
+    }
+
+    #[test]
+    fn every_yuv_triple_converts_as_openh264_fuses_it() {
+        let ys: Vec<u8> = (0..=255).collect();
+        let mut rgb = vec![0u8; 3 * 256];
+        for u in 0..=255u8 {
+            for v in 0..=255u8 {
+                yuv420_to_rgb([&ys, &[u; 128], &[v; 128]], (256, 1), (256, 128, 128), &mut rgb);
+                for (y, px) in rgb.chunks_exact(3).enumerate() {
+                    assert_eq!(px, fused(y as u8, u, v), "y {y} u {u} v {v}");
+                }
+            }
+        }
+    }
+
+    /// A frame of the GRID talker's mouth store (126 wide: openh264's scalar path) decoded
+    /// by openh264 and converted by it and by us: the same bytes.
+    #[test]
+    fn a_frame_of_odd_width_decodes_as_openh264_converts_it() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/grid/mouths/mouths.mp4");
+        let mut reader = Reader::open(&path).unwrap();
+        assert_ne!(reader.width % 8, 0);
+        let sample = reader.file.read_sample(reader.track, 1).unwrap().unwrap();
+        let annex_b = to_annex_b(&sample.bytes, reader.length_size).unwrap();
+        // A sync frame without reordering: out at once.
+        let yuv = reader.decoder.decode(&annex_b).unwrap().unwrap();
+        let mut theirs = vec![0u8; 3 * (reader.width * reader.height) as usize];
+        yuv.write_rgb8(&mut theirs);
+        assert!(theirs == to_rgb(&yuv).into_raw(), "the conversions differ");
+        assert!(theirs.iter().any(|&b| b > 0));
+    }
 }
