@@ -685,7 +685,12 @@ impl<'t> Session<'t> {
         let utterance = crate::synth::synthesise(
             self.synthesiser.as_ref(),
             &self.talker.codebook,
-            Request::new(target.clone(), self.fps, smoothing),
+            // The codebook's median pose, which the talker keeps (found anew, it would read
+            // every frame of the codebook for every batch).
+            Request {
+                pose: crate::synth::Pose::Hold(self.talker.median_pose()),
+                ..Request::new(target.clone(), self.fps, smoothing)
+            },
         )?;
         let frames: &Frames = utterance.variants()[0].1;
         let offset = (start * self.fps).round() as usize;

@@ -528,3 +528,22 @@ fn corpus_folder_loading() {
         Err(CorpusError::Empty { .. })
     ));
 }
+
+/// The median pose is, per pose value, the middle of every frame's values sorted (the upper
+/// middle of an even count).
+#[test]
+fn the_median_pose_is_the_middle_of_every_frames_pose() {
+    // GRID s1's recorded sentences: every pose value varies.
+    let cb = Codebook::load(&common::root().join("models/grid/codebook")).unwrap();
+    let median = cb.median_pose().to_array();
+    for (k, &m) in median.iter().enumerate() {
+        let mut all: Vec<f32> = cb
+            .sentences
+            .iter()
+            .flat_map(|s| s.frames.values().column(k).to_vec())
+            .collect();
+        all.sort_by(f32::total_cmp);
+        assert!(all[0] < all[all.len() - 1], "pose value {k} never varies");
+        assert_eq!(m, f64::from(all[all.len() / 2]), "pose value {k}");
+    }
+}

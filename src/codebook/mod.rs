@@ -375,18 +375,13 @@ impl Codebook {
         sum
     }
 
-    /// Each sentence's mean of every value over its frames, in sentence order.
-    pub fn sentence_means(&self) -> Vec<Vec<f64>> {
-        self.sentences
-            .iter()
-            .map(|s| {
-                let v = s.frames.values();
-                let n = v.nrows().max(1) as f64;
-                v.columns()
-                    .into_iter()
-                    .map(|c| c.iter().map(|&x| f64::from(x)).sum::<f64>() / n)
-                    .collect()
-            })
+    /// Sentence `k`'s mean of every value over its frames.
+    pub fn sentence_mean(&self, k: usize) -> Vec<f64> {
+        let v = self.sentences[k].frames.values();
+        let n = v.nrows().max(1) as f64;
+        v.columns()
+            .into_iter()
+            .map(|c| c.iter().map(|&x| f64::from(x)).sum::<f64>() / n)
             .collect()
     }
 
@@ -419,14 +414,18 @@ impl Codebook {
 
     /// The median of each pose value over every frame: a neutral still pose.
     pub fn median_pose(&self) -> crate::shape::Similarity {
+        // Selected, not sorted: live synthesis asks for it with every batch.
+        let mut v: Vec<f32> = Vec::with_capacity(self.n_frames());
         let median = |k: usize| {
-            let mut v: Vec<f32> = self
-                .sentences
-                .iter()
-                .flat_map(|s| s.frames.column(k).to_vec())
-                .collect();
-            v.sort_by(f32::total_cmp);
-            v.get(v.len() / 2).map_or(0.0, |&x| f64::from(x))
+            v.clear();
+            for s in &self.sentences {
+                v.extend(s.frames.column(k).iter());
+            }
+            if v.is_empty() {
+                return 0.0;
+            }
+            let middle = v.len() / 2;
+            f64::from(*v.select_nth_unstable_by(middle, f32::total_cmp).1)
         };
         crate::shape::Similarity::from_array(std::array::from_fn(median))
     }

@@ -227,10 +227,15 @@ impl Synthesiser for Blend {
         let mut rows = vec![0f32; times.len() * dims];
         let mut acc = vec![0.0; dims];
         let mut value = vec![0.0; dims];
-        let means = if self.preserve_variance {
-            codebook.sentence_means()
+        // The means of the sentences the mixes draw on (a few of the codebook's hundreds).
+        let means: std::collections::HashMap<usize, Vec<f64>> = if self.preserve_variance {
+            mixes
+                .iter()
+                .flatten()
+                .map(|(o, _)| (o.sentence, codebook.sentence_mean(o.sentence)))
+                .collect()
         } else {
-            Vec::new()
+            Default::default()
         };
         let mut spread = Spread::new(dims);
         let mut seg = 0;
@@ -251,7 +256,7 @@ impl Synthesiser for Blend {
                 warp.eval_into((t - s.start).clamp(0.0, s.duration()), &mut value);
                 acc.iter_mut().zip(&value).for_each(|(r, v)| *r += w * v);
                 if self.preserve_variance {
-                    spread.add_example(w, &value, &means[o.sentence]);
+                    spread.add_example(w, &value, &means[&o.sentence]);
                 }
             }
             spread.add_weights(&mixes[seg]);

@@ -266,6 +266,8 @@ pub struct Talker {
     aligner: std::sync::OnceLock<crate::align::Aligner>,
     /// The recorded mouths, decoded when first drawn and kept.
     mouths: std::sync::OnceLock<crate::mouths::Mouths>,
+    /// The codebook's median pose, found when first asked for and kept.
+    median_pose: std::sync::OnceLock<crate::shape::Similarity>,
 }
 
 /// The value kept in `cell`, loaded by `load` the first time. A failed load is not kept (the
@@ -485,7 +487,14 @@ impl Talker {
             footage,
             aligner: std::sync::OnceLock::new(),
             mouths: std::sync::OnceLock::new(),
+            median_pose: std::sync::OnceLock::new(),
         })
+    }
+
+    /// [`Codebook::median_pose`] of the talker's codebook, kept: a live session's every batch
+    /// is synthesised at it, and it reads every frame of the codebook.
+    pub fn median_pose(&self) -> crate::shape::Similarity {
+        *self.median_pose.get_or_init(|| self.codebook.median_pose())
     }
 
     /// The talker's own aligner (the committed dictionary), loaded on first use and kept.
