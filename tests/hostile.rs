@@ -339,10 +339,10 @@ fn synthesis_options_and_labels() {
         "File type = \"ooTextFile\"\nObject class = \"TextGrid\"\nxmin = 0\nxmax = 1\ntiers? <exists>\nsize = 1\nitem []:\n    item [1]:\n        class = \"IntervalTier\"\n        name = \"phones\"\n        xmin = 0\n        xmax = 1\n        intervals: size = 10000000\n        intervals [1]:\n            xmin = 0\n            xmax = 1\n            text = \"sil\"\n",
     );
     refused_synth(&["--labels", s(&tg)], &["bomb.TextGrid"]);
-    // 7: a 6 000-word text is synthesised within the limits (at 1 fps, to keep the test
-    // short: rendering streams, so memory does not grow with the frames).
+    // 7: a 6 000-word text is synthesised within the limits (at 0.2 fps, to keep the test
+    // short: 379 frames; rendering streams, so memory does not grow with the frames).
     let text = vec!["hello world"; 3000].join(" ");
-    let args = synth(&["--text", &text, "--fps", "1"]);
+    let args = synth(&["--text", &text, "--fps", "0.2"]);
     let (code, msg) = run(&args.iter().map(String::as_str).collect::<Vec<_>>());
     assert_eq!(code, Some(0), "{}", &msg[..msg.len().min(2000)]);
 }
