@@ -1,7 +1,8 @@
 //! Issue 17: `kill -9` at random moments never leaves a destination missing, half-written or
-//! mixed, and the next run leaves no staging of ours behind. Every writing command, 10 kills
-//! each: 3 over its work and 7 over its write, which a watched first run locates (issue 37:
-//! 20 blind kills each took three minutes).
+//! mixed, and the next run leaves no staging of ours behind. Every writing command, 7 kills
+//! each: 2 over its work, 3 over its write and 2 around its commit, which a watched first run
+//! locates (issue 37: 20 blind kills each took three minutes, and 10 spread over the work and
+//! the write a minute; kills past the end of the run killed nothing).
 use crate::common;
 
 use std::path::Path;
@@ -35,10 +36,26 @@ fn killed_after(args: &[&str], tmpdir: Option<&Path>, at: std::time::Duration) {
     let _ = child.wait();
 }
 
-/// Runs `args` to completion, watching the folder `out` is written in: how long the run took
-/// and when its staging (the write) first appeared there, if it was seen.
-fn watched_run(args: &[&str], out: &Path) -> (Duration, Option<Duration>) {
+/// What a watched run saw: how long it took, when its staging (the write) first appeared
+/// beside the destination, and when the destination itself changed (the commit), each if seen.
+struct Watched {
+    full: Duration,
+    staged: Option<Duration>,
+    committed: Option<Duration>,
+}
+
+/// Which file or folder is at `path` now: a rename puts another inode there (or sets the
+/// change time of the one it moves).
+fn identity(path: &Path) -> Option<(u64, i64, i64)> {
+    use std::os::unix::fs::MetadataExt;
+    let m = std::fs::symlink_metadata(path).ok()?;
+    Some((m.ino(), m.ctime(), m.ctime_nsec()))
+}
+
+/// Runs `args` to completion, watching `out` and the folder it is written in.
+fn watched_run(args: &[&str], out: &Path) -> Watched {
     let parent = out.parent().unwrap();
+    let before = identity(out);
     let start = Instant::now();
     let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_facespace"))
         .args(args)
@@ -46,28 +63,37 @@ fn watched_run(args: &[&str], out: &Path) -> (Duration, Option<Duration>) {
         .stderr(std::process::Stdio::piped())
         .spawn()
         .unwrap();
-    let mut staged = None;
+    let (mut staged, mut committed) = (None, None);
     while child.try_wait().unwrap().is_none() {
         if staged.is_none() && !staging(parent).is_empty() {
             staged = Some(start.elapsed());
+        }
+        if committed.is_none() && identity(out) != before {
+            committed = Some(start.elapsed());
         }
         std::thread::sleep(Duration::from_millis(2));
     }
     let full = start.elapsed();
     let o = child.wait_with_output().unwrap();
     assert!(o.status.success(), "{}", common::text(&o));
-    (full, staged)
+    Watched {
+        full,
+        staged,
+        committed,
+    }
 }
 
-/// Kill moments for a run of `full` whose write starts at `staged`: 3 spread over the work
-/// before the write, 7 over the write itself and just past the end (where a kill can leave
-/// a half-written file), each at a seeded random point of its own stretch, so every part of
-/// the run is hit without 20 blind tries. A command that stages from its first moments (the
-/// demo writes into its staging folder as it goes) has no work before its write to speak
-/// of: all 10 fall over the write, not 3 on one instant.
-fn kill_moments(full: Duration, staged: Option<Duration>, rng: &mut common::Rng) -> Vec<Duration> {
-    let (lo, end) = (full.mul_f64(0.05), full.mul_f64(1.05));
-    let write = staged.unwrap_or(lo).clamp(lo, end);
+/// Kill moments for a watched run, each at a seeded random point of its own stretch: 2 over
+/// the work before the write, 3 over the write until the commit (where a kill leaves a
+/// half-written staging), and 2 within a few per cent of the run around the commit (just
+/// before the rename, or just after it, with the old version still to clear away). A command
+/// that stages from its first moments (the demo writes into its staging folder as it goes)
+/// has no work before its write to speak of: those 2 fall over the write instead.
+fn kill_moments(run: &Watched, rng: &mut common::Rng) -> Vec<Duration> {
+    let full = run.full;
+    let lo = full.mul_f64(0.05);
+    let write = run.staged.unwrap_or(lo).clamp(lo, full);
+    let commit = run.committed.unwrap_or(full).clamp(write, full);
     let spread = |from: Duration, to: Duration, n: usize, rng: &mut common::Rng| {
         (0..n)
             .map(|k| {
@@ -76,20 +102,22 @@ fn kill_moments(full: Duration, staged: Option<Duration>, rng: &mut common::Rng)
             })
             .collect::<Vec<_>>()
     };
-    let before = if write > lo { 3 } else { 0 };
+    let before = if write > lo { 2 } else { 0 };
     let mut moments = spread(lo, write, before, rng);
-    moments.extend(spread(write, end, 10 - before, rng));
+    moments.extend(spread(write, commit, 5 - before, rng));
+    let near = commit.saturating_sub(full.mul_f64(0.04)).max(lo);
+    moments.extend(spread(near, commit + full.mul_f64(0.02), 2, rng));
     moments
 }
 
-/// Runs `args` to completion once (timing it and seeing when it writes), then 10 times
-/// killed at the moments [`kill_moments`] places; after each kill, `check` must accept the
+/// Runs `args` to completion once (timing it and seeing when it writes and commits), then 7
+/// times killed at the moments [`kill_moments`] places; after each kill, `check` must accept the
 /// destination (the complete previous version).
 fn killed_runs(args: &[&str], out: &Path, check: impl Fn(&Path)) {
-    let (full, staged) = watched_run(args, out);
+    let first = watched_run(args, out);
     check(out);
     let mut rng = common::Rng::new(17);
-    for (k, at) in kill_moments(full, staged, &mut rng).into_iter().enumerate() {
+    for (k, at) in kill_moments(&first, &mut rng).into_iter().enumerate() {
         killed_after(args, None, at);
         assert!(out.exists(), "kill {k} at {at:?}: the destination is gone");
         check(out);
