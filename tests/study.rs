@@ -112,32 +112,42 @@ fn conditions(s: &str) -> Vec<Condition> {
 /// A study of one held-out demo sentence (the codebook from the demo corpus's training split)
 /// with `viewers` viewers, written to `dir`.
 fn make_study(dir: &Path, conds: &str, viewers: usize, task: Task) -> Manifest {
-    make_study_with(dir, conds, viewers, task, None)
+    make_study_with(dir, conds, viewers, task, None, CLIP_SECONDS)
 }
 
+/// [`make_study`] with the sentence's sound and cut after `seconds` of phones.
 fn make_study_with(
     dir: &Path,
     conds: &str,
     viewers: usize,
     task: Task,
     audio: Option<&Path>,
+    seconds: f64,
 ) -> Manifest {
-    let (model, cb, mut heldout) = fixture();
+    let (model, cb, mut heldout) = fixture_cut(seconds);
     for h in &mut heldout {
         h.audio = audio.map(Path::to_path_buf);
     }
     create(dir, &model, &cb, &heldout, conds, viewers, task).unwrap()
 }
 
+/// Seconds of phones a study's sentence is cut after: longer than
+/// [`facespace::study::answers::ANSWER_SLACK_SECONDS`], so that an answer can be too fast.
+const CLIP_SECONDS: f64 = 0.8;
+
 /// The demo model, a codebook of the demo corpus's training split, one test sentence cut
-/// after its first 0.8 s of phones (the study server makes a viewer play every clip in real
-/// time, so the browser test lasts about 40 times a clip).
+/// after its first [`CLIP_SECONDS`] of phones.
 fn fixture() -> (FaceModel, Codebook, Vec<Heldout>) {
+    fixture_cut(CLIP_SECONDS)
+}
+
+/// [`fixture`] with the sentence cut after `seconds` of phones.
+fn fixture_cut(seconds: f64) -> (FaceModel, Codebook, Vec<Heldout>) {
     let (model, generated, cb) = common::demo_corpus_codebook();
     let mut test = generated.part(Split::Test);
     test.truncate(1);
     for sentence in &mut test {
-        let keep = 1 + sentence.segments.iter().position(|s| s.end >= 0.8).unwrap();
+        let keep = 1 + sentence.segments.iter().position(|s| s.end >= seconds).unwrap();
         sentence.segments.truncate(keep);
         let end = sentence.segments[keep - 1].end;
         let fps = facespace::corpus::demo::CorpusOptions::default().fps;
@@ -474,7 +484,14 @@ fn stimuli_carry_the_sentence_sound_and_an_unanswered_study_is_not_analysed() {
     assert!(facespace::video::extract_audio(&input, &sound).unwrap());
     let source = facespace::audio::read(&input, 16_000, 600.0).unwrap();
     let study = dir.path().join("study");
-    let manifest = make_study_with(&study, "original,unsmoothed", 1, Task::Rating, Some(&sound));
+    let manifest = make_study_with(
+        &study,
+        "original,unsmoothed",
+        1,
+        Task::Rating,
+        Some(&sound),
+        CLIP_SECONDS,
+    );
     for s in &manifest.stimuli {
         assert!(s.audio);
         let bytes = std::fs::read(study.join("stimuli").join(s.file_name())).unwrap();
@@ -814,11 +831,14 @@ fn headless_chromium_answers_a_study_across_a_server_crash() {
     };
     let dir = tempfile::tempdir().unwrap();
     let study = dir.path().join("study");
-    let manifest = make_study(
+    // Clips of 0.4 s: the page makes a viewer play each in real time, about 40 in all.
+    let manifest = make_study_with(
         &study,
         "original,smoothed,unsmoothed,random-lips",
         2,
         Task::Both,
+        None,
+        0.4,
     );
     let (mut server, links) = serve(&study);
     assert_eq!(links.len(), 2, "{links:?}");
