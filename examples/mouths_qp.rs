@@ -13,7 +13,7 @@ fn main() {
     let model = facespace::model::FaceModel::load(&root.join("models/grid/model")).unwrap();
     let m = facespace::mouths::Mouths::load(Path::new(&a[0]), &model).unwrap();
     let (n, k) = (m.pixels.len(), 300.min(m.len()));
-    let detail: Vec<f32> = (0..k).flat_map(|i| m.detail(i).iter().map(|&d| f32::from(d))).collect();
+    let detail: Vec<f32> = (0..k).flat_map(|i| m.detail(i).unwrap().iter().map(|&d| f32::from(d))).collect();
     let detail = ndarray::Array2::from_shape_vec((k, n), detail).unwrap();
     facespace::npy::write(Path::new(&a[1]), detail.view()).unwrap();
 }

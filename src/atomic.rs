@@ -232,26 +232,37 @@ impl Drop for StagingDir {
 /// and change time the same before and after; at most 5 tries): a reader of a folder swapped
 /// in whole by [`replace_dir`] gets one version or tries again, never a mix.
 pub fn read_consistent<T, E>(dir: &Path, mut read: impl FnMut() -> Result<T, E>) -> Result<T, E> {
-    #[cfg(unix)]
-    let identity = || {
-        use std::os::unix::fs::MetadataExt;
-        // The change time too: a folder removed by one swap can hand its inode number to a
-        // folder swapped in later (two swaps during one read then looked like none), but a
-        // rename sets the change time of what it moves, to the nanosecond.
-        std::fs::metadata(dir)
-            .ok()
-            .map(|m| (m.dev(), m.ino(), m.ctime(), m.ctime_nsec()))
-    };
-    #[cfg(not(unix))]
-    let identity = || None::<()>;
     let mut tries = 0;
     loop {
-        let before = identity();
+        let before = identity(dir);
         let result = read();
         tries += 1;
-        if identity() == before || tries == 5 {
+        if identity(dir) == before || tries == 5 {
             return result;
         }
+    }
+}
+
+/// Which file or folder is at a path: its device, inode and change time.
+pub type Identity = (u64, u64, i64, i64);
+
+/// The [`Identity`] of what is at `path` now (`None` if nothing can be read there, and off
+/// Unix). The change time too: a folder removed by one swap can hand its inode number to a
+/// folder swapped in later (two swaps during one read then looked like none), but a rename
+/// sets the change time of what it moves, and a write that of what it writes, to the
+/// nanosecond.
+pub fn identity(path: &Path) -> Option<Identity> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        std::fs::metadata(path)
+            .ok()
+            .map(|m| (m.dev(), m.ino(), m.ctime(), m.ctime_nsec()))
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = path;
+        None
     }
 }
 

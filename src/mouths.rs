@@ -144,12 +144,33 @@ pub struct Mouths {
     pub gain: f32,
     /// Mask-pixel indices of the region (the articulators' alpha above zero), mask order.
     pub pixels: Vec<u32>,
-    /// Frames × region pixels: recorded luma less the model's reconstruction, grey levels.
-    detail: Vec<i8>,
+    /// The store's video, and what it was when loaded: a piece decoded later must come from
+    /// that same file.
+    video: PathBuf,
+    loaded: Option<crate::atomic::Identity>,
+    /// The video in pieces, one from each sync frame to the next, each piece's detail (frames
+    /// × region pixels: recorded luma less the model's reconstruction, grey levels) decoded
+    /// when a frame of it is first drawn: an utterance draws on a few of the store's pieces.
+    pieces: Vec<Piece>,
+    /// The model's luma over the region (its mean, then one row per appearance component)
+    /// and each kept frame's own appearance: what a decoded frame's detail is measured from.
+    luma: Vec<Vec<f32>>,
+    appearance: Array2<f32>,
+    /// Each region pixel's place in the video's frames.
+    at: Vec<(u32, u32)>,
     /// Frames × 40: the lips in reference-frame pixels.
     keys: Array2<f32>,
     /// Per frame, the next frame of its recording (`u32::MAX` at a recording's end).
     next: Vec<u32>,
+}
+
+/// Frames `first..end` of the store's video, from a sync frame on, and their detail once
+/// decoded (or why it could not be).
+#[derive(Clone, Debug)]
+struct Piece {
+    first: usize,
+    end: usize,
+    detail: std::sync::OnceLock<Result<Vec<i8>, String>>,
 }
 
 /// One output frame's detail: up to two recorded frames and their weights.
@@ -345,8 +366,9 @@ impl Mouths {
         Mouths::load(out, model)
     }
 
-    /// Loads the folder `dir` for `model` (its hash checked): decodes the video and turns each
-    /// frame into its detail.
+    /// Loads the folder `dir` for `model` (its hash checked): the arrays, and the video's
+    /// header checked against them; each piece of the video is decoded into its detail when a
+    /// frame of it is first drawn ([`Mouths::detail`]).
     pub fn load(dir: &Path, model: &FaceModel) -> Result<Mouths, MouthsError> {
         let m: Manifest = manifest::read(&dir.join(MANIFEST), FORMAT, MOUTHS_VERSION)?;
         let inconsistent = |reason: String| MouthsError::Inconsistent {
@@ -374,12 +396,11 @@ impl Mouths {
             return Err(inconsistent("an array holds a value that is not finite".into()));
         }
         let video = manifest::member(dir, VIDEO)?;
-        let mp4_error = |source| VideoError::Mp4 {
+        let loaded = crate::atomic::identity(&video);
+        let reader = Reader::open(&video).map_err(|source| VideoError::Mp4 {
             path: video.clone(),
             source,
-        };
-        let open = || Reader::open(&video).map_err(mp4_error);
-        let reader = open()?;
+        })?;
         if (reader.width, reader.height) != (m.window.width, m.window.height) {
             return Err(inconsistent(format!(
                 "{VIDEO} is {}×{}, the manifest says {}×{}",
@@ -398,64 +419,34 @@ impl Mouths {
             let o = 3 * p as usize;
             crate::video::luma([v[o], v[o + 1], v[o + 2]].map(f64::from)) as f32
         };
-        let mean: Vec<f32> = pixels.iter().map(|&p| luma(&pca.mean, p)).collect();
-        let basis: Vec<Vec<f32>> = (0..n_a)
-            .map(|k| pixels.iter().map(|&p| luma(pca.component(k), p)).collect())
+        let luma: Vec<Vec<f32>> = std::iter::once(&pca.mean[..])
+            .chain((0..n_a).map(|k| pca.component(k)))
+            .map(|v| pixels.iter().map(|&p| luma(v, p)).collect())
             .collect();
-        // Decoded in pieces side by side, each from a sync frame with a decoder of its own,
-        // about one piece per thread: decoding is most of loading.
         let syncs = reader.sync_frames();
         if frames > 0 && syncs.first() != Some(&0) {
             return Err(inconsistent(format!("{VIDEO} does not start with a sync frame")));
         }
-        let piece = frames.div_ceil(rayon::current_num_threads().max(1)).max(1);
-        let mut starts: Vec<usize> = Vec::new();
-        for &f in syncs.iter().filter(|&&f| f < frames) {
-            if starts.last().is_none_or(|&s| f >= s + piece) {
-                starts.push(f);
-            }
-        }
-        let n = pixels.len();
+        let mut firsts: Vec<usize> = syncs.into_iter().filter(|&f| f < frames).collect();
+        firsts.sort_unstable();
+        firsts.dedup();
+        let pieces = firsts
+            .iter()
+            .enumerate()
+            .map(|(k, &first)| Piece {
+                first,
+                end: firsts.get(k + 1).copied().unwrap_or(frames),
+                detail: std::sync::OnceLock::new(),
+            })
+            .collect();
         let window = m.window;
-        let mut detail = vec![0i8; frames * n];
-        let mut pieces = Vec::with_capacity(starts.len());
-        let mut rest = detail.as_mut_slice();
-        for (k, &first) in starts.iter().enumerate() {
-            let end = starts.get(k + 1).copied().unwrap_or(frames);
-            let (out, after) = rest.split_at_mut((end - first) * n);
-            pieces.push((first, out));
-            rest = after;
-        }
-        pieces.into_par_iter().try_for_each(|(first, out)| -> Result<(), MouthsError> {
-            let mut reader = open()?;
-            reader.seek(first).map_err(mp4_error)?;
-            let mut model_luma = vec![0f32; n];
-            for (k, out) in out.chunks_exact_mut(n).enumerate() {
-                let image = reader.next_frame().map_err(mp4_error)?.ok_or_else(|| {
-                    inconsistent(format!("{VIDEO} ends before frame {}", first + k))
-                })?;
-                if image.dimensions() != (window.width, window.height) {
-                    return Err(inconsistent(format!(
-                        "{VIDEO}'s frame {} is {:?}, its header says {}×{}",
-                        first + k,
-                        image.dimensions(),
-                        window.width,
-                        window.height
-                    )));
-                }
-                model_luma.copy_from_slice(&mean);
-                for (row, &bk) in basis.iter().zip(appearance.row(first + k).iter()) {
-                    model_luma.iter_mut().zip(row).for_each(|(o, &r)| *o += bk * r);
-                }
-                for ((o, &p), m) in out.iter_mut().zip(&pixels).zip(&model_luma) {
-                    let q = &model.frame.pixels[p as usize];
-                    let px = image.get_pixel(q.x - window.x, q.y - window.y).0;
-                    let y = crate::video::luma(px.map(f64::from)) as f32;
-                    *o = (y - m).round().clamp(-127.0, 127.0) as i8;
-                }
-            }
-            Ok(())
-        })?;
+        let at = pixels
+            .iter()
+            .map(|&p| {
+                let q = &model.frame.pixels[p as usize];
+                (q.x - window.x, q.y - window.y)
+            })
+            .collect();
         let mut next = Vec::with_capacity(frames);
         for s in &m.stretches {
             let start = next.len() as u32;
@@ -471,10 +462,58 @@ impl Mouths {
             window,
             gain: DETAIL_GAIN,
             pixels,
-            detail,
+            loaded,
+            video,
+            pieces,
+            luma,
+            appearance,
+            at,
             keys,
             next,
         })
+    }
+
+    /// Decodes `piece` of the video into its detail, from the file that was loaded.
+    fn decode(&self, piece: &Piece) -> Result<Vec<i8>, String> {
+        let changed = || {
+            format!("{VIDEO} changed since the talker was loaded (load it again)")
+        };
+        if crate::atomic::identity(&self.video) != self.loaded {
+            return Err(changed());
+        }
+        let mut reader = Reader::open(&self.video).map_err(|e| e.to_string())?;
+        reader.seek(piece.first).map_err(|e| e.to_string())?;
+        let (n, window) = (self.pixels.len(), self.window);
+        let mut detail = vec![0i8; (piece.end - piece.first) * n];
+        let mut model_luma = vec![0f32; n];
+        for (k, out) in detail.chunks_exact_mut(n).enumerate() {
+            let frame = piece.first + k;
+            let image = reader
+                .next_frame()
+                .map_err(|e| e.to_string())?
+                .ok_or_else(|| format!("{VIDEO} ends before frame {frame}"))?;
+            if image.dimensions() != (window.width, window.height) {
+                return Err(format!(
+                    "{VIDEO}'s frame {frame} is {:?}, its header says {}×{}",
+                    image.dimensions(),
+                    window.width,
+                    window.height
+                ));
+            }
+            model_luma.copy_from_slice(&self.luma[0]);
+            for (row, &bk) in self.luma[1..].iter().zip(self.appearance.row(frame).iter()) {
+                model_luma.iter_mut().zip(row).for_each(|(o, &r)| *o += bk * r);
+            }
+            for ((o, &(x, y)), m) in out.iter_mut().zip(&self.at).zip(&model_luma) {
+                let px = image.get_pixel(x, y).0;
+                let y = crate::video::luma(px.map(f64::from)) as f32;
+                *o = (y - m).round().clamp(-127.0, 127.0) as i8;
+            }
+        }
+        if crate::atomic::identity(&self.video) != self.loaded {
+            return Err(changed());
+        }
+        Ok(detail)
     }
 
     /// Frames kept.
@@ -487,25 +526,38 @@ impl Mouths {
         self.next.is_empty()
     }
 
-    /// The detail of kept frame `k`, per region pixel.
-    pub fn detail(&self, k: usize) -> &[i8] {
+    /// The detail of kept frame `k`, per region pixel: its piece of the video is decoded the
+    /// first time (one thread decodes it, others asking wait for it) and kept.
+    pub fn detail(&self, k: usize) -> Result<&[i8], MouthsError> {
+        let inconsistent = |reason: String| MouthsError::Inconsistent {
+            dir: self.video.parent().unwrap_or(Path::new("")).into(),
+            reason,
+        };
+        let piece = (self.pieces.partition_point(|p| p.first <= k))
+            .checked_sub(1)
+            .map(|i| &self.pieces[i])
+            .filter(|p| k < p.end)
+            .ok_or_else(|| inconsistent(format!("no kept frame {k} (of {})", self.len())))?;
+        let detail = piece.detail.get_or_init(|| self.decode(piece));
+        let detail = detail.as_ref().map_err(|reason| inconsistent(reason.clone()))?;
         let n = self.pixels.len();
-        &self.detail[k * n..(k + 1) * n]
+        Ok(&detail[(k - piece.first) * n..][..n])
     }
 
     /// Adds `pick`'s detail to `texture` (mask pixels × RGB): the same luma step on each
     /// channel.
-    pub fn add_detail(&self, pick: &Pick, texture: &mut [f32]) {
+    pub fn add_detail(&self, pick: &Pick, texture: &mut [f32]) -> Result<(), MouthsError> {
         for &(k, w) in &pick.frames {
             if w == 0.0 {
                 continue;
             }
-            for (&p, &d) in self.pixels.iter().zip(self.detail(k as usize)) {
+            for (&p, &d) in self.pixels.iter().zip(self.detail(k as usize)?) {
                 let o = 3 * p as usize;
                 let step = self.gain * w * f32::from(d);
                 texture[o..o + 3].iter_mut().for_each(|v| *v += step);
             }
         }
+        Ok(())
     }
 
     /// Mean lip distance (pixels) of kept frame `k` to `key`.

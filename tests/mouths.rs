@@ -227,3 +227,30 @@ fn damaged_mouths_are_refused() {
         .to_string();
     assert!(e.contains("gone") && e.contains("missing"), "{e}");
 }
+
+/// The detail is decoded a piece of the video at a time, when a frame of it is first drawn:
+/// frames asked for backwards (every piece entered at its end, the last piece first) are the
+/// frames asked for forwards, and a store changed after loading is refused, not mixed in.
+#[test]
+fn detail_decoded_in_any_order_is_the_same_and_a_changed_store_is_refused() {
+    let model = grid_model();
+    let dir = tempfile::tempdir().unwrap();
+    let (built, _, _) = store(&model, dir.path());
+    let forwards = Mouths::load(dir.path(), &model).unwrap();
+    let backwards = Mouths::load(dir.path(), &model).unwrap();
+    let n = forwards.len();
+    assert!(n > 50, "{n} frames: more than one piece of the video");
+    let ahead: Vec<Vec<i8>> = (0..n).map(|k| forwards.detail(k).unwrap().to_vec()).collect();
+    for k in (0..n).rev() {
+        assert_eq!(backwards.detail(k).unwrap(), &ahead[k][..], "frame {k}");
+    }
+    assert!(ahead.iter().flatten().any(|&d| d != 0));
+    // The store made again (the same frames, a new file) while `built` still holds the
+    // first: what it has decoded stays; what it has not is refused.
+    let _ = built.detail(0).unwrap();
+    let _ = store(&model, dir.path());
+    assert_eq!(built.detail(0).unwrap(), &ahead[0][..]);
+    let e = built.detail(n - 1).unwrap_err().to_string();
+    assert!(e.contains("changed since"), "{e}");
+    assert!(built.detail(n).is_err(), "a frame past the last");
+}

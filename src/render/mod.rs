@@ -47,6 +47,9 @@ pub enum RenderError {
     /// The background video failed.
     #[error(transparent)]
     Video(#[from] VideoError),
+    /// The recorded mouths' video could not be decoded.
+    #[error(transparent)]
+    Mouths(#[from] Box<crate::mouths::MouthsError>),
     /// The background video ended before the frames did.
     #[error("{path}: the background video has {frames} frames, fewer than the {needed} to render")]
     BackgroundTooShort {
@@ -177,7 +180,7 @@ impl CpuRenderer<'_> {
     ) -> Result<(), RenderError> {
         let mut r = self.model.reconstruct(params)?;
         if let Some((mouths, pick)) = detail {
-            mouths.add_detail(pick, &mut r.texture);
+            mouths.add_detail(pick, &mut r.texture).map_err(Box::new)?;
         }
         let (frame, points) = (&self.model.frame, &r.landmarks.points);
         match &self.alpha {

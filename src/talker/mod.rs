@@ -264,7 +264,7 @@ pub struct Talker {
     /// The aligner with the committed dictionary, loaded when first needed and kept, with the
     /// phone bigram it estimates, for every later request without extra dictionaries.
     aligner: std::sync::OnceLock<crate::align::Aligner>,
-    /// The recorded mouths, decoded when first drawn and kept.
+    /// The recorded mouths, loaded when first drawn and kept.
     mouths: std::sync::OnceLock<crate::mouths::Mouths>,
     /// The codebook's median pose, found when first asked for and kept.
     median_pose: std::sync::OnceLock<crate::shape::Similarity>,
@@ -502,8 +502,8 @@ impl Talker {
         loaded_once(&self.aligner, || crate::align::Aligner::load_default(&[]))
     }
 
-    /// The talker's recorded mouths, if it keeps them: decoded on first use (a second or so)
-    /// and kept.
+    /// The talker's recorded mouths, if it keeps them: loaded on first use and kept (their
+    /// video is decoded piece by piece as frames of it are drawn).
     pub fn mouths(&self) -> Result<Option<&crate::mouths::Mouths>, TalkerError> {
         let Some(name) = &self.manifest.mouths else {
             return Ok(None);
