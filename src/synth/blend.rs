@@ -227,16 +227,16 @@ impl Synthesiser for Blend {
         let mut rows = vec![0f32; times.len() * dims];
         let mut acc = vec![0.0; dims];
         let mut value = vec![0.0; dims];
-        // The means of the sentences the mixes draw on (a few of the codebook's hundreds).
-        let means: std::collections::HashMap<usize, Vec<f64>> = if self.preserve_variance {
-            mixes
-                .iter()
-                .flatten()
-                .map(|(o, _)| (o.sentence, codebook.sentence_mean(o.sentence)))
-                .collect()
-        } else {
-            Default::default()
-        };
+        // The means of the sentences the mixes draw on (a few of the codebook's hundreds),
+        // each found once.
+        let mut means = std::collections::HashMap::new();
+        if self.preserve_variance {
+            for (o, _) in mixes.iter().flatten() {
+                means
+                    .entry(o.sentence)
+                    .or_insert_with(|| codebook.sentence_mean(o.sentence));
+            }
+        }
         let mut spread = Spread::new(dims);
         let mut seg = 0;
         for (row, &t) in rows.chunks_exact_mut(dims).zip(&times) {
