@@ -165,6 +165,13 @@ fn to_rgb(yuv: &openh264::decoder::DecodedYUV<'_>) -> RgbImage {
     RgbImage::from_raw(w as u32, h as u32, rgb).expect("buffer sized for the frame")
 }
 
+// openh264's limited-range BT.601 coefficients (`formats::yuv2rgb`).
+const Y_MUL: f32 = 255.0 / 219.0;
+const RV_MUL: f32 = 255.0 / 224.0 * 1.402;
+const GV_MUL: f32 = -255.0 / 224.0 * 1.402 * 0.299 / 0.587;
+const GU_MUL: f32 = -255.0 / 224.0 * 1.772 * 0.114 / 0.587;
+const BU_MUL: f32 = 255.0 / 224.0 * 1.772;
+
 /// Limited-range BT.601, YUV 4:2:0 to RGB, to the bit as openh264's scalar path
 /// (`formats::yuv2rgb::write_yuv420_float`) gives it: `Y_MUL·(y − 16)` rounded to f32, then
 /// the fused multiply-adds `RV·v + y`, `GV·v + (GU·u + y)` and `BU·u + y`, each rounded
@@ -177,11 +184,6 @@ fn yuv420_to_rgb(
     (y_stride, u_stride, v_stride): (usize, usize, usize),
     rgb: &mut [u8],
 ) {
-    const Y_MUL: f32 = 255.0 / 219.0;
-    const RV_MUL: f32 = 255.0 / 224.0 * 1.402;
-    const GV_MUL: f32 = -255.0 / 224.0 * 1.402 * 0.299 / 0.587;
-    const GU_MUL: f32 = -255.0 / 224.0 * 1.772 * 0.114 / 0.587;
-    const BU_MUL: f32 = 255.0 / 224.0 * 1.772;
     let luma: [f64; 256] = std::array::from_fn(|y| f64::from(Y_MUL * (y as f32 - 16.0)));
     let byte = |v: f64| (v as f32).clamp(0.0, 255.0) as u8;
     for (row, out) in rgb.chunks_exact_mut(3 * width).take(height).enumerate() {
@@ -224,11 +226,6 @@ mod tests {
 
     /// openh264's scalar expression itself (`write_yuv420_float`), fused multiply-adds and all.
     fn fused(y: u8, u: u8, v: u8) -> [u8; 3] {
-        const Y_MUL: f32 = 255.0 / 219.0;
-        const RV_MUL: f32 = 255.0 / 224.0 * 1.402;
-        const GV_MUL: f32 = -255.0 / 224.0 * 1.402 * 0.299 / 0.587;
-        const GU_MUL: f32 = -255.0 / 224.0 * 1.772 * 0.114 / 0.587;
-        const BU_MUL: f32 = 255.0 / 224.0 * 1.772;
         let (u, v) = (f32::from(u) - 128.0, f32::from(v) - 128.0);
         let y = Y_MUL * (f32::from(y) - 16.0);
         [
