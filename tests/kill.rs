@@ -44,18 +44,11 @@ struct Watched {
     committed: Option<Duration>,
 }
 
-/// Which file or folder is at `path` now: a rename puts another inode there (or sets the
-/// change time of the one it moves).
-fn identity(path: &Path) -> Option<(u64, i64, i64)> {
-    use std::os::unix::fs::MetadataExt;
-    let m = std::fs::symlink_metadata(path).ok()?;
-    Some((m.ino(), m.ctime(), m.ctime_nsec()))
-}
-
-/// Runs `args` to completion, watching `out` and the folder it is written in.
+/// Runs `args` to completion, watching `out` (which file or folder is there:
+/// [`facespace::atomic::identity`]) and the folder it is written in.
 fn watched_run(args: &[&str], out: &Path) -> Watched {
     let parent = out.parent().unwrap();
-    let before = identity(out);
+    let before = facespace::atomic::identity(out);
     let start = Instant::now();
     let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_facespace"))
         .args(args)
@@ -68,7 +61,7 @@ fn watched_run(args: &[&str], out: &Path) -> Watched {
         if staged.is_none() && !staging(parent).is_empty() {
             staged = Some(start.elapsed());
         }
-        if committed.is_none() && identity(out) != before {
+        if committed.is_none() && facespace::atomic::identity(out) != before {
             committed = Some(start.elapsed());
         }
         std::thread::sleep(Duration::from_millis(2));
