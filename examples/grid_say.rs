@@ -14,7 +14,9 @@
 //! correlation with the lip motion and amplitude kept), and the same phones by the settings
 //! chosen for correlation alone before (blend N = 5, λ = 3e-5) and by the old `synth`
 //! defaults (N = 3, λ = 3e-6), everything else alike — the same anchoring, re-lighting and
-//! footage; and `say --audio CLIP` without the words (phones recognised from the sound).
+//! footage; and `say --audio CLIP` without the words: the lips predicted from the sound by
+//! the talker's sound-to-face map, and (the talker loaded without its map) from phones
+//! recognised in the sound.
 //!
 //! `cargo run --release --example grid_say -- ../shared/data/grid-s1 [LIMIT|all] [SPLIT]`
 //! (SPLIT: `test`, the default, or `validation`, where the constants were chosen).
@@ -56,8 +58,12 @@ fn main() {
         say.as_str(),
         "chosen for correlation alone (blend N=5, λ=3e-5)",
         "old synth defaults (blend N=3, λ=3e-6)",
-        "say without the words (phones recognised from the sound)",
+        "say without the words (the talker's sound-to-face map)",
+        "say without the words, phones recognised (no sound-to-face map)",
     ];
+    // The same talker without its map: the phones recognised from the sound drive the blend.
+    let mut phones_only = Talker::load(&root.join("models/grid")).unwrap();
+    phones_only.manifest.sound_to_face = None;
     let renderer = CpuRenderer::with_edge(&talker.model, Edge::Articulators(DEFAULT_FEATHER));
     let mut sentences = Vec::new();
     for id in &ids {
@@ -73,16 +79,24 @@ fn main() {
                 staging.path(),
             )
             .unwrap();
+        let recognised = phones_only
+            .perform(
+                &SayRequest::new(Speech::Sound(clip.clone())),
+                staging.path(),
+            )
+            .unwrap();
         for system in 0..systems.len() {
-            let backdrop = if system == 3 {
-                &heard.backdrop
-            } else {
-                &p.backdrop
+            let backdrop = match system {
+                3 => &heard.backdrop,
+                4 => &recognised.backdrop,
+                _ => &p.backdrop,
             };
             let frames = if system == 0 {
                 p.utterance.variants()[0].1.clone()
             } else if system == 3 {
                 heard.utterance.variants()[0].1.clone()
+            } else if system == 4 {
+                recognised.utterance.variants()[0].1.clone()
             } else {
                 let (top_n, lambda) = others[system - 1];
                 let blend = Blend {

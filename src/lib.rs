@@ -124,6 +124,7 @@ pub mod render;
 pub mod rng;
 pub mod serve;
 pub mod shape;
+pub mod sound_to_face;
 pub mod study;
 pub mod suggest;
 pub mod synth;

@@ -581,6 +581,51 @@ fn killed_talker_mouths_leave_the_talker_whole() {
     });
 }
 
+/// `talker sound-to-face` killed at any moment leaves the talker loadable with its map whole
+/// (none yet, or the new one; `talker.json` written last).
+#[test]
+fn killed_talker_sound_to_face_leaves_the_talker_whole() {
+    let dir = tempfile::tempdir().unwrap();
+    let model_dir = common::root().join("models/grid/model");
+    let model = facespace::model::FaceModel::load(&model_dir).unwrap();
+    let (codebook, _, _) = crate::mouths::codebook_of(&model, "bbbf9a");
+    let cb = dir.path().join("codebook");
+    codebook.save(&cb).unwrap();
+    let talker = dir.path().join("talker");
+    let recordings = common::root().join("tests/data/grid");
+    let o = common::facespace(&[
+        "talker",
+        "build",
+        "--model",
+        model_dir.to_str().unwrap(),
+        "--codebook",
+        cb.to_str().unwrap(),
+        "--footage",
+        recordings.join("bbbs7a.mp4").to_str().unwrap(),
+        "--mouth-frames",
+        "0",
+        "--name",
+        "t",
+        "-o",
+        talker.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", common::text(&o));
+    let args = [
+        "talker",
+        "sound-to-face",
+        "--talker",
+        talker.to_str().unwrap(),
+        "--from",
+        recordings.to_str().unwrap(),
+    ];
+    killed_runs(&args, &talker.join("sound-to-face"), |_| {
+        let t = facespace::talker::Talker::load(&talker).unwrap();
+        if let Some(map) = t.sound_to_face().unwrap() {
+            assert_eq!(map.learnt_from(), (1, 75));
+        }
+    });
+}
+
 /// Issue 39, finding 6: a killed `synth --say` left the user's text and speech in `/tmp`
 /// (33 of 33 kills) and any killed synth an empty `/tmp/.tmpXXXXXX`. The text and speech
 /// now live in a locked staging folder beside the output, which the next run removes: the

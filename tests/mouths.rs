@@ -22,7 +22,7 @@ fn grid_model() -> FaceModel {
 }
 
 /// A committed GRID clip's frames and their tracked face-space points.
-fn tracked(model: &FaceModel, id: &str) -> (Vec<RgbImage>, Frames) {
+pub fn tracked(model: &FaceModel, id: &str) -> (Vec<RgbImage>, Frames) {
     let clip = root().join(format!("tests/data/grid/{id}.mp4"));
     let (mut images, mut rows) = (Vec::new(), Vec::new());
     codec::track(

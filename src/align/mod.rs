@@ -418,6 +418,22 @@ impl Aligner {
         Ok((graph, path))
     }
 
+    /// What the acoustic model hears in each 10 ms frame of `samples`, before any search:
+    /// the cepstra and every context-independent phone's score ([`Evidence`]).
+    pub fn acoustic_evidence(&self, samples: &[f32], rate: u32) -> Result<Evidence, AlignError> {
+        let feats = self.features(samples, rate)?;
+        let mut scores = search::phone_scores(&self.model, &feats);
+        for row in &mut scores {
+            let best = row.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b));
+            row.iter_mut().for_each(|v| *v -= best);
+        }
+        let cepstra = feats
+            .iter()
+            .map(|f| std::array::from_fn(|k| f[k]))
+            .collect();
+        Ok(Evidence { cepstra, scores })
+    }
+
     /// A live phone recogniser over the loop `lm`: samples in as they arrive, phones out
     /// [`STREAM_LAG_FRAMES`] after they end ([`Recogniser`]).
     pub fn recogniser(&self, rate: u32, lm: &PhoneLoop) -> Result<Recogniser<'_>, AlignError> {
@@ -561,6 +577,16 @@ impl Recogniser<'_> {
     pub fn sounding(&self) -> Option<&TimedPhone> {
         self.sounding.as_ref()
     }
+}
+
+/// Per 10 ms frame: the 13 mean-normalised cepstra, and each context-independent phone's
+/// best state log-likelihood less the frame's best (the acoustic model's `ci_names` order).
+#[derive(Clone, Debug)]
+pub struct Evidence {
+    /// The cepstra, as the searches see them.
+    pub cepstra: Vec<[f32; frontend::N_CEP]>,
+    /// The phones' scores, 0 for the best.
+    pub scores: Vec<Vec<f32>>,
 }
 
 /// Joins contiguous pieces of the same phone (as a live [`Recogniser`] gives them).

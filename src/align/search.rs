@@ -450,6 +450,31 @@ impl<'a> Scorer<'a> {
     }
 }
 
+/// Per frame, each context-independent phone's best state score (log-likelihood; fillers
+/// included): what the acoustic model hears in that frame, before any search.
+pub(super) fn phone_scores(
+    model: &AcousticModel,
+    feats: &[[f32; FEATURE_DIM]],
+) -> Vec<Vec<f32>> {
+    let mut scorer = Scorer::new(model);
+    feats
+        .iter()
+        .enumerate()
+        .map(|(t, feat)| {
+            scorer.set_frame(t as u32, feat);
+            (0..model.ci_names.len())
+                .map(|ci| {
+                    let (senones, _) = model.context_independent(ci);
+                    senones
+                        .iter()
+                        .map(|&s| scorer.score(s))
+                        .fold(f32::NEG_INFINITY, f32::max)
+                })
+                .collect()
+        })
+        .collect()
+}
+
 /// An HMM's best way out after its last frame: score through the exit transition, and the
 /// history of the state it leaves from.
 fn best_exit(

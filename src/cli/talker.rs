@@ -23,6 +23,22 @@ pub enum TalkerCommand {
         after_help = "Example: facespace talker mouths --talker models/grid --from ../shared/data/grid-s1/clips"
     )]
     Mouths(MouthsArgs),
+    /// Learn the talker's map from sound to face, so that `say --audio` without the words
+    /// predicts the lips from the sound itself rather than from recognised phones.
+    #[command(
+        after_help = "Example: facespace talker sound-to-face --talker models/grid --from ../shared/data/grid-s1/clips"
+    )]
+    SoundToFace(SoundToFaceArgs),
+}
+
+#[derive(Args)]
+pub struct SoundToFaceArgs {
+    /// The talker folder.
+    #[arg(long)]
+    talker: PathBuf,
+    /// The folder of the codebook's recordings (NAME.mp4, with their sound).
+    #[arg(long)]
+    from: PathBuf,
 }
 
 #[derive(Args)]
@@ -109,7 +125,26 @@ pub fn run(command: TalkerCommand) -> Result<()> {
     match command {
         TalkerCommand::Build(a) => build(*a),
         TalkerCommand::Mouths(a) => mouths(a),
+        TalkerCommand::SoundToFace(a) => sound_to_face(a),
     }
+}
+
+fn sound_to_face(a: SoundToFaceArgs) -> Result<()> {
+    let clock = std::time::Instant::now();
+    let (bar, progress) = progress_bar();
+    let talker = facespace::talker::build::set_sound_to_face(&a.talker, &a.from, progress)
+        .with_context(|| format!("the sound-to-face map of {}", a.talker.display()))?;
+    bar.finish_and_clear();
+    let (sentences, frames) = talker
+        .sound_to_face()?
+        .map(|m| m.learnt_from())
+        .unwrap_or_default();
+    println!(
+        "{}: the face learnt from the sound of {sentences} sentences ({frames} frames) in {:.1} s",
+        a.talker.display(),
+        clock.elapsed().as_secs_f64()
+    );
+    Ok(())
 }
 
 fn mouths(a: MouthsArgs) -> Result<()> {

@@ -12,6 +12,10 @@ use super::{
     Voice,
 };
 use crate::codebook::Codebook;
+use crate::sound_to_face::SoundToFace;
+
+/// The sound-to-face map's folder in a talker.
+const SOUND_TO_FACE: &str = "sound-to-face";
 use crate::corpus::Sentence;
 use crate::model::FaceModel;
 use crate::mouths::Mouths;
@@ -269,6 +273,49 @@ pub fn set_mouths(
     Talker::load(dir)
 }
 
+/// Learns the sound-to-face map of `model` and `codebook` from their recordings in `from`
+/// into `out/sound-to-face`; returns the part's name for the manifest.
+fn learn_sound_to_face(
+    model: &FaceModel,
+    codebook: &Codebook,
+    from: &Path,
+    out: &Path,
+    progress: impl FnMut(Progress),
+) -> Result<String, TalkerError> {
+    let failed = |source| TalkerError::SoundToFace {
+        dir: out.into(),
+        source: Box::new(source),
+    };
+    let aligner = crate::align::Aligner::load_default(&[]).map_err(|e| TalkerError::Align {
+        path: from.into(),
+        source: Box::new(e),
+    })?;
+    let map = SoundToFace::learn(model, codebook, &aligner, from, progress).map_err(failed)?;
+    map.save(&out.join(SOUND_TO_FACE)).map_err(failed)?;
+    Ok(SOUND_TO_FACE.into())
+}
+
+/// Gives the talker `dir` a sound-to-face map learnt from `from` (a folder of its
+/// codebook's recordings, `NAME.mp4`), keeping everything else; `talker.json` is rewritten
+/// last.
+pub fn set_sound_to_face(
+    dir: &Path,
+    from: &Path,
+    progress: impl FnMut(Progress),
+) -> Result<Talker, TalkerError> {
+    let talker = Talker::load(dir)?;
+    let mut manifest = talker.manifest.clone();
+    manifest.sound_to_face = Some(learn_sound_to_face(
+        &talker.model,
+        &talker.codebook,
+        from,
+        dir,
+        progress,
+    )?);
+    write_manifest(dir, &manifest)?;
+    Talker::load(dir)
+}
+
 /// Writes `talker.json` into `dir` atomically.
 fn write_manifest(dir: &Path, manifest: &TalkerManifest) -> Result<(), TalkerError> {
     let path = dir.join(MANIFEST);
@@ -334,6 +381,18 @@ pub fn build(
         }
         _ => None,
     };
+    // Recordings without sound teach no map: the talker then hears phones without words.
+    let sound_to_face = match &parts.mouths_from {
+        Some(from) => match learn_sound_to_face(&model, &codebook, from, out, &mut progress) {
+            Err(TalkerError::SoundToFace { source, .. })
+                if matches!(*source, crate::sound_to_face::SoundToFaceError::Learn(_)) =>
+            {
+                None
+            }
+            learnt => Some(learnt?),
+        },
+        None => None,
+    };
     let mut settings = identity.settings.clone();
     if let Some(v) = &parts.validation {
         progress(Progress {
@@ -360,6 +419,7 @@ pub fn build(
         codebook: "codebook".into(),
         footage: "footage".into(),
         mouths,
+        sound_to_face,
         settings,
         voice: identity.voice.clone(),
         provenance: Provenance {

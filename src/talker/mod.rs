@@ -132,6 +132,10 @@ pub struct TalkerManifest {
     /// The recorded mouths folder ([`crate::mouths`]), when the talker keeps them.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mouths: Option<String>,
+    /// The learnt map from sound to face ([`crate::sound_to_face`]), when the talker has
+    /// one: lips from a recording without its words.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sound_to_face: Option<String>,
     /// The synthesis settings.
     pub settings: Settings,
     /// The voice for speech from text.
@@ -139,6 +143,9 @@ pub struct TalkerManifest {
     /// Where it came from.
     pub provenance: Provenance,
 }
+
+/// The note `say` gives when phones were recognised from a recording without its words.
+const RECOGNISED_NOTE: &str = "no words given: the phones were recognised from the sound alone";
 
 /// What can go wrong with a talker.
 #[derive(Debug, Error)]
@@ -175,6 +182,14 @@ pub enum TalkerError {
         dir: PathBuf,
         /// The cause (boxed: the error enum travels in every result).
         source: Box<FootageError>,
+    },
+    /// The sound-to-face part.
+    #[error("talker {dir}: its sound-to-face map: {source}")]
+    SoundToFace {
+        /// The talker folder.
+        dir: PathBuf,
+        /// The cause.
+        source: Box<crate::sound_to_face::SoundToFaceError>,
     },
     /// The recorded mouths part.
     #[error("talker {dir}: its {source}")]
@@ -266,6 +281,8 @@ pub struct Talker {
     aligner: std::sync::OnceLock<crate::align::Aligner>,
     /// The recorded mouths, loaded when first drawn and kept.
     mouths: std::sync::OnceLock<crate::mouths::Mouths>,
+    /// The sound-to-face map, loaded when first used and kept.
+    sound_to_face: std::sync::OnceLock<crate::sound_to_face::SoundToFace>,
     /// The codebook's median pose, found when first asked for and kept.
     median_pose: std::sync::OnceLock<crate::shape::Similarity>,
 }
@@ -487,6 +504,7 @@ impl Talker {
             footage,
             aligner: std::sync::OnceLock::new(),
             mouths: std::sync::OnceLock::new(),
+            sound_to_face: std::sync::OnceLock::new(),
             median_pose: std::sync::OnceLock::new(),
         })
     }
@@ -500,6 +518,35 @@ impl Talker {
     /// The talker's own aligner (the committed dictionary), loaded on first use and kept.
     pub(crate) fn default_aligner(&self) -> Result<&crate::align::Aligner, crate::align::AlignError> {
         loaded_once(&self.aligner, || crate::align::Aligner::load_default(&[]))
+    }
+
+    /// The talker's sound-to-face map, if it has one: loaded on first use and kept.
+    pub fn sound_to_face(
+        &self,
+    ) -> Result<Option<&crate::sound_to_face::SoundToFace>, TalkerError> {
+        let Some(name) = &self.manifest.sound_to_face else {
+            return Ok(None);
+        };
+        let load = || {
+            let path = manifest::member(&self.dir, name)
+                .map_err(crate::sound_to_face::SoundToFaceError::Manifest)?;
+            let phones = self
+                .default_aligner()
+                .map_err(|e| crate::sound_to_face::SoundToFaceError::Sound {
+                    path: path.clone(),
+                    source: Box::new(e),
+                })?
+                .model
+                .ci_names
+                .len();
+            crate::sound_to_face::SoundToFace::load(&path, &self.model, phones)
+        };
+        loaded_once(&self.sound_to_face, load)
+            .map(Some)
+            .map_err(|source| TalkerError::SoundToFace {
+                dir: self.dir.clone(),
+                source: Box::new(source),
+            })
     }
 
     /// The talker's recorded mouths, if it keeps them: loaded on first use and kept (their
@@ -611,9 +658,9 @@ impl Talker {
             }
             Speech::Sound(audio) => {
                 let phones = hear(audio, None)?;
-                notes.push(
-                    "no words given: the phones were recognised from the sound alone (give the words for aligned phones and a closer lip sync)".into(),
-                );
+                notes.push(format!(
+                    "{RECOGNISED_NOTE} (give the words for aligned phones and a closer lip sync)"
+                ));
                 (phones, None, Some(audio.clone()))
             }
             Speech::Labels {
@@ -627,6 +674,32 @@ impl Talker {
                 audio.clone(),
             ),
         })
+    }
+
+    /// Replaces the synthesised shape and appearance of `utterance` (both variants) by
+    /// what `map` predicts from the recording `audio`; the poses stay.
+    fn face_from_sound(
+        &self,
+        map: &crate::sound_to_face::SoundToFace,
+        audio: &Path,
+        utterance: &mut crate::synth::Utterance,
+    ) -> Result<(), TalkerError> {
+        let failed = |e| TalkerError::Align {
+            path: audio.to_path_buf(),
+            source: Box::new(e),
+        };
+        let sound = crate::audio::read(
+            audio,
+            crate::align::frontend::SAMPLE_RATE,
+            crate::align::MAX_SECONDS,
+        )
+        .map_err(|e| failed(e.into()))?;
+        let aligner = self.default_aligner().map_err(failed)?;
+        let frames = std::iter::once(&mut utterance.synthesis.frames).chain(utterance.smoothed.as_mut());
+        for f in frames {
+            map.apply(aligner, &sound.samples, sound.rate, f).map_err(failed)?;
+        }
+        Ok(())
     }
 
     /// Everything up to the pixels: phones from the speech, the synthesis by the talker's
@@ -655,6 +728,13 @@ impl Talker {
             ..Request::new(target.clone(), fps, Smoothing::On(settings.smoothing))
         };
         let mut utterance = crate::synth::synthesise(synthesiser.as_ref(), &self.codebook, req)?;
+        if let (Speech::Sound(audio), Some(map)) = (&request.speech, self.sound_to_face()?) {
+            self.face_from_sound(map, audio, &mut utterance)?;
+            notes.retain(|n| !n.starts_with(RECOGNISED_NOTE));
+            notes.push(
+                "no words given: the lips were predicted from the sound by the talker's sound-to-face map (give the words for aligned phones and a closer lip sync)".into(),
+            );
+        }
         backdrop
             .anchor_region(&self.model, &mut utterance)
             .map_err(|source| TalkerError::Model {

@@ -1,0 +1,399 @@
+//! The face from the sound alone (issue 34): a talker's learnt linear map from what a
+//! window of sound says to the face-space shape ‖ appearance of the frame at its centre.
+//!
+//! Recognised phones are a poor route to the lips without words: a phone error rate of
+//! about 64 % on GRID's talker, and the blend then draws every wrong phone. The acoustic
+//! model hears more than its best path says. Per 10 ms frame the evidence is the 13
+//! mean-normalised cepstra and, for each context-independent phone, a posterior from its
+//! best state's likelihood, `exp(κ·(ℓ − max ℓ))` normalised over phones (κ softens the
+//! model's over-sharp likelihoods), and its logarithm. A window of ±[`HALF_WINDOW`] frames every
+//! [`TAP_STEP`]-th, and a constant, goes through a ridge regression
+//! `W = (XᵀX + λ I)⁻¹ XᵀY` learnt on the talker's codebook sentences and their recordings:
+//! the classic linear audio-to-visual mapping, with the phone posteriors as its nonlinear
+//! features. Window, κ and λ were chosen on GRID s1's validation split (BENCHMARKS.md).
+//!
+//! The folder: `sound-to-face.json` (its constants, the model's hash) and `weights.npy`
+//! (features × face-space parameters, f32): `face = [window, 1] · W`.
+
+use std::path::Path;
+
+use nalgebra::DMatrix;
+use ndarray::Array2;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+use crate::align::{AlignError, Aligner};
+use crate::codebook::Codebook;
+use crate::facespace::Frames;
+use crate::manifest::{self, ManifestError};
+use crate::model::FaceModel;
+use crate::{Progress, npy};
+
+/// The folder format this build writes and reads.
+pub const SOUND_TO_FACE_VERSION: u32 = 1;
+const FORMAT: &str = "facespace-sound-to-face";
+const MANIFEST: &str = "sound-to-face.json";
+const WEIGHTS: &str = "weights.npy";
+
+/// Frames (10 ms) either side of a video frame's centre the map hears: ±200 ms, the span of
+/// coarticulation (validation: ±100 ms lost 0.01 of r_pca, ±300 ms gained nothing).
+pub const HALF_WINDOW: i64 = 20;
+/// Every how many frames of the window a tap is taken.
+pub const TAP_STEP: usize = 2;
+/// Softening of the phone likelihoods into posteriors (validation: 0.1 and 1 worse than 0.3).
+pub const KAPPA: f32 = 0.3;
+/// Scale of the posteriors beside the cepstra (units of about 10).
+const POSTERIOR_SCALE: f32 = 10.0;
+/// The log posteriors too, clipped here (what is that unlikely is unlikely alike), and scaled
+/// (validation: r_pca 0.778 → 0.798 with them).
+const LEAST_LOG_POSTERIOR: f32 = -20.0;
+const LOG_POSTERIOR_SCALE: f32 = 0.5;
+/// The predicted motion about the utterance's mean, scaled up: a regression's output is a
+/// conditional mean, and moves less than the face did (validation: the inner mouth's s.d.
+/// 0.87× real at 1, 0.99× at 1.15, 1.12× at 1.3; lip motion 0.80×, 0.91×, 1.03×; r unchanged).
+pub const AMPLITUDE_GAIN: f32 = 1.15;
+/// Sentences heard side by side between two progress reports.
+const CHUNK: usize = 32;
+/// The ridge, per learnt frame of evidence summed (validation: flat from 100 to 1 000).
+pub const RIDGE: f64 = 1000.0;
+
+/// What can go wrong learning, loading or using a map.
+#[derive(Debug, Error)]
+pub enum SoundToFaceError {
+    /// The manifest or weights are damaged or of another build.
+    #[error(transparent)]
+    Manifest(#[from] ManifestError),
+    /// The folder could not be written.
+    #[error("{path}: {source}")]
+    Io {
+        /// The folder.
+        path: std::path::PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The sound could not be read or heard.
+    #[error("{path}: {source}")]
+    Sound {
+        /// The recording.
+        path: std::path::PathBuf,
+        /// Why.
+        source: Box<AlignError>,
+    },
+    /// The map was learnt with another model or acoustic model.
+    #[error("{0}")]
+    Mismatch(String),
+    /// Nothing to learn from, or the sums would not solve.
+    #[error("cannot learn a sound-to-face map: {0}")]
+    Learn(String),
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+struct Manifest {
+    format: String,
+    version: u32,
+    model_hash: String,
+    /// Context-independent phones of the acoustic model the posteriors come from.
+    phones: usize,
+    half_window: i64,
+    tap_step: usize,
+    kappa: f32,
+    ridge: f64,
+    /// The sentences it was learnt from.
+    sentences: usize,
+    frames: usize,
+}
+
+/// A talker's map from sound to face (see the module).
+#[derive(Clone, Debug)]
+pub struct SoundToFace {
+    manifest: Manifest,
+    /// Features × face-space parameters (shape ‖ appearance).
+    weights: DMatrix<f32>,
+}
+
+/// The evidence of every 10 ms frame of `samples`: 13 cepstra, then each phone's posterior,
+/// then its log posterior.
+fn evidence(aligner: &Aligner, samples: &[f32], rate: u32) -> Result<Vec<Vec<f32>>, AlignError> {
+    let heard = aligner.acoustic_evidence(samples, rate)?;
+    Ok(heard
+        .cepstra
+        .iter()
+        .zip(&heard.scores)
+        .map(|(c, scores)| {
+            let mut row: Vec<f32> = c.to_vec();
+            let e: Vec<f32> = scores.iter().map(|s| (s * KAPPA).exp()).collect();
+            let z: f32 = e.iter().sum();
+            row.extend(e.iter().map(|v| v / z * POSTERIOR_SCALE));
+            let log_z = z.ln();
+            row.extend(
+                scores
+                    .iter()
+                    .map(|s| (s * KAPPA - log_z).max(LEAST_LOG_POSTERIOR) * LOG_POSTERIOR_SCALE),
+            );
+            row
+        })
+        .collect())
+}
+
+fn taps() -> impl Iterator<Item = i64> {
+    (-HALF_WINDOW..=HALF_WINDOW).step_by(TAP_STEP)
+}
+
+/// The feature rows (one per video frame, `frames` of them at `fps`): the evidence window
+/// around each frame's time, edges repeated, then a constant.
+fn design(evidence: &[Vec<f32>], frames: usize, fps: f64) -> DMatrix<f64> {
+    let width = evidence.first().map_or(0, Vec::len);
+    let d = taps().count() * width + 1;
+    let last = evidence.len() as i64 - 1;
+    DMatrix::from_fn(frames, d, |i, j| {
+        if j == d - 1 {
+            return 1.0;
+        }
+        let (tap, k) = (j / width, j % width);
+        let centre = (i as f64 / fps * 100.0).round() as i64;
+        let t = (centre - HALF_WINDOW + (tap * TAP_STEP) as i64).clamp(0, last);
+        f64::from(evidence[t as usize][k])
+    })
+}
+
+/// The ridge regression's weights from its sums: `(XᵀX + λ I)⁻¹ XᵀY`, the last feature (the
+/// constant) not shrunk.
+fn ridge(mut xtx: DMatrix<f64>, xty: &DMatrix<f64>, lambda: f64) -> Option<DMatrix<f64>> {
+    let d = xtx.nrows();
+    for j in 0..d.saturating_sub(1) {
+        xtx[(j, j)] += lambda;
+    }
+    Some(xtx.cholesky()?.solve(xty))
+}
+
+impl SoundToFace {
+    /// Learns the map from `codebook`'s sentences and their recordings in `recordings`
+    /// (`NAME.mp4`, by sentence name); sentences without a recording, or whose recording has
+    /// no sound, are skipped.
+    pub fn learn(
+        model: &FaceModel,
+        codebook: &Codebook,
+        aligner: &Aligner,
+        recordings: &Path,
+        mut progress: impl FnMut(Progress),
+    ) -> Result<SoundToFace, SoundToFaceError> {
+        codebook
+            .check_model(model)
+            .map_err(|e| SoundToFaceError::Mismatch(e.to_string()))?;
+        let params = codebook.layout.params_range();
+        let total = codebook.sentences.len();
+        let stage = "learning the face from the sound";
+        // The sums XᵀX, XᵀY, frames and sentences, over chunks heard side by side (the
+        // progress told between them), each chunk summed as it is heard: one sentence's
+        // XᵀX is 33 MB.
+        type Sums = Option<(DMatrix<f64>, DMatrix<f64>, usize, usize)>;
+        let add = |a: Sums, b: Sums| match (a, b) {
+            (Some(a), Some(b)) => Some((a.0 + b.0, a.1 + b.1, a.2 + b.2, a.3 + b.3)),
+            (a, b) => a.or(b),
+        };
+        let mut sums: Sums = None;
+        for (c, chunk) in codebook.sentences.chunks(CHUNK).enumerate() {
+            progress(Progress { stage, done: c * CHUNK, total });
+            let heard = chunk
+                .par_iter()
+                .map(|s| -> Result<Sums, SoundToFaceError> {
+                    let path = recordings.join(format!("{}.mp4", s.name));
+                    if !path.is_file() {
+                        return Ok(None);
+                    }
+                    let sound_error = |source: AlignError| SoundToFaceError::Sound {
+                        path: path.clone(),
+                        source: Box::new(source),
+                    };
+                    let sound = match crate::audio::read(
+                        &path,
+                        crate::align::frontend::SAMPLE_RATE,
+                        crate::align::MAX_SECONDS,
+                    ) {
+                        Ok(sound) => sound,
+                        // A silent video teaches nothing here, and is no error.
+                        Err(crate::audio::AudioError::NoAudio { .. }) => return Ok(None),
+                        Err(e) => return Err(sound_error(e.into())),
+                    };
+                    let ev = evidence(aligner, &sound.samples, sound.rate).map_err(sound_error)?;
+                    let x = design(&ev, s.frames.len(), s.frames.fps());
+                    let y = DMatrix::from_fn(s.frames.len(), params.len(), |i, j| {
+                        f64::from(s.frames.row(i)[params.start + j])
+                    });
+                    Ok(Some((x.tr_mul(&x), x.tr_mul(&y), s.frames.len(), 1)))
+                })
+                .try_reduce(|| None, |a, b| Ok(add(a, b)))?;
+            sums = add(sums, heard);
+        }
+        progress(Progress { stage, done: total, total });
+        let Some((xtx, xty, frames, sentences)) = sums else {
+            return Err(SoundToFaceError::Learn(format!(
+                "no recording of the codebook's sentences with sound in {}",
+                recordings.display()
+            )));
+        };
+        let weights = ridge(xtx, &xty, RIDGE)
+            .ok_or_else(|| SoundToFaceError::Learn("the sums are not positive definite".into()))?;
+        let phones = aligner.model.ci_names.len();
+        Ok(SoundToFace {
+            manifest: Manifest {
+                format: FORMAT.into(),
+                version: SOUND_TO_FACE_VERSION,
+                model_hash: model.hash(),
+                phones,
+                half_window: HALF_WINDOW,
+                tap_step: TAP_STEP,
+                kappa: KAPPA,
+                ridge: RIDGE,
+                sentences,
+                frames,
+            },
+            weights: weights.map(|v| v as f32),
+        })
+    }
+
+    /// The face-space shape ‖ appearance of each of `frames` frames at `fps` (rows), from
+    /// the sound `samples` at `rate` (16 kHz).
+    pub fn predict(
+        &self,
+        aligner: &Aligner,
+        samples: &[f32],
+        rate: u32,
+        frames: usize,
+        fps: f64,
+    ) -> Result<DMatrix<f32>, AlignError> {
+        let ev = evidence(aligner, samples, rate)?;
+        let x = design(&ev, frames, fps).map(|v| v as f32);
+        Ok(x * &self.weights)
+    }
+
+    /// Writes `frames`' shape ‖ appearance from the sound (see [`Self::predict`]), keeping
+    /// their poses.
+    pub fn apply(
+        &self,
+        aligner: &Aligner,
+        samples: &[f32],
+        rate: u32,
+        frames: &mut Frames,
+    ) -> Result<(), AlignError> {
+        let params = frames.layout().params_range();
+        let face = self.predict(aligner, samples, rate, frames.len(), frames.fps())?;
+        let mut values = frames.values_mut();
+        for (j, p) in params.clone().enumerate() {
+            let column = face.column(j);
+            let mean = column.mean();
+            for (i, v) in column.iter().enumerate() {
+                values[(i, p)] = mean + AMPLITUDE_GAIN * (v - mean);
+            }
+        }
+        Ok(())
+    }
+
+    /// Sentences and frames it was learnt from.
+    pub fn learnt_from(&self) -> (usize, usize) {
+        (self.manifest.sentences, self.manifest.frames)
+    }
+
+    /// Writes the folder `dir` atomically (replacing an earlier map).
+    pub fn save(&self, dir: &Path) -> Result<(), SoundToFaceError> {
+        let io = |source| SoundToFaceError::Io {
+            path: dir.into(),
+            source,
+        };
+        let (rows, cols) = self.weights.shape();
+        let weights = Array2::from_shape_fn((rows, cols), |(i, j)| self.weights[(i, j)]);
+        crate::atomic::replace_dir(
+            dir,
+            FORMAT,
+            |staged| {
+                npy::write(&staged.join(WEIGHTS), weights.view())
+                    .map_err(|e| SoundToFaceError::Manifest(e.into()))?;
+                let json = serde_json::to_vec_pretty(&self.manifest).expect("manifest serialises");
+                crate::atomic::write_file(&staged.join(MANIFEST), &json).map_err(io)
+            },
+            io,
+        )
+    }
+
+    /// Loads the folder `dir` for `model` (its hash checked) and the acoustic model of
+    /// `aligner` (its phone count checked).
+    pub fn load(dir: &Path, model: &FaceModel, phones: usize) -> Result<SoundToFace, SoundToFaceError> {
+        let m: Manifest = manifest::read(&dir.join(MANIFEST), FORMAT, SOUND_TO_FACE_VERSION)?;
+        if m.model_hash != model.hash() {
+            return Err(SoundToFaceError::Mismatch(format!(
+                "{}: learnt with another face model (learn it again)",
+                dir.display()
+            )));
+        }
+        if (m.half_window, m.tap_step, m.kappa) != (HALF_WINDOW, TAP_STEP, KAPPA) || m.phones != phones {
+            return Err(SoundToFaceError::Mismatch(format!(
+                "{}: learnt with other constants or another acoustic model (learn it again)",
+                dir.display()
+            )));
+        }
+        let width = crate::align::frontend::N_CEP + 2 * phones;
+        let d = taps().count() * width + 1;
+        let k = model.layout().params_range().len();
+        let w: Array2<f32> = manifest::read_array(dir, WEIGHTS, &[Some(d), Some(k)])?;
+        if w.iter().any(|v| !v.is_finite()) {
+            return Err(SoundToFaceError::Mismatch(format!("{}: weights not finite", dir.display())));
+        }
+        Ok(SoundToFace {
+            manifest: m,
+            weights: DMatrix::from_fn(d, k, |i, j| w[(i, j)]),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Against an independent reference: the least-squares solution of X stacked over
+    /// √λ·I (the constant's row left out), by SVD.
+    #[test]
+    fn ridge_is_the_least_squares_of_the_augmented_system() {
+        let mut rng = crate::rng::Rng::new(7);
+        let (n, d, k, lambda) = (40, 6, 3, 2.5);
+        let x = DMatrix::from_fn(n, d, |_, j| if j == d - 1 { 1.0 } else { rng.normal() });
+        let y = DMatrix::from_fn(n, k, |_, _| rng.normal());
+        let w = ridge(x.tr_mul(&x), &x.tr_mul(&y), lambda).unwrap();
+        let mut a = DMatrix::zeros(n + d - 1, d);
+        a.rows_mut(0, n).copy_from(&x);
+        for j in 0..d - 1 {
+            a[(n + j, j)] = lambda.sqrt();
+        }
+        let mut b = DMatrix::zeros(n + d - 1, k);
+        b.rows_mut(0, n).copy_from(&y);
+        let reference = a.svd(true, true).solve(&b, 1e-12).unwrap();
+        assert!((w - reference).abs().max() < 1e-10);
+    }
+
+    /// With no ridge an exact linear relation comes back exactly.
+    #[test]
+    fn ridge_without_shrinkage_recovers_an_exact_map() {
+        let mut rng = crate::rng::Rng::new(3);
+        let x = DMatrix::from_fn(30, 4, |_, j| if j == 3 { 1.0 } else { rng.normal() });
+        let truth = DMatrix::from_fn(4, 2, |i, j| (i as f64) - 2.0 * j as f64);
+        let w = ridge(x.tr_mul(&x), &x.tr_mul(&(&x * &truth)), 0.0).unwrap();
+        assert!((w - truth).abs().max() < 1e-9);
+    }
+
+    /// Row i holds the evidence at i's time (100 frames a second) ± the window, edges repeated.
+    #[test]
+    fn the_design_reads_the_window_around_each_frame() {
+        let evidence: Vec<Vec<f32>> = (0..300).map(|t| vec![t as f32, -(t as f32)]).collect();
+        let x = design(&evidence, 75, 25.0);
+        let taps: Vec<i64> = taps().collect();
+        assert_eq!(x.ncols(), taps.len() * 2 + 1);
+        for i in [0usize, 1, 37, 74] {
+            for (k, t) in taps.iter().enumerate() {
+                let at = (i as i64 * 4 + t).clamp(0, 299) as f64;
+                assert_eq!(x[(i, 2 * k)], at);
+                assert_eq!(x[(i, 2 * k + 1)], -at);
+            }
+            assert_eq!(x[(i, x.ncols() - 1)], 1.0);
+        }
+    }
+}
