@@ -5,7 +5,7 @@
 //! the write a minute; kills past the end of the run killed nothing).
 use crate::common;
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 /// Entries in `dir` that are our staging.
@@ -535,18 +535,15 @@ fn killed_exports_reports_and_the_demo_leave_whole_outputs() {
     );
 }
 
-/// `talker mouths` killed at any moment leaves the talker loadable with its recorded mouths
-/// whole (the store before or the new one; `talker.json` written last), and the next run
-/// leaves no staging behind.
-#[test]
-fn killed_talker_mouths_leave_the_talker_whole() {
-    let dir = tempfile::tempdir().unwrap();
+/// A talker in `dir/talker` whose codebook is the committed GRID sentence bbbf9a (its
+/// recording in `tests/data/grid`), without recorded mouths or a sound-to-face map.
+fn one_sentence_talker(dir: &Path) -> PathBuf {
     let model_dir = common::root().join("models/grid/model");
     let model = facespace::model::FaceModel::load(&model_dir).unwrap();
     let (codebook, _, _) = crate::mouths::codebook_of(&model, "bbbf9a");
-    let cb = dir.path().join("codebook");
+    let cb = dir.join("codebook");
     codebook.save(&cb).unwrap();
-    let talker = dir.path().join("talker");
+    let talker = dir.join("talker");
     let recordings = common::root().join("tests/data/grid");
     let o = common::facespace(&[
         "talker",
@@ -565,6 +562,17 @@ fn killed_talker_mouths_leave_the_talker_whole() {
         talker.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", common::text(&o));
+    talker
+}
+
+/// `talker mouths` killed at any moment leaves the talker loadable with its recorded mouths
+/// whole (the store before or the new one; `talker.json` written last), and the next run
+/// leaves no staging behind.
+#[test]
+fn killed_talker_mouths_leave_the_talker_whole() {
+    let dir = tempfile::tempdir().unwrap();
+    let talker = one_sentence_talker(dir.path());
+    let recordings = common::root().join("tests/data/grid");
     let args = [
         "talker",
         "mouths",
@@ -586,30 +594,8 @@ fn killed_talker_mouths_leave_the_talker_whole() {
 #[test]
 fn killed_talker_sound_to_face_leaves_the_talker_whole() {
     let dir = tempfile::tempdir().unwrap();
-    let model_dir = common::root().join("models/grid/model");
-    let model = facespace::model::FaceModel::load(&model_dir).unwrap();
-    let (codebook, _, _) = crate::mouths::codebook_of(&model, "bbbf9a");
-    let cb = dir.path().join("codebook");
-    codebook.save(&cb).unwrap();
-    let talker = dir.path().join("talker");
+    let talker = one_sentence_talker(dir.path());
     let recordings = common::root().join("tests/data/grid");
-    let o = common::facespace(&[
-        "talker",
-        "build",
-        "--model",
-        model_dir.to_str().unwrap(),
-        "--codebook",
-        cb.to_str().unwrap(),
-        "--footage",
-        recordings.join("bbbs7a.mp4").to_str().unwrap(),
-        "--mouth-frames",
-        "0",
-        "--name",
-        "t",
-        "-o",
-        talker.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", common::text(&o));
     let args = [
         "talker",
         "sound-to-face",

@@ -147,6 +147,16 @@ pub struct TalkerManifest {
 /// The note `say` gives when phones were recognised from a recording without its words.
 const RECOGNISED_NOTE: &str = "no words given: the phones were recognised from the sound alone";
 
+/// The sound of the recording `audio` as the aligner hears it (16 kHz, at most
+/// [`crate::align::MAX_SECONDS`]).
+fn speech_sound(audio: &Path) -> Result<crate::audio::Audio, TalkerError> {
+    crate::audio::read(audio, crate::align::frontend::SAMPLE_RATE, crate::align::MAX_SECONDS)
+        .map_err(|e| TalkerError::Align {
+            path: audio.to_path_buf(),
+            source: Box::new(e.into()),
+        })
+}
+
 /// What can go wrong with a talker.
 #[derive(Debug, Error)]
 #[non_exhaustive]
@@ -618,16 +628,11 @@ impl Talker {
         };
         // A recording's phones: its words aligned and checked, or recognised without them.
         let hear = |audio: &Path, words: Option<&str>| {
+            let sound = speech_sound(audio)?;
             let failed = |e| TalkerError::Align {
                 path: audio.to_path_buf(),
                 source: Box::new(e),
             };
-            let sound = crate::audio::read(
-                audio,
-                crate::align::frontend::SAMPLE_RATE,
-                crate::align::MAX_SECONDS,
-            )
-            .map_err(|e| failed(e.into()))?;
             aligner()
                 .and_then(|a| a.hear(&sound.samples, sound.rate, words, request.accept_mismatch))
                 .map(|phones| crate::align::segments(&phones))
@@ -684,16 +689,11 @@ impl Talker {
         audio: &Path,
         utterance: &mut crate::synth::Utterance,
     ) -> Result<(), TalkerError> {
+        let sound = speech_sound(audio)?;
         let failed = |e| TalkerError::Align {
             path: audio.to_path_buf(),
             source: Box::new(e),
         };
-        let sound = crate::audio::read(
-            audio,
-            crate::align::frontend::SAMPLE_RATE,
-            crate::align::MAX_SECONDS,
-        )
-        .map_err(|e| failed(e.into()))?;
         let aligner = self.default_aligner().map_err(failed)?;
         let frames = std::iter::once(&mut utterance.synthesis.frames).chain(utterance.smoothed.as_mut());
         for f in frames {
