@@ -84,7 +84,7 @@ pub enum SoundToFaceError {
     #[error("{0}")]
     Mismatch(String),
     /// Nothing to learn from, or the sums would not solve.
-    #[error("cannot learn a sound-to-face map: {0}")]
+    #[error("{0}")]
     Learn(String),
 }
 
@@ -229,7 +229,7 @@ impl SoundToFace {
         progress(Progress { stage, done: total, total });
         let Some((xtx, xty, frames, sentences)) = sums else {
             return Err(SoundToFaceError::Learn(format!(
-                "no recording of the codebook's sentences with sound in {}",
+                "no recording of the codebook's sentences with sound in {} (give the folder of the codebook's videos, NAME.mp4)",
                 recordings.display()
             )));
         };

@@ -133,7 +133,7 @@ fn sound_to_face(a: SoundToFaceArgs) -> Result<()> {
     let clock = std::time::Instant::now();
     let (bar, progress) = progress_bar();
     let talker = facespace::talker::build::set_sound_to_face(&a.talker, &a.from, progress)
-        .with_context(|| format!("the sound-to-face map of {}", a.talker.display()))?;
+        .with_context(|| format!("learning the sound-to-face map of {}", a.talker.display()))?;
     bar.finish_and_clear();
     let (sentences, frames) = talker
         .sound_to_face()?
