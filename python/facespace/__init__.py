@@ -102,8 +102,9 @@ class Talker(_Video):
         words: Optional[str] = None,
     ) -> dict:
         """Says ``text`` (text-to-speech in the talker's voice) or the recording ``audio``
-        (aligned to ``words``, or recognised without them) into the MP4 ``out``; returns the
-        report."""
+        (aligned to ``words``; without them the lips are predicted from the sound by the
+        talker's sound-to-face map, or follow phones recognised in it) into the MP4 ``out``;
+        returns the report."""
         return json.loads(self._inner.say(str(out), text, None if audio is None else str(audio), words))
 
 
