@@ -53,6 +53,8 @@ const LOG_POSTERIOR_SCALE: f32 = 0.5;
 /// conditional mean, and moves less than the face did (validation: the inner mouth's s.d.
 /// 0.87× real at 1, 0.99× at 1.15, 1.12× at 1.3; lip motion 0.80×, 0.91×, 1.03×; r unchanged).
 pub const AMPLITUDE_GAIN: f32 = 1.15;
+/// Video frames predicted at a time.
+const PREDICT_BLOCK: usize = 250;
 /// Sentences heard side by side between two progress reports.
 const CHUNK: usize = 32;
 /// The ridge, per learnt frame of evidence summed (validation: flat from 100 to 1 000).
@@ -140,18 +142,18 @@ fn taps() -> impl Iterator<Item = i64> {
     (-HALF_WINDOW..=HALF_WINDOW).step_by(TAP_STEP)
 }
 
-/// The feature rows (one per video frame, `frames` of them at `fps`): the evidence window
-/// around each frame's time, edges repeated, then a constant.
-fn design(evidence: &[Vec<f32>], frames: usize, fps: f64) -> DMatrix<f64> {
+/// The feature rows of the video frames `frames` (at `fps`): the evidence window around each
+/// frame's time, edges repeated, then a constant.
+fn design(evidence: &[Vec<f32>], frames: std::ops::Range<usize>, fps: f64) -> DMatrix<f64> {
     let width = evidence.first().map_or(0, Vec::len);
     let d = taps().count() * width + 1;
     let last = evidence.len() as i64 - 1;
-    DMatrix::from_fn(frames, d, |i, j| {
+    DMatrix::from_fn(frames.len(), d, |i, j| {
         if j == d - 1 {
             return 1.0;
         }
         let (tap, k) = (j / width, j % width);
-        let centre = (i as f64 / fps * 100.0).round() as i64;
+        let centre = ((frames.start + i) as f64 / fps * 100.0).round() as i64;
         let t = (centre - HALF_WINDOW + (tap * TAP_STEP) as i64).clamp(0, last);
         f64::from(evidence[t as usize][k])
     })
@@ -217,7 +219,7 @@ impl SoundToFace {
                         Err(e) => return Err(sound_error(e.into())),
                     };
                     let ev = evidence(aligner, &sound.samples, sound.rate).map_err(sound_error)?;
-                    let x = design(&ev, s.frames.len(), s.frames.fps());
+                    let x = design(&ev, 0..s.frames.len(), s.frames.fps());
                     let y = DMatrix::from_fn(s.frames.len(), params.len(), |i, j| {
                         f64::from(s.frames.row(i)[params.start + j])
                     });
@@ -264,8 +266,14 @@ impl SoundToFace {
         fps: f64,
     ) -> Result<DMatrix<f32>, AlignError> {
         let ev = evidence(aligner, samples, rate)?;
-        let x = design(&ev, frames, fps).map(|v| v as f32);
-        Ok(x * &self.weights)
+        // In blocks of frames: ten minutes of speech would make a 0.25 GB design matrix.
+        let mut face = DMatrix::zeros(frames, self.weights.ncols());
+        for start in (0..frames).step_by(PREDICT_BLOCK) {
+            let block = start..(start + PREDICT_BLOCK).min(frames);
+            let x = design(&ev, block.clone(), fps).map(|v| v as f32);
+            face.rows_mut(start, block.len()).copy_from(&(x * &self.weights));
+        }
+        Ok(face)
     }
 
     /// Writes `frames`' shape ‖ appearance from the sound (see [`Self::predict`]), keeping
@@ -384,7 +392,7 @@ mod tests {
     #[test]
     fn the_design_reads_the_window_around_each_frame() {
         let evidence: Vec<Vec<f32>> = (0..300).map(|t| vec![t as f32, -(t as f32)]).collect();
-        let x = design(&evidence, 75, 25.0);
+        let x = design(&evidence, 0..75, 25.0);
         let taps: Vec<i64> = taps().collect();
         assert_eq!(x.ncols(), taps.len() * 2 + 1);
         for i in [0usize, 1, 37, 74] {
@@ -395,5 +403,7 @@ mod tests {
             }
             assert_eq!(x[(i, x.ncols() - 1)], 1.0);
         }
+        // A block later in the recording reads the same rows as the whole.
+        assert_eq!(design(&evidence, 30..60, 25.0), x.rows(30, 30).into_owned());
     }
 }
