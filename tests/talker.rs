@@ -346,6 +346,21 @@ fn talker_mouths_needs_the_codebook_recordings() {
     assert!(Talker::load(dir.path()).unwrap().mouths().unwrap().is_none());
 }
 
+/// Cuts the file `path` to half its length.
+fn truncate_half(path: &Path) {
+    let len = std::fs::metadata(path).unwrap().len();
+    let f = std::fs::OpenOptions::new().write(true).open(path).unwrap();
+    f.set_len(len / 2).unwrap();
+}
+
+/// Rewrites the `model_hash` of the JSON manifest `path` as another model's.
+fn another_models_hash(path: &Path) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let hash = v["model_hash"].as_str().unwrap().to_owned();
+    std::fs::write(path, text.replacen(&hash, "0123456789abcdef", 1)).unwrap();
+}
+
 /// A damaged talker is refused naming the part, and `say` writes nothing.
 #[test]
 fn a_damaged_talker_is_refused_naming_the_part() {
@@ -353,11 +368,6 @@ fn a_damaged_talker_is_refused_naming_the_part() {
         let text = std::fs::read_to_string(&path).unwrap();
         assert!(text.contains(from), "{from} in {}", path.display());
         std::fs::write(&path, text.replacen(from, to, 1)).unwrap();
-    };
-    let truncate = |path: PathBuf| {
-        let len = std::fs::metadata(&path).unwrap().len();
-        let f = std::fs::OpenOptions::new().write(true).open(&path).unwrap();
-        f.set_len(len / 2).unwrap();
     };
     type Damage = Box<dyn Fn(&Path)>;
     let cases: Vec<(&str, Damage, &str)> = vec![
@@ -368,7 +378,7 @@ fn a_damaged_talker_is_refused_naming_the_part() {
         ),
         (
             "truncated footage array",
-            Box::new(move |t| truncate(t.join("footage/tracked.npy"))),
+            Box::new(|t| truncate_half(&t.join("footage/tracked.npy"))),
             "tracked.npy",
         ),
         (
@@ -385,13 +395,7 @@ fn a_damaged_talker_is_refused_naming_the_part() {
         ),
         (
             "footage of another model",
-            Box::new(move |t| {
-                let path = t.join("footage/footage.json");
-                let text = std::fs::read_to_string(&path).unwrap();
-                let v: serde_json::Value = serde_json::from_str(&text).unwrap();
-                let hash = v["model_hash"].as_str().unwrap().to_owned();
-                edit(path, &hash, "0123456789abcdef");
-            }),
+            Box::new(|t| another_models_hash(&t.join("footage/footage.json"))),
             "another model",
         ),
         (
@@ -562,23 +566,12 @@ fn a_damaged_sound_to_face_map_is_refused() {
     let cases: Vec<(&str, Damage, &str)> = vec![
         (
             "truncated weights",
-            Box::new(|t| {
-                let path = t.join("sound-to-face/weights.npy");
-                let len = std::fs::metadata(&path).unwrap().len();
-                let f = std::fs::OpenOptions::new().write(true).open(&path).unwrap();
-                f.set_len(len / 2).unwrap();
-            }),
+            Box::new(|t| truncate_half(&t.join("sound-to-face/weights.npy"))),
             "weights.npy",
         ),
         (
             "another model",
-            Box::new(|t| {
-                let path = t.join("sound-to-face/sound-to-face.json");
-                let text = std::fs::read_to_string(&path).unwrap();
-                let v: serde_json::Value = serde_json::from_str(&text).unwrap();
-                let hash = v["model_hash"].as_str().unwrap().to_owned();
-                std::fs::write(&path, text.replacen(&hash, "0123456789abcdef", 1)).unwrap();
-            }),
+            Box::new(|t| another_models_hash(&t.join("sound-to-face/sound-to-face.json"))),
             "another face model",
         ),
         (
