@@ -53,6 +53,12 @@ const LOG_POSTERIOR_SCALE: f32 = 0.5;
 /// conditional mean, and moves less than the face did (validation: the inner mouth's s.d.
 /// 0.87× real at 1, 0.99× at 1.15, 1.12× at 1.3; lip motion 0.80×, 0.91×, 1.03×; r unchanged).
 pub const AMPLITUDE_GAIN: f32 = 1.15;
+/// The least video frames of speech a map is learnt from by default: GRID s1's validation
+/// split (30 clips) through `say`, mouth r_pca / inner r_h against 0.512 / 0.638 from
+/// recognised phones — 2 sentences (150 frames) −0.008 / 0.292, 6 (450) 0.393 / 0.607, 20
+/// (1 500, a minute of speech) 0.579 / 0.747, 80 0.737 / 0.807, 250 0.791 / 0.830, 741 0.798 /
+/// 0.834.
+pub const LEAST_FRAMES: usize = 1500;
 /// Video frames predicted at a time.
 const PREDICT_BLOCK: usize = 250;
 /// Sentences heard side by side between two progress reports.
@@ -172,12 +178,14 @@ fn ridge(mut xtx: DMatrix<f64>, xty: &DMatrix<f64>, lambda: f64) -> Option<DMatr
 impl SoundToFace {
     /// Learns the map from `codebook`'s sentences and their recordings in `recordings`
     /// (`NAME.mp4`, by sentence name); sentences without a recording, or whose recording has
-    /// no sound, are skipped.
+    /// no sound, are skipped. Refused under `least_frames` video frames heard
+    /// ([`LEAST_FRAMES`]).
     pub fn learn(
         model: &FaceModel,
         codebook: &Codebook,
         aligner: &Aligner,
         recordings: &Path,
+        least_frames: usize,
         mut progress: impl FnMut(Progress),
     ) -> Result<SoundToFace, SoundToFaceError> {
         codebook
@@ -235,6 +243,11 @@ impl SoundToFace {
                 recordings.display()
             )));
         };
+        if frames < least_frames {
+            return Err(SoundToFaceError::Learn(format!(
+                "only {frames} frames of the codebook's recordings have sound (at least {least_frames} needed: a map learnt on less follows the lips worse than recognised phones)"
+            )));
+        }
         let weights = ridge(xtx, &xty, RIDGE)
             .ok_or_else(|| SoundToFaceError::Learn("the sums are not positive definite".into()))?;
         let phones = aligner.model.ci_names.len();

@@ -590,12 +590,25 @@ fn killed_talker_mouths_leave_the_talker_whole() {
 }
 
 /// `talker sound-to-face` killed at any moment leaves the talker loadable with its map whole
-/// (none yet, or the new one; `talker.json` written last).
+/// (none yet, or the new one; `talker.json` written last). Without `--least-frames` its one
+/// sentence is refused.
 #[test]
 fn killed_talker_sound_to_face_leaves_the_talker_whole() {
     let dir = tempfile::tempdir().unwrap();
     let talker = one_sentence_talker(dir.path());
     let recordings = common::root().join("tests/data/grid");
+    // By default one sentence is refused: too little to lip-sync from.
+    let o = common::facespace(&[
+        "talker",
+        "sound-to-face",
+        "--talker",
+        talker.to_str().unwrap(),
+        "--from",
+        recordings.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(common::text(&o).contains("only 75 frames"), "{}", common::text(&o));
+    assert!(!talker.join("sound-to-face").exists());
     let args = [
         "talker",
         "sound-to-face",
@@ -603,6 +616,9 @@ fn killed_talker_sound_to_face_leaves_the_talker_whole() {
         talker.to_str().unwrap(),
         "--from",
         recordings.to_str().unwrap(),
+        // One sentence: far too little to lip-sync from, enough to kill the writer over.
+        "--least-frames",
+        "75",
     ];
     killed_runs(&args, &talker.join("sound-to-face"), |_| {
         let t = facespace::talker::Talker::load(&talker).unwrap();

@@ -39,6 +39,10 @@ pub struct SoundToFaceArgs {
     /// The folder of the codebook's recordings (NAME.mp4, with their sound).
     #[arg(long)]
     from: PathBuf,
+    /// The least video frames of recordings with sound to learn from (default: about a
+    /// minute of speech; a map learnt on less follows the lips worse than recognised phones).
+    #[arg(long, default_value_t = facespace::sound_to_face::LEAST_FRAMES)]
+    least_frames: usize,
 }
 
 #[derive(Args)]
@@ -132,7 +136,7 @@ pub fn run(command: TalkerCommand) -> Result<()> {
 fn sound_to_face(a: SoundToFaceArgs) -> Result<()> {
     let clock = std::time::Instant::now();
     let (bar, progress) = progress_bar();
-    let talker = facespace::talker::build::set_sound_to_face(&a.talker, &a.from, progress)
+    let talker = facespace::talker::build::set_sound_to_face(&a.talker, &a.from, a.least_frames, progress)
         .with_context(|| format!("learning the sound-to-face map of {}", a.talker.display()))?;
     bar.finish_and_clear();
     let (sentences, frames) = talker

@@ -280,6 +280,7 @@ fn learn_sound_to_face(
     codebook: &Codebook,
     from: &Path,
     out: &Path,
+    least_frames: usize,
     progress: impl FnMut(Progress),
 ) -> Result<String, TalkerError> {
     let failed = |source| TalkerError::SoundToFace {
@@ -290,17 +291,19 @@ fn learn_sound_to_face(
         path: from.into(),
         source: Box::new(e),
     })?;
-    let map = SoundToFace::learn(model, codebook, &aligner, from, progress).map_err(failed)?;
+    let map = SoundToFace::learn(model, codebook, &aligner, from, least_frames, progress)
+        .map_err(failed)?;
     map.save(&out.join(SOUND_TO_FACE)).map_err(failed)?;
     Ok(SOUND_TO_FACE.into())
 }
 
 /// Gives the talker `dir` a sound-to-face map learnt from `from` (a folder of its
-/// codebook's recordings, `NAME.mp4`), keeping everything else; `talker.json` is rewritten
-/// last.
+/// codebook's recordings, `NAME.mp4`; at least `least_frames` frames of them with sound),
+/// keeping everything else; `talker.json` is rewritten last.
 pub fn set_sound_to_face(
     dir: &Path,
     from: &Path,
+    least_frames: usize,
     progress: impl FnMut(Progress),
 ) -> Result<Talker, TalkerError> {
     let talker = Talker::load(dir)?;
@@ -310,6 +313,7 @@ pub fn set_sound_to_face(
         &talker.codebook,
         from,
         dir,
+        least_frames,
         progress,
     )?);
     write_manifest(dir, &manifest)?;
@@ -381,9 +385,17 @@ pub fn build(
         }
         _ => None,
     };
-    // Recordings without sound teach no map: the talker then hears phones without words.
+    // Recordings without sound, or under a minute of them, teach no map: the talker then
+    // hears phones without words.
     let sound_to_face = match &parts.mouths_from {
-        Some(from) => match learn_sound_to_face(&model, &codebook, from, out, &mut progress) {
+        Some(from) => match learn_sound_to_face(
+            &model,
+            &codebook,
+            from,
+            out,
+            crate::sound_to_face::LEAST_FRAMES,
+            &mut progress,
+        ) {
             Err(TalkerError::SoundToFace { source, .. })
                 if matches!(*source, crate::sound_to_face::SoundToFaceError::Learn(_)) =>
             {
