@@ -117,7 +117,7 @@ pub enum LiveError {
     /// The talker's footage could not be read.
     #[error("the talker's footage: {0}")]
     Footage(#[from] crate::video::VideoError),
-    /// The talker's recorded mouths could not be read.
+    /// A part of the talker (its recorded mouths, its sound-to-face map) could not be read.
     #[error(transparent)]
     Talker(#[from] Box<crate::talker::TalkerError>),
 }
@@ -210,6 +210,21 @@ pub struct Session<'t> {
     given: usize,
     /// The last frame given out, while speech goes on (what the next batch continues from).
     shown: Option<Vec<f32>>,
+    /// What the talker's sound-to-face map hears of the sound recognised, when the talker
+    /// has one.
+    hearing: Option<Hearing>,
+}
+
+/// The evidence of the sound heard so far for a live sound-to-face map.
+struct Hearing {
+    /// Session seconds at which the current recogniser's stream (its evidence frame 0) starts.
+    start: f64,
+    /// Evidence frames dropped from the front (no window reaches them any more).
+    dropped: usize,
+    /// The evidence rows since then ([`crate::sound_to_face::evidence_rows`]).
+    rows: Vec<Vec<f32>>,
+    /// The codebook's mean shape ‖ appearance, about which the map's motion is scaled.
+    mean: Vec<f32>,
 }
 
 impl<'t> Session<'t> {
@@ -251,7 +266,37 @@ impl<'t> Session<'t> {
             origin: 0.0,
             given: 0,
             shown: None,
+            hearing: None,
         }
+    }
+
+    /// The session's hearing for the talker's sound-to-face map (`None` without one), begun
+    /// anew when a fresh recogniser starts at `start` session seconds.
+    fn hearing<'h>(
+        talker: &Talker,
+        hearing: &'h mut Option<Hearing>,
+        fresh: bool,
+        start: f64,
+    ) -> Result<Option<&'h mut Hearing>, LiveError> {
+        if talker.sound_to_face().map_err(Box::new)?.is_none() {
+            return Ok(None);
+        }
+        if fresh || hearing.is_none() {
+            let mean = match hearing.take() {
+                Some(h) => h.mean,
+                None => {
+                    let params = talker.codebook.layout.params_range();
+                    talker.codebook.mean()[params].iter().map(|&v| v as f32).collect()
+                }
+            };
+            *hearing = Some(Hearing {
+                start,
+                dropped: 0,
+                rows: Vec::new(),
+                mean,
+            });
+        }
+        Ok(hearing.as_mut())
     }
 
     /// Frames per second of the session's video.
@@ -283,11 +328,17 @@ impl<'t> Session<'t> {
                 offset,
                 sounding,
             } => {
+                let fresh = recogniser.is_none();
                 let recogniser = match recogniser {
                     Some(r) => r,
                     None => recogniser.insert(Box::new(self.talker.live_recogniser()?)),
                 };
                 let heard = recogniser.push(&speech)?;
+                if let Some(hearing) = Self::hearing(self.talker, &mut self.hearing, fresh, *offset)? {
+                    let feats = recogniser.take_features();
+                    let evidence = self.talker.default_aligner()?.evidence_of(&feats);
+                    hearing.rows.extend(crate::sound_to_face::evidence_rows(&evidence));
+                }
                 let offset = *offset;
                 *sounding = recogniser
                     .sounding()
@@ -692,8 +743,40 @@ impl<'t> Session<'t> {
                 ..Request::new(target.clone(), self.fps, smoothing)
             },
         )?;
-        let frames: &Frames = utterance.variants()[0].1;
+        let mut frames: Frames = utterance.variants()[0].1.clone();
         let offset = (start * self.fps).round() as usize;
+        // Phones heard and a map: the lips of the frames given out (and of the one before
+        // them, which a batch joins from) from the sound itself.
+        if let (Phones::Heard { .. }, Some(hearing), Some(map)) =
+            (&self.source, &mut self.hearing, self.talker.sound_to_face().map_err(Box::new)?)
+        {
+            let from = self.given.saturating_sub(1).max(offset);
+            let wanted: Vec<usize> = (from..last)
+                .filter(|&index| index - offset < frames.len() && index as f64 / self.fps >= hearing.start)
+                .collect();
+            let centres: Vec<i64> = wanted
+                .iter()
+                .map(|&index| {
+                    ((index as f64 / self.fps - hearing.start) * 100.0).round() as i64 - hearing.dropped as i64
+                })
+                .collect();
+            let faces = map.predict_centred(&hearing.rows, &centres, &hearing.mean);
+            let params = frames.layout().params_range();
+            let mut values = frames.values_mut();
+            for (&index, face) in wanted.iter().zip(&faces) {
+                let keep = crate::sound_to_face::closure_weight(&target, index as f64 / self.fps - start, self.fps);
+                for (j, p) in params.clone().enumerate() {
+                    let own = values[(index - offset, p)];
+                    values[(index - offset, p)] = keep * own + (1.0 - keep) * face[j];
+                }
+            }
+            // No later window reaches back past the last frame given out's.
+            let keep_from = centres.last().map_or(0, |&c| (c - 2 * crate::sound_to_face::HALF_WINDOW).max(0) as usize);
+            let drop = keep_from.min(hearing.rows.len());
+            hearing.rows.drain(..drop);
+            hearing.dropped += drop;
+        }
+        let frames = &frames;
         let mut out = Vec::with_capacity(last - self.given);
         for index in self.given..last {
             let Some(i) = index.checked_sub(offset).filter(|&i| i < frames.len()) else {

@@ -28,6 +28,7 @@ use crate::codebook::Codebook;
 use crate::facespace::Frames;
 use crate::manifest::{self, ManifestError};
 use crate::model::FaceModel;
+use crate::phonemes::Segment;
 use crate::{Progress, npy};
 
 /// The folder format this build writes and reads.
@@ -123,8 +124,12 @@ pub struct SoundToFace {
 /// The evidence of every 10 ms frame of `samples`: 13 cepstra, then each phone's posterior,
 /// then its log posterior.
 fn evidence(aligner: &Aligner, samples: &[f32], rate: u32) -> Result<Vec<Vec<f32>>, AlignError> {
-    let heard = aligner.acoustic_evidence(samples, rate)?;
-    Ok(heard
+    Ok(evidence_rows(&aligner.acoustic_evidence(samples, rate)?))
+}
+
+/// The map's evidence rows of the aligner's [`crate::align::Evidence`].
+pub fn evidence_rows(heard: &crate::align::Evidence) -> Vec<Vec<f32>> {
+    heard
         .cepstra
         .iter()
         .zip(&heard.scores)
@@ -141,25 +146,50 @@ fn evidence(aligner: &Aligner, samples: &[f32], rate: u32) -> Result<Vec<Vec<f32
             );
             row
         })
-        .collect())
+        .collect()
 }
 
 fn taps() -> impl Iterator<Item = i64> {
     (-HALF_WINDOW..=HALF_WINDOW).step_by(TAP_STEP)
 }
 
+/// How much of the phones' own synthesis a frame at `t` seconds keeps: 1 inside a bilabial
+/// /p b m/ of `target` (the lips must close there, and a regression's conditional mean only
+/// narrows them — the recogniser finds these phones well), ½ within a frame of one, else 0.
+pub fn closure_weight(target: &[Segment], t: f64, fps: f64) -> f32 {
+    let near = |margin: f64| {
+        target.iter().any(|p| {
+            matches!(p.phone.name(), "p" | "b" | "m") && t >= p.start - margin && t < p.end + margin
+        })
+    };
+    if near(0.0) {
+        1.0
+    } else if near(1.0 / fps) {
+        0.5
+    } else {
+        0.0
+    }
+}
+
 /// The feature rows of the video frames `frames` (at `fps`): the evidence window around each
 /// frame's time, edges repeated, then a constant.
 fn design(evidence: &[Vec<f32>], frames: std::ops::Range<usize>, fps: f64) -> DMatrix<f64> {
+    design_at(evidence, frames.len(), |i| {
+        ((frames.start + i) as f64 / fps * 100.0).round() as i64
+    })
+}
+
+/// The feature rows of `rows` windows, the `i`-th centred on evidence frame `centre(i)`.
+fn design_at(evidence: &[Vec<f32>], rows: usize, centre: impl Fn(usize) -> i64) -> DMatrix<f64> {
     let width = evidence.first().map_or(0, Vec::len);
     let d = taps().count() * width + 1;
     let last = evidence.len() as i64 - 1;
-    DMatrix::from_fn(frames.len(), d, |i, j| {
+    DMatrix::from_fn(rows, d, |i, j| {
         if j == d - 1 {
             return 1.0;
         }
         let (tap, k) = (j / width, j % width);
-        let centre = ((frames.start + i) as f64 / fps * 100.0).round() as i64;
+        let centre = centre(i);
         let t = (centre - HALF_WINDOW + (tap * TAP_STEP) as i64).clamp(0, last);
         f64::from(evidence[t as usize][k])
     })
@@ -289,23 +319,50 @@ impl SoundToFace {
         Ok(face)
     }
 
+    /// The shape ‖ appearance of frames centred on the evidence frames `centres` of
+    /// `evidence` (rows of [`evidence_rows`]; windows reaching past either end repeat it),
+    /// the motion scaled by [`AMPLITUDE_GAIN`] about `mean`: a live session's frames, whose
+    /// utterance is not over.
+    pub fn predict_centred(&self, evidence: &[Vec<f32>], centres: &[i64], mean: &[f32]) -> Vec<Vec<f32>> {
+        if evidence.is_empty() {
+            return vec![mean.to_vec(); centres.len()];
+        }
+        let x = design_at(evidence, centres.len(), |i| centres[i]).map(|v| v as f32);
+        let face = x * &self.weights;
+        face.row_iter()
+            .map(|row| {
+                row.iter()
+                    .zip(mean)
+                    .map(|(v, m)| m + AMPLITUDE_GAIN * (v - m))
+                    .collect()
+            })
+            .collect()
+    }
+
     /// Writes `frames`' shape ‖ appearance from the sound (see [`Self::predict`]), keeping
-    /// their poses.
+    /// their poses, and the frames' own at the bilabials of `target`, the phones they were
+    /// synthesised from ([`closure_weight`]).
     pub fn apply(
         &self,
         aligner: &Aligner,
         samples: &[f32],
         rate: u32,
         frames: &mut Frames,
+        target: &[Segment],
     ) -> Result<(), AlignError> {
         let params = frames.layout().params_range();
-        let face = self.predict(aligner, samples, rate, frames.len(), frames.fps())?;
+        let fps = frames.fps();
+        let face = self.predict(aligner, samples, rate, frames.len(), fps)?;
+        let keep: Vec<f32> = (0..frames.len())
+            .map(|i| closure_weight(target, i as f64 / fps, fps))
+            .collect();
         let mut values = frames.values_mut();
         for (j, p) in params.clone().enumerate() {
             let column = face.column(j);
             let mean = column.mean();
             for (i, v) in column.iter().enumerate() {
-                values[(i, p)] = mean + AMPLITUDE_GAIN * (v - mean);
+                let heard = mean + AMPLITUDE_GAIN * (v - mean);
+                values[(i, p)] = keep[i] * values[(i, p)] + (1.0 - keep[i]) * heard;
             }
         }
         Ok(())
@@ -399,6 +456,21 @@ mod tests {
         let truth = DMatrix::from_fn(4, 2, |i, j| (i as f64) - 2.0 * j as f64);
         let w = ridge(x.tr_mul(&x), &x.tr_mul(&(&x * &truth)), 0.0).unwrap();
         assert!((w - truth).abs().max() < 1e-9);
+    }
+
+    /// Inside a /p b m/ the phones' frame is kept whole, within a frame of one half, else not.
+    #[test]
+    fn closures_keep_the_phones_frames() {
+        let seg = |phone: &str, start: f64, end: f64| Segment {
+            phone: crate::phonemes::Phone::parse(phone).unwrap(),
+            start,
+            end,
+        };
+        let target = [seg("ah", 0.0, 0.4), seg("m", 0.4, 0.5), seg("iy", 0.5, 1.0)];
+        let at = |t: f64| closure_weight(&target, t, 25.0);
+        assert_eq!((at(0.2), at(0.37), at(0.4), at(0.49), at(0.52), at(0.6)), (0.0, 0.5, 1.0, 1.0, 0.5, 0.0));
+        let vowels = [seg("ah", 0.0, 1.0)];
+        assert_eq!(closure_weight(&vowels, 0.5, 25.0), 0.0);
     }
 
     /// Row i holds the evidence at i's time (100 frames a second) ± the window, edges repeated.

@@ -421,8 +421,12 @@ impl Aligner {
     /// What the acoustic model hears in each 10 ms frame of `samples`, before any search:
     /// the cepstra and every context-independent phone's score ([`Evidence`]).
     pub fn acoustic_evidence(&self, samples: &[f32], rate: u32) -> Result<Evidence, AlignError> {
-        let feats = self.features(samples, rate)?;
-        let mut scores = search::phone_scores(&self.model, &feats);
+        Ok(self.evidence_of(&self.features(samples, rate)?))
+    }
+
+    /// [`Self::acoustic_evidence`] of front-end features (a live [`Recogniser`]'s).
+    pub fn evidence_of(&self, feats: &[[f32; frontend::FEATURE_DIM]]) -> Evidence {
+        let mut scores = search::phone_scores(&self.model, feats);
         for row in &mut scores {
             let best = row.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b));
             row.iter_mut().for_each(|v| *v -= best);
@@ -431,7 +435,7 @@ impl Aligner {
             .iter()
             .map(|f| std::array::from_fn(|k| f[k]))
             .collect();
-        Ok(Evidence { cepstra, scores })
+        Evidence { cepstra, scores }
     }
 
     /// A live phone recogniser over the loop `lm`: samples in as they arrive, phones out
@@ -451,6 +455,7 @@ impl Aligner {
             lag: STREAM_LAG_FRAMES,
             least_piece: STREAM_LEAST_PIECE,
             sounding: None,
+            features: Vec::new(),
         })
     }
 
@@ -499,6 +504,8 @@ pub struct Recogniser<'a> {
     least_piece: usize,
     /// The phone after the ones given out, as the best path has it now.
     sounding: Option<TimedPhone>,
+    /// Features made since [`Recogniser::take_features`] last took them.
+    features: Vec<[f32; frontend::FEATURE_DIM]>,
 }
 
 impl Recogniser<'_> {
@@ -516,6 +523,7 @@ impl Recogniser<'_> {
             .collect();
         for feat in self.stream.push(&pcm) {
             self.decoder.step(&self.graph, &feat).ok_or(AlignError::NoPath)?;
+            self.features.push(feat);
         }
         let settled = self.decoder.frames.saturating_sub(self.lag) as u32;
         let path = self.decoder.partial();
@@ -543,6 +551,12 @@ impl Recogniser<'_> {
         self.lag = frames;
         self.least_piece = least_piece;
         self
+    }
+
+    /// The front end's features made since the last call, in order from the stream's start
+    /// (10 ms each): what a live sound-to-face map hears.
+    pub fn take_features(&mut self) -> Vec<[f32; frontend::FEATURE_DIM]> {
+        std::mem::take(&mut self.features)
     }
 
     /// Seconds of sound taken so far.

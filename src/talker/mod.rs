@@ -697,7 +697,8 @@ impl Talker {
         let aligner = self.default_aligner().map_err(failed)?;
         let frames = std::iter::once(&mut utterance.synthesis.frames).chain(utterance.smoothed.as_mut());
         for f in frames {
-            map.apply(aligner, &sound.samples, sound.rate, f).map_err(failed)?;
+            map.apply(aligner, &sound.samples, sound.rate, f, &utterance.target)
+                .map_err(failed)?;
         }
         let (sentences, _) = map.learnt_from();
         utterance.method = format!("lips from the sound: the talker's map learnt on {sentences} sentences");
