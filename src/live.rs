@@ -626,6 +626,8 @@ impl<'t> Session<'t> {
         self.origin = self.given as f64 / self.fps;
         self.phones.clear();
         self.shown = None;
+        // The sound said before the interruption draws no more lips.
+        self.hearing = None;
         if let Phones::Heard {
             recogniser,
             offset,
@@ -747,8 +749,9 @@ impl<'t> Session<'t> {
         let offset = (start * self.fps).round() as usize;
         // Phones heard and a map: the lips of the frames given out (and of the one before
         // them, which a batch joins from) from the sound itself.
-        if let (Phones::Heard { .. }, Some(hearing), Some(map)) =
-            (&self.source, &mut self.hearing, self.talker.sound_to_face().map_err(Box::new)?)
+        // (Only a session hearing phones has a hearing, made once the map loaded.)
+        if let Some(hearing) = &mut self.hearing
+            && let Some(map) = self.talker.sound_to_face().map_err(Box::new)?
         {
             let from = self.given.saturating_sub(1).max(offset);
             let wanted: Vec<usize> = (from..last)

@@ -215,13 +215,27 @@ fn given_words_close_the_lips_on_their_bilabials() {
 
 /// An interruption: after `clear`, the next frame is the idle face (not speaking, the mouth
 /// no more open than in the silence before the speech, which opened it 3 px wider), and the
-/// session goes on taking speech.
+/// session goes on taking speech — with phones given, and with the sound heard (whose lips
+/// the talker's sound-to-face map draws: the sound before the interruption draws none after).
 #[test]
 fn clear_returns_to_the_idle_face_at_the_next_frame() {
     let t = talker();
     let (sound, phones) = clip("bbbf9a");
+    let mut heard = Session::new(t);
+    interrupted(&mut heard, &sound);
     let mut session = Session::with_given_phones(t);
     session.push_phones(&phones).unwrap();
+    interrupted(&mut session, &sound);
+    // New phones after the interruption are taken from where it left.
+    let at = session.seconds();
+    session
+        .push_phones(&[Segment { start: at, end: at + 0.2, phone: Phone::parse("aa").unwrap() }])
+        .unwrap();
+}
+
+/// `sound` up to its middle through `session`, then `clear`, then silence: the checks of
+/// [`clear_returns_to_the_idle_face_at_the_next_frame`].
+fn interrupted(session: &mut Session, sound: &facespace::audio::Audio) {
     let mut frames = Vec::new();
     // Up to the middle of the sentence.
     let middle = sound.samples.len() / 2;
@@ -232,6 +246,8 @@ fn clear_returns_to_the_idle_face_at_the_next_frame() {
     let before = frames.len();
     assert!(frames.last().unwrap().speaking);
     session.clear();
+    // Frames pulled before more sound comes are idle too.
+    frames.extend(session.pull().unwrap());
     session.push_audio(&vec![0.0; 4_800], sound.rate).unwrap();
     frames.extend(session.finish().unwrap());
     assert!(frames.len() > before, "frames go on after clear");
@@ -246,11 +262,6 @@ fn clear_returns_to_the_idle_face_at_the_next_frame() {
         "after clear {} px, idle {idle} px, widest before {widest} px",
         h[before]
     );
-    // New phones after the interruption are taken from where it left.
-    let at = session.seconds();
-    session
-        .push_phones(&[Segment { start: at, end: at + 0.2, phone: Phone::parse("aa").unwrap() }])
-        .unwrap();
 }
 
 /// Stretches of sound too short to hold a phone (a text-to-speech engine's last few
