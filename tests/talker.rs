@@ -557,7 +557,7 @@ fn without_words_the_sound_drives_the_lips() {
 }
 
 /// A damaged sound-to-face map is refused when a recording without words needs it, naming
-/// the part, and nothing is written; `talker sound-to-face` from a folder without the
+/// the part, and nothing is written (phone labels, which never need it, still speak); `talker sound-to-face` from a folder without the
 /// codebook's recordings is refused and leaves the talker as it was.
 #[test]
 fn a_damaged_sound_to_face_map_is_refused() {
@@ -599,6 +599,19 @@ fn a_damaged_sound_to_face_map_is_refused() {
         assert!(text.contains(named) && text.contains("sound-to-face"), "{what}: {text}");
         assert!(!text.contains("panicked"), "{what}: {text}");
         assert!(!out.exists(), "{what}: something was written");
+        // Speech with its phones never reads the map.
+        let o = common::facespace(&[
+            "say",
+            "--talker",
+            dir.path().to_str().unwrap(),
+            "--labels",
+            common::root().join("tests/data/grid/bbbs7a.lab").to_str().unwrap(),
+            "--renderer",
+            "cpu",
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{what}: {}", common::text(&o));
     }
     let dir = damaged_copy(|_| {});
     let t = dir.path().to_str().unwrap();

@@ -144,9 +144,6 @@ pub struct TalkerManifest {
     pub provenance: Provenance,
 }
 
-/// The note `say` gives when phones were recognised from a recording without its words.
-const RECOGNISED_NOTE: &str = "no words given: the phones were recognised from the sound alone";
-
 /// The sound of the recording `audio` as the aligner hears it (16 kHz, at most
 /// [`crate::align::MAX_SECONDS`]).
 fn speech_sound(audio: &Path) -> Result<crate::audio::Audio, TalkerError> {
@@ -661,13 +658,8 @@ impl Talker {
             Speech::Recording { audio, words } => {
                 (hear(audio, Some(words))?, Some(words.clone()), Some(audio.clone()))
             }
-            Speech::Sound(audio) => {
-                let phones = hear(audio, None)?;
-                notes.push(format!(
-                    "{RECOGNISED_NOTE} (give the words for aligned phones and a closer lip sync)"
-                ));
-                (phones, None, Some(audio.clone()))
-            }
+            // (`perform` says how the lips were drawn: by the talker's map, or these phones.)
+            Speech::Sound(audio) => (hear(audio, None)?, None, Some(audio.clone())),
             Speech::Labels {
                 labels,
                 tier,
@@ -731,12 +723,19 @@ impl Talker {
             ..Request::new(target.clone(), fps, Smoothing::On(settings.smoothing))
         };
         let mut utterance = crate::synth::synthesise(synthesiser.as_ref(), &self.codebook, req)?;
-        if let (Speech::Sound(audio), Some(map)) = (&request.speech, self.sound_to_face()?) {
-            self.face_from_sound(map, audio, &mut utterance)?;
-            notes.retain(|n| !n.starts_with(RECOGNISED_NOTE));
-            notes.push(
-                "no words given: the lips were predicted from the sound by the talker's sound-to-face map (give the words for aligned phones and a closer lip sync)".into(),
-            );
+        // Without words the talker's map, when it has one, draws the lips from the sound (it
+        // is loaded only then: `say` from text or labels never reads it).
+        if let Speech::Sound(audio) = &request.speech {
+            let drawn = match self.sound_to_face()? {
+                Some(map) => {
+                    self.face_from_sound(map, audio, &mut utterance)?;
+                    "the lips were predicted from the sound by the talker's sound-to-face map"
+                }
+                None => "the phones were recognised from the sound alone",
+            };
+            notes.push(format!(
+                "no words given: {drawn} (give the words for aligned phones and a closer lip sync)"
+            ));
         }
         backdrop
             .anchor_region(&self.model, &mut utterance)
