@@ -339,33 +339,38 @@ impl SoundToFace {
             .collect()
     }
 
-    /// Writes `frames`' shape ‖ appearance from the sound (see [`Self::predict`]), keeping
-    /// their poses, and the frames' own at the bilabials of `target`, the phones they were
-    /// synthesised from ([`closure_weight`]).
-    pub fn apply(
+    /// [`Self::predict`] with the motion scaled by [`AMPLITUDE_GAIN`] about the utterance's
+    /// own mean: the face a whole recording without its words says.
+    pub fn predict_utterance(
         &self,
         aligner: &Aligner,
         samples: &[f32],
         rate: u32,
-        frames: &mut Frames,
-        target: &[Segment],
-    ) -> Result<(), AlignError> {
+        frames: usize,
+        fps: f64,
+    ) -> Result<DMatrix<f32>, AlignError> {
+        let mut face = self.predict(aligner, samples, rate, frames, fps)?;
+        for mut column in face.column_iter_mut() {
+            let mean = column.mean();
+            column.apply(|v| *v = mean + AMPLITUDE_GAIN * (*v - mean));
+        }
+        Ok(face)
+    }
+
+    /// Writes `face` (frames × shape ‖ appearance, [`Self::predict_utterance`]) into
+    /// `frames`, keeping their poses, and their own shape and appearance at the bilabials of
+    /// `target`, the phones they were synthesised from ([`closure_weight`]).
+    pub fn apply(face: &DMatrix<f32>, frames: &mut Frames, target: &[Segment]) {
         let params = frames.layout().params_range();
         let fps = frames.fps();
-        let face = self.predict(aligner, samples, rate, frames.len(), fps)?;
-        let keep: Vec<f32> = (0..frames.len())
-            .map(|i| closure_weight(target, i as f64 / fps, fps))
-            .collect();
+        let n = frames.len().min(face.nrows());
         let mut values = frames.values_mut();
-        for (j, p) in params.clone().enumerate() {
-            let column = face.column(j);
-            let mean = column.mean();
-            for (i, v) in column.iter().enumerate() {
-                let heard = mean + AMPLITUDE_GAIN * (v - mean);
-                values[(i, p)] = keep[i] * values[(i, p)] + (1.0 - keep[i]) * heard;
+        for i in 0..n {
+            let keep = closure_weight(target, i as f64 / fps, fps);
+            for (j, p) in params.clone().enumerate() {
+                values[(i, p)] = keep * values[(i, p)] + (1.0 - keep) * face[(i, j)];
             }
         }
-        Ok(())
     }
 
     /// Sentences and frames it was learnt from.

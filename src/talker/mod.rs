@@ -687,10 +687,14 @@ impl Talker {
             source: Box::new(e),
         };
         let aligner = self.default_aligner().map_err(failed)?;
+        // One prediction for both variants (they share the frame grid).
+        let raw = &utterance.synthesis.frames;
+        let face = map
+            .predict_utterance(aligner, &sound.samples, sound.rate, raw.len(), raw.fps())
+            .map_err(failed)?;
         let frames = std::iter::once(&mut utterance.synthesis.frames).chain(utterance.smoothed.as_mut());
         for f in frames {
-            map.apply(aligner, &sound.samples, sound.rate, f, &utterance.target)
-                .map_err(failed)?;
+            crate::sound_to_face::SoundToFace::apply(&face, f, &utterance.target);
         }
         let (sentences, _) = map.learnt_from();
         utterance.method = format!("lips from the sound: the talker's map learnt on {sentences} sentences");
