@@ -745,7 +745,8 @@ impl<'t> Session<'t> {
                 ..Request::new(target.clone(), self.fps, smoothing)
             },
         )?;
-        let mut frames: Frames = utterance.variants()[0].1.clone();
+        // The variant shown (the smoothed one), taken out of the utterance, not copied.
+        let mut frames: Frames = utterance.smoothed.unwrap_or(utterance.synthesis.frames);
         let offset = (start * self.fps).round() as usize;
         // Phones heard and a map: the lips of the frames given out (and of the one before
         // them, which a batch joins from) from the sound itself.

@@ -12,14 +12,14 @@ use super::{
     Voice,
 };
 use crate::codebook::Codebook;
-use crate::sound_to_face::SoundToFace;
-
-/// The sound-to-face map's folder in a talker.
-const SOUND_TO_FACE: &str = "sound-to-face";
 use crate::corpus::Sentence;
 use crate::model::FaceModel;
 use crate::mouths::Mouths;
+use crate::sound_to_face::SoundToFace;
 use crate::{Progress, atomic};
+
+/// The sound-to-face map's folder in a talker.
+const SOUND_TO_FACE: &str = "sound-to-face";
 
 /// What a talker is made of.
 #[derive(Clone, Debug)]
