@@ -1,5 +1,5 @@
-//! The face from the sound alone (issue 34): a talker's learnt linear map from what a
-//! window of sound says to the face-space shape ‖ appearance of the frame at its centre.
+//! The face from the sound alone (issue 34): a talker's learnt map from what a window of
+//! sound says to the face-space shape ‖ appearance of the frame at its centre.
 //!
 //! Recognised phones are a poor route to the lips without words: a phone error rate of
 //! about 64 % on GRID's talker, and the blend then draws every wrong phone. The acoustic
@@ -10,10 +10,16 @@
 //! [`TAP_STEP`]-th, and a constant, goes through a ridge regression
 //! `W = (XᵀX + λ I)⁻¹ XᵀY` learnt on the talker's codebook sentences and their recordings:
 //! the classic linear audio-to-visual mapping, with the phone posteriors as its nonlinear
-//! features. Window, κ and λ were chosen on GRID s1's validation split (BENCHMARKS.md).
+//! features — and beside it one hidden layer of rectified units learnt on what the ridge
+//! leaves ([`network`]). Window, κ, λ and the layer were chosen on GRID s1's validation
+//! split (BENCHMARKS.md).
 //!
-//! The folder: `sound-to-face.json` (its constants, the model's hash) and `weights.npy`
-//! (features × face-space parameters, f32): `face = [window, 1] · W`.
+//! The folder: `sound-to-face.json` (its constants, the model's hash), `weights.npy`
+//! (features × face-space parameters, f32), and for the layer `hidden_in.npy` (features ×
+//! units) and `hidden_out.npy` (units × parameters): `face = x·W + relu(x·H_in)·H_out`,
+//! `x = [window, 1]`. A version-1 folder (the ridge alone) still loads.
+
+mod network;
 
 use std::path::Path;
 
@@ -32,10 +38,12 @@ use crate::phonemes::Segment;
 use crate::{Progress, npy};
 
 /// The folder format this build writes and reads.
-pub const SOUND_TO_FACE_VERSION: u32 = 1;
+pub const SOUND_TO_FACE_VERSION: u32 = 2;
 const FORMAT: &str = "facespace-sound-to-face";
 const MANIFEST: &str = "sound-to-face.json";
 const WEIGHTS: &str = "weights.npy";
+const HIDDEN_IN: &str = "hidden_in.npy";
+const HIDDEN_OUT: &str = "hidden_out.npy";
 
 /// Frames (10 ms) either side of a video frame's centre the map hears: ±200 ms, the span of
 /// coarticulation (validation: ±100 ms lost 0.01 of r_pca, ±300 ms gained nothing).
@@ -51,9 +59,11 @@ const POSTERIOR_SCALE: f32 = 10.0;
 const LEAST_LOG_POSTERIOR: f32 = -20.0;
 const LOG_POSTERIOR_SCALE: f32 = 0.5;
 /// The predicted motion about the utterance's mean, scaled up: a regression's output is a
-/// conditional mean, and moves less than the face did (validation: the inner mouth's s.d.
-/// 0.87× real at 1, 0.99× at 1.15, 1.12× at 1.3; lip motion 0.80×, 0.91×, 1.03×; r unchanged).
-pub const AMPLITUDE_GAIN: f32 = 1.15;
+/// conditional mean, and moves less than the face did. Chosen by the talker's own rule (lip
+/// motion ≥ 0.9× real, the inner mouth's s.d. nearest real; GRID s1 validation, through
+/// `say`): with the hidden layer s.d. 0.94× at 1, **0.98× at 1.05**, 1.03× at 1.1, lip motion
+/// 1.01× / 1.06× / 1.10×, r unchanged (the ridge alone needed 1.15: s.d. 0.87× at 1).
+pub const AMPLITUDE_GAIN: f32 = 1.05;
 /// The least video frames of speech a map is learnt from by default: GRID s1's validation
 /// split (30 clips) through `say`, mouth r_pca / inner r_h against 0.512 / 0.638 from
 /// recognised phones — 2 sentences (150 frames) −0.008 / 0.292, 6 (450) 0.393 / 0.607, 20
@@ -111,6 +121,9 @@ struct Manifest {
     /// The sentences it was learnt from.
     sentences: usize,
     frames: usize,
+    /// Units of the hidden layer; 0 for the ridge alone (version 1).
+    #[serde(default)]
+    hidden: usize,
 }
 
 /// A talker's map from sound to face (see the module).
@@ -119,6 +132,7 @@ pub struct SoundToFace {
     manifest: Manifest,
     /// Features × face-space parameters (shape ‖ appearance).
     weights: DMatrix<f32>,
+    hidden: Option<network::Hidden>,
 }
 
 /// The evidence of every 10 ms frame of `samples`: 13 cepstra, then each phone's posterior,
@@ -174,25 +188,123 @@ pub fn closure_weight(target: &[Segment], t: f64, fps: f64) -> f32 {
 /// The feature rows of the video frames `frames` (at `fps`): the evidence window around each
 /// frame's time, edges repeated, then a constant.
 fn design(evidence: &[Vec<f32>], frames: std::ops::Range<usize>, fps: f64) -> DMatrix<f64> {
-    design_at(evidence, frames.len(), |i| {
-        ((frames.start + i) as f64 / fps * 100.0).round() as i64
-    })
+    design_at(evidence, frames.len(), |i| centre(frames.start + i, fps))
+}
+
+/// The evidence frame (10 ms) at the time of video frame `frame` at `fps`.
+fn centre(frame: usize, fps: f64) -> i64 {
+    (frame as f64 / fps * 100.0).round() as i64
+}
+
+/// A sentence heard while learning: its evidence rows, frame rate and face (frames ×
+/// shape ‖ appearance).
+struct Heard {
+    evidence: Vec<Vec<f32>>,
+    fps: f64,
+    face: DMatrix<f64>,
+}
+
+/// Learns the hidden layer on what the ridge `weights` leave of `heard`, and adds its
+/// outputs' bias to the ridge's constant.
+fn learn_hidden(
+    heard: &[Heard],
+    weights: &mut DMatrix<f64>,
+    mut progress: impl FnMut(usize),
+) -> network::Hidden {
+    let width = heard[0].evidence[0].len();
+    let d = weights.nrows() - 1;
+    // Each evidence feature standardised over every frame heard, alike at every tap.
+    let mut sum = vec![0f64; width];
+    let mut squares = vec![0f64; width];
+    let mut count = 0.0;
+    for row in heard.iter().flat_map(|h| &h.evidence) {
+        for (k, &v) in row.iter().enumerate() {
+            sum[k] += f64::from(v);
+            squares[k] += f64::from(v) * f64::from(v);
+        }
+        count += 1.0;
+    }
+    let mean: Vec<f32> = (0..d).map(|j| (sum[j % width] / count) as f32).collect();
+    let scale: Vec<f32> = (0..d)
+        .map(|j| {
+            let m = sum[j % width] / count;
+            (squares[j % width] / count - m * m).max(0.0).sqrt() as f32
+        })
+        .collect();
+    let index: Vec<(usize, i64)> = heard
+        .iter()
+        .enumerate()
+        .flat_map(|(s, h)| (0..h.face.nrows()).map(move |i| (s, centre(i, h.fps))))
+        .collect();
+    let k = weights.ncols();
+    let mut residual = DMatrix::<f32>::zeros(index.len(), k);
+    let mut start = 0;
+    for h in heard {
+        let n = h.face.nrows();
+        let left = &h.face - design(&h.evidence, 0..n, h.fps) * &*weights;
+        residual
+            .rows_mut(start, n)
+            .copy_from(&left.map(|v| v as f32));
+        start += n;
+    }
+    // The outputs in units of the face's own spread.
+    let target_scale: Vec<f32> = (0..k)
+        .map(|c| {
+            let values = heard.iter().flat_map(|h| h.face.column(c).iter().copied().collect::<Vec<_>>());
+            let (mut s, mut q, mut n) = (0.0, 0.0, 0.0);
+            for v in values {
+                s += v;
+                q += v * v;
+                n += 1.0;
+            }
+            let m = s / n;
+            ((q / n - m * m).max(0.0).sqrt() as f32).max(1e-12)
+        })
+        .collect();
+    let examples = network::Examples {
+        rows: index.len(),
+        features: d,
+        row: |i: usize, out: &mut [f32]| {
+            let (s, centre) = index[i];
+            window_into(&heard[s].evidence, centre, out);
+        },
+        mean: &mean,
+        scale: &scale,
+        residual: &residual,
+        target_scale: &target_scale,
+    };
+    let (hidden, bias) = network::learn(&examples, &mut progress);
+    for (c, b) in bias.into_iter().enumerate() {
+        weights[(d, c)] += f64::from(b);
+    }
+    hidden
 }
 
 /// The feature rows of `rows` windows, the `i`-th centred on evidence frame `centre(i)`.
 fn design_at(evidence: &[Vec<f32>], rows: usize, centre: impl Fn(usize) -> i64) -> DMatrix<f64> {
     let width = evidence.first().map_or(0, Vec::len);
     let d = taps().count() * width + 1;
-    let last = evidence.len() as i64 - 1;
-    DMatrix::from_fn(rows, d, |i, j| {
-        if j == d - 1 {
-            return 1.0;
+    let mut x = DMatrix::zeros(rows, d);
+    let mut row = vec![0f32; d - 1];
+    for i in 0..rows {
+        window_into(evidence, centre(i), &mut row);
+        for (j, &v) in row.iter().enumerate() {
+            x[(i, j)] = f64::from(v);
         }
-        let (tap, k) = (j / width, j % width);
-        let centre = centre(i);
-        let t = (centre - HALF_WINDOW + (tap * TAP_STEP) as i64).clamp(0, last);
-        f64::from(evidence[t as usize][k])
-    })
+        x[(i, d - 1)] = 1.0;
+    }
+    x
+}
+
+/// The window of evidence around frame `centre` (every tap's row in turn, edges repeated)
+/// into `out`, without the constant.
+fn window_into(evidence: &[Vec<f32>], centre: i64, out: &mut [f32]) {
+    let width = evidence.first().map_or(0, Vec::len);
+    let last = evidence.len() as i64 - 1;
+    for (tap, offset) in taps().enumerate() {
+        let t = (centre + offset).clamp(0, last) as usize;
+        out[tap * width..(tap + 1) * width].copy_from_slice(&evidence[t]);
+    }
 }
 
 /// The ridge regression's weights from its sums: `(XᵀX + λ I)⁻¹ XᵀY`, the last feature (the
@@ -224,12 +336,15 @@ impl SoundToFace {
         let params = codebook.layout.params_range();
         let total = codebook.sentences.len();
         let stage = "learning the face from the sound";
-        // The sums XᵀX, XᵀY, frames and sentences, over chunks heard side by side (the
-        // progress told between them), each chunk summed as it is heard: one sentence's
-        // XᵀX is 33 MB.
-        type Sums = Option<(DMatrix<f64>, DMatrix<f64>, usize, usize)>;
+        // The sums XᵀX and XᵀY over chunks heard side by side (the progress told between
+        // them), each chunk summed as it is heard: one sentence's XᵀX is 33 MB. The
+        // sentences' evidence is kept for the hidden layer.
+        type Sums = Option<(DMatrix<f64>, DMatrix<f64>, Vec<Heard>)>;
         let add = |a: Sums, b: Sums| match (a, b) {
-            (Some(a), Some(b)) => Some((a.0 + b.0, a.1 + b.1, a.2 + b.2, a.3 + b.3)),
+            (Some(mut a), Some(b)) => {
+                a.2.extend(b.2);
+                Some((a.0 + b.0, a.1 + b.1, a.2))
+            }
             (a, b) => a.or(b),
         };
         let mut sums: Sums = None;
@@ -261,25 +376,36 @@ impl SoundToFace {
                     let y = DMatrix::from_fn(s.frames.len(), params.len(), |i, j| {
                         f64::from(s.frames.row(i)[params.start + j])
                     });
-                    Ok(Some((x.tr_mul(&x), x.tr_mul(&y), s.frames.len(), 1)))
+                    let sums = (x.tr_mul(&x), x.tr_mul(&y));
+                    let heard = Heard {
+                        evidence: ev,
+                        fps: s.frames.fps(),
+                        face: y,
+                    };
+                    Ok(Some((sums.0, sums.1, vec![heard])))
                 })
                 .try_reduce(|| None, |a, b| Ok(add(a, b)))?;
             sums = add(sums, heard);
         }
         progress(Progress { stage, done: total, total });
-        let Some((xtx, xty, frames, sentences)) = sums else {
+        let Some((xtx, xty, heard)) = sums else {
             return Err(SoundToFaceError::Learn(format!(
                 "no recording of the codebook's sentences with sound in {} (give the folder of the codebook's videos, NAME.mp4)",
                 recordings.display()
             )));
         };
+        let (frames, sentences) = (heard.iter().map(|h| h.face.nrows()).sum::<usize>(), heard.len());
         if frames < least_frames {
             return Err(SoundToFaceError::Learn(format!(
                 "only {frames} frames of the codebook's recordings have sound (at least {least_frames} needed: a map learnt on less follows the lips worse than recognised phones)"
             )));
         }
-        let weights = ridge(xtx, &xty, RIDGE)
+        let mut weights = ridge(xtx, &xty, RIDGE)
             .ok_or_else(|| SoundToFaceError::Learn("the sums are not positive definite".into()))?;
+        let stage = "learning the face from the sound: its hidden layer";
+        let hidden = learn_hidden(&heard, &mut weights, |done| {
+            progress(Progress { stage, done, total: network::EPOCHS })
+        });
         let phones = aligner.model.ci_names.len();
         Ok(SoundToFace {
             manifest: Manifest {
@@ -293,8 +419,10 @@ impl SoundToFace {
                 ridge: RIDGE,
                 sentences,
                 frames,
+                hidden: network::UNITS,
             },
             weights: weights.map(|v| v as f32),
+            hidden: Some(hidden),
         })
     }
 
@@ -314,7 +442,7 @@ impl SoundToFace {
         for start in (0..frames).step_by(PREDICT_BLOCK) {
             let block = start..(start + PREDICT_BLOCK).min(frames);
             let x = design(&ev, block.clone(), fps).map(|v| v as f32);
-            face.rows_mut(start, block.len()).copy_from(&(x * &self.weights));
+            face.rows_mut(start, block.len()).copy_from(&self.face_of(&x));
         }
         Ok(face)
     }
@@ -328,7 +456,7 @@ impl SoundToFace {
             return vec![mean.to_vec(); centres.len()];
         }
         let x = design_at(evidence, centres.len(), |i| centres[i]).map(|v| v as f32);
-        let face = x * &self.weights;
+        let face = self.face_of(&x);
         face.row_iter()
             .map(|row| {
                 row.iter()
@@ -373,6 +501,15 @@ impl SoundToFace {
         }
     }
 
+    /// The face of the design rows `x`: the ridge's, plus the hidden layer's.
+    fn face_of(&self, x: &DMatrix<f32>) -> DMatrix<f32> {
+        let mut face = x * &self.weights;
+        if let Some(hidden) = &self.hidden {
+            hidden.add_to(x, &mut face);
+        }
+        face
+    }
+
     /// Sentences and frames it was learnt from.
     pub fn learnt_from(&self) -> (usize, usize) {
         (self.manifest.sentences, self.manifest.frames)
@@ -384,14 +521,20 @@ impl SoundToFace {
             path: dir.into(),
             source,
         };
-        let (rows, cols) = self.weights.shape();
-        let weights = Array2::from_shape_fn((rows, cols), |(i, j)| self.weights[(i, j)]);
+        let array = |m: &DMatrix<f32>| Array2::from_shape_fn(m.shape(), |(i, j)| m[(i, j)]);
+        let write = |staged: &Path, name: &str, m: &DMatrix<f32>| {
+            npy::write(&staged.join(name), array(m).view())
+                .map_err(|e| SoundToFaceError::Manifest(e.into()))
+        };
         crate::atomic::replace_dir(
             dir,
             FORMAT,
             |staged| {
-                npy::write(&staged.join(WEIGHTS), weights.view())
-                    .map_err(|e| SoundToFaceError::Manifest(e.into()))?;
+                write(staged, WEIGHTS, &self.weights)?;
+                if let Some(hidden) = &self.hidden {
+                    write(staged, HIDDEN_IN, &hidden.input)?;
+                    write(staged, HIDDEN_OUT, &hidden.output)?;
+                }
                 let json = serde_json::to_vec_pretty(&self.manifest).expect("manifest serialises");
                 crate::atomic::write_file(&staged.join(MANIFEST), &json).map_err(io)
             },
@@ -402,7 +545,8 @@ impl SoundToFace {
     /// Loads the folder `dir` for `model` (its hash checked) and the acoustic model of
     /// `aligner` (its phone count checked).
     pub fn load(dir: &Path, model: &FaceModel, phones: usize) -> Result<SoundToFace, SoundToFaceError> {
-        let m: Manifest = manifest::read(&dir.join(MANIFEST), FORMAT, SOUND_TO_FACE_VERSION)?;
+        let (m, _): (Manifest, _) =
+            manifest::read_versions(&dir.join(MANIFEST), FORMAT, 1..=SOUND_TO_FACE_VERSION)?;
         if m.model_hash != model.hash() {
             return Err(SoundToFaceError::Mismatch(format!(
                 "{}: learnt with another face model (learn it again)",
@@ -418,13 +562,28 @@ impl SoundToFace {
         let width = crate::align::frontend::N_CEP + 2 * phones;
         let d = taps().count() * width + 1;
         let k = model.layout().params_range().len();
-        let w: Array2<f32> = manifest::read_array(dir, WEIGHTS, &[Some(d), Some(k)])?;
-        if w.iter().any(|v| !v.is_finite()) {
-            return Err(SoundToFaceError::Mismatch(format!("{}: weights not finite", dir.display())));
-        }
+        let read = |name: &str, rows: usize, cols: usize| -> Result<DMatrix<f32>, SoundToFaceError> {
+            let w: Array2<f32> = manifest::read_array(dir, name, &[Some(rows), Some(cols)])?;
+            if w.iter().any(|v| !v.is_finite()) {
+                return Err(SoundToFaceError::Mismatch(format!(
+                    "{}: {name} not finite",
+                    dir.display()
+                )));
+            }
+            Ok(DMatrix::from_fn(rows, cols, |i, j| w[(i, j)]))
+        };
+        let weights = read(WEIGHTS, d, k)?;
+        let hidden = match m.hidden {
+            0 => None,
+            units => Some(network::Hidden {
+                input: read(HIDDEN_IN, d, units)?,
+                output: read(HIDDEN_OUT, units, k)?,
+            }),
+        };
         Ok(SoundToFace {
             manifest: m,
-            weights: DMatrix::from_fn(d, k, |i, j| w[(i, j)]),
+            weights,
+            hidden,
         })
     }
 }
