@@ -590,8 +590,8 @@ fn killed_talker_mouths_leave_the_talker_whole() {
 }
 
 /// `talker sound-to-face` killed at any moment leaves the talker loadable with its map whole
-/// (none yet, or the new one; `talker.json` written last). Without `--least-frames` its one
-/// sentence is refused.
+/// (none yet, or the new one; `talker.json` written last), and every run that completes
+/// learns the same map. Without `--least-frames` its one sentence is refused.
 #[test]
 fn killed_talker_sound_to_face_leaves_the_talker_whole() {
     let dir = tempfile::tempdir().unwrap();
@@ -613,10 +613,18 @@ fn killed_talker_sound_to_face_leaves_the_talker_whole() {
     assert!(!o.status.success());
     assert!(common::text(&o).contains("only 75 frames"), "{}", common::text(&o));
     assert!(!talker.join("sound-to-face").exists());
+    // Every complete run learns the same map, to the bit (sums in a fixed order, a seeded
+    // layer): the first one seen is the reference.
+    let first: std::sync::Mutex<Option<Vec<Vec<u8>>>> = std::sync::Mutex::new(None);
     killed_runs(&args, &talker.join("sound-to-face"), |_| {
         let t = facespace::talker::Talker::load(&talker).unwrap();
         if let Some(map) = t.sound_to_face().unwrap() {
             assert_eq!(map.learnt_from(), (1, 75));
+            let files = ["weights.npy", "hidden_in.npy", "hidden_out.npy"]
+                .map(|f| std::fs::read(talker.join("sound-to-face").join(f)).unwrap())
+                .to_vec();
+            let mut first = first.lock().unwrap();
+            assert!(first.get_or_insert_with(|| files.clone()) == &files, "learnt again, another map");
         }
     });
 }
