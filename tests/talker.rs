@@ -601,20 +601,24 @@ fn a_damaged_sound_to_face_map_is_refused() {
             "sound-to-face",
         ),
     ];
-    for (what, damage, named) in cases {
-        let dir = damaged_copy(|t| damage(t));
-        let out = dir.path().join("out.mp4");
-        let o = common::facespace(&[
+    // `say --audio` of the recording without its words, by the talker in `dir`, into `out`.
+    let say_sound = |dir: &Path, out: &Path| {
+        common::facespace(&[
             "say",
             "--talker",
-            dir.path().to_str().unwrap(),
+            dir.to_str().unwrap(),
             "--audio",
             wav.to_str().unwrap(),
             "--renderer",
             "cpu",
             "-o",
             out.to_str().unwrap(),
-        ]);
+        ])
+    };
+    for (what, damage, named) in cases {
+        let dir = damaged_copy(|t| damage(t));
+        let out = dir.path().join("out.mp4");
+        let o = say_sound(dir.path(), &out);
         let text = common::text(&o);
         assert!(!o.status.success(), "{what}: say succeeded");
         assert!(text.contains(named) && text.contains("sound-to-face"), "{what}: {text}");
@@ -637,17 +641,7 @@ fn a_damaged_sound_to_face_map_is_refused() {
     // A map of the first version (the ridge alone, before the hidden layer) still speaks.
     let dir = damaged_copy(ridge_alone);
     let out = dir.path().join("out.mp4");
-    let o = common::facespace(&[
-        "say",
-        "--talker",
-        dir.path().to_str().unwrap(),
-        "--audio",
-        wav.to_str().unwrap(),
-        "--renderer",
-        "cpu",
-        "-o",
-        out.to_str().unwrap(),
-    ]);
+    let o = say_sound(dir.path(), &out);
     assert!(o.status.success() && out.is_file(), "a version-1 map: {}", common::text(&o));
     let dir = damaged_copy(|_| {});
     let t = dir.path().to_str().unwrap();
