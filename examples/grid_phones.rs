@@ -11,6 +11,8 @@
 //! With `ANCHORS=DIR`, pocketsphinx's rows on the same clips: the first run writes the clips'
 //! sound to `DIR/wav/`, `python3 tests/reference/pocketsphinx_phones.py DIR` recognises them,
 //! and the next run scores its `allphone.tsv` and `words.tsv` beside ours.
+//! With `TALKER=DIR`, the talker's own ear ([`facespace::sound_to_face::PhoneClassifier`])
+//! replaces the acoustic model's in the loop.
 
 #[path = "common/grid.rs"]
 mod grid;
@@ -160,8 +162,21 @@ fn main() {
             });
         }
     }
+    // With `TALKER=DIR`, the talker's own phone classifier (its sound-to-face map) hears
+    // them through each loop instead.
+    let talker = std::env::var("TALKER")
+        .ok()
+        .map(|dir| facespace::talker::Talker::load(std::path::Path::new(&dir)).unwrap());
+    let map = talker.as_ref().map(|t| t.sound_to_face().unwrap().expect("the talker has a map"));
     for (weight, penalty) in settings {
         let lm = aligner.phone_loop(weight, penalty);
+        if let Some(map) = map {
+            score(format!("talker's ear, {weight} / {penalty}"), &|_, samples| {
+                let phones = map.recognise_through(&aligner, samples, frontend::SAMPLE_RATE, &lm).unwrap();
+                (phones.expect("the map has a phone classifier"), Vec::new(), None)
+            });
+            continue;
+        }
         score(format!("{weight} / {penalty}"), &|_, samples| {
             let phones = aligner.recognise(samples, frontend::SAMPLE_RATE, &lm).unwrap();
             (facespace::align::merge_pieces(phones), Vec::new(), None)

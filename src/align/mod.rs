@@ -386,8 +386,16 @@ impl Aligner {
         rate: u32,
         lm: &PhoneLoop,
     ) -> Result<Vec<TimedPhone>, AlignError> {
-        let feats = self.features(samples, rate)?;
-        let (graph, path) = self.free_path(&feats, lm)?;
+        self.recognise_features(&self.features(samples, rate)?, lm)
+    }
+
+    /// [`Self::recognise`] of front-end features.
+    fn recognise_features(
+        &self,
+        feats: &[[f32; frontend::FEATURE_DIM]],
+        lm: &PhoneLoop,
+    ) -> Result<Vec<TimedPhone>, AlignError> {
+        let (graph, path) = self.free_path(feats, lm)?;
         let (mut speech, mut noise) = (0u32, 0u32);
         for (phone, start, end) in graph.phone_spans(&path, feats.len()) {
             if usize::from(phone) == self.model.sil {
@@ -405,6 +413,26 @@ impl Aligner {
             return Err(AlignError::NoSpeech { speech, noise });
         }
         Ok(merge_pieces(graph.phones(&self.model, &path, feats.len())))
+    }
+
+    /// Phones heard by another ear: sound that [`Self::recognise`] refuses (through `lm`) is
+    /// refused, then `ear` scores each phone in each frame of the sound's [`Evidence`]
+    /// (scaled log-likelihoods: a talker's own classifier) and the best path of the loop
+    /// `ear_lm` through those scores is the answer.
+    pub fn recognise_by(
+        &self,
+        samples: &[f32],
+        rate: u32,
+        lm: &PhoneLoop,
+        ear: impl FnOnce(&Evidence) -> Vec<Vec<f32>>,
+        ear_lm: &PhoneLoop,
+    ) -> Result<Vec<TimedPhone>, AlignError> {
+        let feats = self.features(samples, rate)?;
+        self.recognise_features(&feats, lm)?;
+        let scores = ear(&self.evidence_of(&feats));
+        let graph = search::Graph::phone_loop(&self.model, &ear_lm.transition);
+        let path = search::viterbi_scored(&self.model, &graph, &scores).ok_or(AlignError::NoPath)?;
+        Ok(merge_pieces(graph.phones(&self.model, &path, scores.len())))
     }
 
     /// The best path of the phone loop `lm` over `feats`, and the loop's graph.

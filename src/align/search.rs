@@ -505,6 +505,16 @@ pub(super) fn viterbi(
     decoder.finish(g)
 }
 
+/// [`viterbi`] with every state of a phone scoring that phone's entry of the frame's row of
+/// `scores` (frames × context-independent phones) in place of the acoustic model's.
+pub(super) fn viterbi_scored(model: &AcousticModel, g: &Graph, scores: &[Vec<f32>]) -> Option<Path> {
+    let mut decoder = Decoder::new(model, g);
+    for row in scores {
+        decoder.step_scored(g, row)?;
+    }
+    decoder.finish(g)
+}
+
 /// The Viterbi search's state between frames, so that features can arrive a few at a time
 /// (live phone recognition) as well as all at once ([`viterbi`]).
 pub(super) struct Decoder<'m> {
@@ -550,14 +560,26 @@ impl<'m> Decoder<'m> {
     }
 
     /// Decodes one more frame; `None` when the beam lost every hypothesis.
+    pub(super) fn step(&mut self, g: &Graph, feat: &[f32; FEATURE_DIM]) -> Option<()> {
+        self.scorer.set_frame(self.frames as u32, feat);
+        self.advance(g, None)
+    }
+
+    /// Decodes one more frame whose states all score their phone's entry of `phones` (a
+    /// hybrid recogniser's scaled likelihoods, [`viterbi_scored`]); `None` as [`Self::step`].
+    pub(super) fn step_scored(&mut self, g: &Graph, phones: &[f32]) -> Option<()> {
+        self.advance(g, Some(phones))
+    }
+
+    /// One frame of the search, each state scored by the acoustic model (`phones` `None`, the
+    /// scorer set to the frame) or by its phone's score.
     // States index the transition matrix in both its dimensions and the scores beside it.
     #[allow(clippy::needless_range_loop)]
-    pub(super) fn step(&mut self, g: &Graph, feat: &[f32; FEATURE_DIM]) -> Option<()> {
+    fn advance(&mut self, g: &Graph, phones: Option<&[f32]>) -> Option<()> {
         let model = self.model;
         let n = g.nodes.len();
         let ninf = f32::NEG_INFINITY;
         let t = self.frames;
-        self.scorer.set_frame(t as u32, feat);
         // Exits of the previous frame.
         for h in 0..n {
             self.exit[h] = (ninf, NONE);
@@ -601,7 +623,10 @@ impl<'m> Decoder<'m> {
                     from = (self.records.len() - 1) as u32;
                 }
                 if v > ninf {
-                    v += self.scorer.score(node.senones[j]);
+                    v += match phones {
+                        Some(scores) => scores[usize::from(node.phone)],
+                        None => self.scorer.score(node.senones[j]),
+                    };
                 }
                 self.next[h][j] = v;
                 self.next_hist[h][j] = from;

@@ -38,7 +38,8 @@ pub struct VisemesArgs {
     accept_mismatch: bool,
     /// A talker folder: its face, synthesised for this speech (without words, from the sound
     /// by its sound-to-face map), chooses how far each open shape opens (B, C or D by the
-    /// nearest of its typical /iy/, /eh/, /aa/ openings).
+    /// nearest of its typical /iy/, /eh/, /aa/ openings); without words its own ear hears
+    /// the phones.
     #[arg(long)]
     talker: Option<PathBuf>,
     /// Output format.
@@ -70,10 +71,23 @@ pub fn run(a: VisemesArgs) -> Result<()> {
         ),
         (None, None) => None,
     };
-    let segments = match (&words, &a.labels) {
-        (None, Some(l)) => read_labels(l, None, &PhoneMap::default())
+    let talker = a
+        .talker
+        .as_deref()
+        .map(facespace::talker::Talker::load)
+        .transpose()?;
+    let segments = match (&words, &a.labels, &talker) {
+        (None, Some(l), _) => read_labels(l, None, &PhoneMap::default())
             .with_context(|| format!("reading {}", l.display()))?,
-        (words, _) => {
+        // The talker's own ear hears its phones (its map's classifier, where it has one).
+        (None, None, Some(talker)) => {
+            let phones = talker
+                .recognise(&a.audio)
+                .with_context(|| format!("the speech {}", a.audio.display()))?;
+            eprintln!("no words given: {}", talker.heard_by()?);
+            align::segments(&phones)
+        }
+        (words, _, _) => {
             let phones = align::Aligner::load_default(&[])?
                 .hear(&speech.samples, speech.rate, words.as_deref(), a.accept_mismatch)
                 .with_context(|| format!("the speech {}", a.audio.display()))?;
@@ -86,8 +100,7 @@ pub fn run(a: VisemesArgs) -> Result<()> {
         }
     };
     let mut cues = visemes::cues(&segments, speech.seconds(), extended)?;
-    if let Some(dir) = &a.talker {
-        let talker = facespace::talker::Talker::load(dir)?;
+    if let (Some(dir), Some(talker)) = (&a.talker, &talker) {
         let levels = visemes::face_levels(&talker.model, &talker.codebook).with_context(|| {
             format!(
                 "{}: its codebook lacks /iy/, /eh/ or /aa/, or its face is not a 68-point one",

@@ -20,6 +20,9 @@
 //! `x = [window, 1]`. A version-1 folder (the ridge alone) still loads.
 
 mod network;
+mod phones;
+
+pub use phones::{LOOP_PENALTY, LOOP_WEIGHT, PhoneClassifier, frame_labels};
 
 use std::path::Path;
 
@@ -38,12 +41,15 @@ use crate::phonemes::Segment;
 use crate::{Progress, npy};
 
 /// The folder format this build writes and reads.
-pub const SOUND_TO_FACE_VERSION: u32 = 2;
+pub const SOUND_TO_FACE_VERSION: u32 = 3;
 const FORMAT: &str = "facespace-sound-to-face";
 const MANIFEST: &str = "sound-to-face.json";
 const WEIGHTS: &str = "weights.npy";
 const HIDDEN_IN: &str = "hidden_in.npy";
 const HIDDEN_OUT: &str = "hidden_out.npy";
+const PHONES_IN: &str = "phones_in.npy";
+const PHONES_OUT: &str = "phones_out.npy";
+const PHONES_BIAS: &str = "phones_bias.npy";
 
 /// Frames (10 ms) either side of a video frame's centre the map hears: ±200 ms, the span of
 /// coarticulation (validation: ±100 ms lost 0.01 of r_pca, ±300 ms gained nothing).
@@ -126,6 +132,9 @@ struct Manifest {
     /// Units of the hidden layer; 0 for the ridge alone (version 1).
     #[serde(default)]
     hidden: usize,
+    /// Units of the phone classifier's layer; 0 for none (versions 1 and 2).
+    #[serde(default)]
+    phone_units: usize,
 }
 
 /// A talker's map from sound to face (see the module).
@@ -135,6 +144,7 @@ pub struct SoundToFace {
     /// Features × face-space parameters (shape ‖ appearance).
     weights: DMatrix<f32>,
     hidden: Option<network::Hidden>,
+    phones: Option<PhoneClassifier>,
 }
 
 /// The evidence of every 10 ms frame of `samples`: 13 cepstra, then each phone's posterior,
@@ -198,24 +208,19 @@ fn centre(frame: usize, fps: f64) -> i64 {
     (frame as f64 / fps * 100.0).round() as i64
 }
 
-/// A sentence heard while learning: its evidence rows, frame rate and face (frames ×
-/// shape ‖ appearance).
+/// A sentence heard while learning: its evidence rows, frame rate, face (frames ×
+/// shape ‖ appearance) and the phone of each evidence row ([`frame_labels`]).
 struct Heard {
     evidence: Vec<Vec<f32>>,
     fps: f64,
     face: DMatrix<f64>,
+    labels: Vec<Option<u8>>,
 }
 
-/// Learns the hidden layer on what the ridge `weights` leave of `heard`, and adds its
-/// outputs' bias to the ridge's constant.
-fn learn_hidden(
-    heard: &[Heard],
-    weights: &mut DMatrix<f64>,
-    mut progress: impl FnMut(usize),
-) -> network::Hidden {
+/// Each feature of a window's design row standardised: the mean and s.d. of its evidence
+/// feature over every frame heard, alike at every tap.
+fn standardisation(heard: &[Heard]) -> (Vec<f32>, Vec<f32>) {
     let width = heard[0].evidence[0].len();
-    let d = weights.nrows() - 1;
-    // Each evidence feature standardised over every frame heard, alike at every tap.
     let stats: Vec<(f64, f64)> = (0..width)
         .map(|k| {
             let values: Vec<f64> = heard
@@ -225,8 +230,21 @@ fn learn_hidden(
             crate::eval::mean_and_sd(&values)
         })
         .collect();
-    let mean: Vec<f32> = (0..d).map(|j| stats[j % width].0 as f32).collect();
-    let scale: Vec<f32> = (0..d).map(|j| stats[j % width].1 as f32).collect();
+    let d = taps().count() * width;
+    let mean = (0..d).map(|j| stats[j % width].0 as f32).collect();
+    let scale = (0..d).map(|j| stats[j % width].1 as f32).collect();
+    (mean, scale)
+}
+
+/// Learns the hidden layer on what the ridge `weights` leave of `heard`, and adds its
+/// outputs' bias to the ridge's constant.
+fn learn_hidden(
+    heard: &[Heard],
+    (mean, scale): (&[f32], &[f32]),
+    weights: &mut DMatrix<f64>,
+    mut progress: impl FnMut(usize),
+) -> network::Hidden {
+    let d = weights.nrows() - 1;
     let index: Vec<(usize, i64)> = heard
         .iter()
         .enumerate()
@@ -260,12 +278,14 @@ fn learn_hidden(
             let (s, centre) = index[i];
             window_into(&heard[s].evidence, centre, out);
         },
-        mean: &mean,
-        scale: &scale,
-        residual: &residual,
-        target_scale: &target_scale,
+        mean,
+        scale,
+        target: network::Target::Values {
+            residual: &residual,
+            scale: &target_scale,
+        },
     };
-    let (hidden, bias) = network::learn(&examples, &mut progress);
+    let (hidden, bias) = network::learn(&examples, network::MAP, &mut progress);
     for (c, b) in bias.into_iter().enumerate() {
         weights[(d, c)] += f64::from(b);
     }
@@ -401,6 +421,7 @@ impl SoundToFace {
                 });
                 let sums = (x.tr_mul(&x), x.tr_mul(&y));
                 let heard = Heard {
+                    labels: frame_labels(&s.segments, ev.len(), &aligner.model),
                     evidence: ev,
                     fps: s.frames.fps(),
                     face: y,
@@ -430,11 +451,17 @@ impl SoundToFace {
         }
         let mut weights = ridge(xtx, &xty, RIDGE)
             .ok_or_else(|| SoundToFaceError::Learn("the sums are not positive definite".into()))?;
+        let standard = standardisation(&heard);
+        let (mean, scale) = (&standard.0[..], &standard.1[..]);
         let stage = "learning the face from the sound: its hidden layer";
-        let hidden = learn_hidden(&heard, &mut weights, |done| {
+        let hidden = learn_hidden(&heard, (mean, scale), &mut weights, |done| {
             progress(Progress { stage, done, total: network::EPOCHS })
         });
         let phones = aligner.model.ci_names.len();
+        let stage = "learning the talker's phones";
+        let classifier = PhoneClassifier::learn(&heard, phones, (mean, scale), |done| {
+            progress(Progress { stage, done, total: phones::SCHEDULE.epochs })
+        });
         Ok(SoundToFace {
             manifest: Manifest {
                 format: FORMAT.into(),
@@ -448,9 +475,11 @@ impl SoundToFace {
                 sentences,
                 frames,
                 hidden: network::UNITS,
+                phone_units: phones::SCHEDULE.units,
             },
             weights: weights.map(|v| v as f32),
             hidden: Some(hidden),
+            phones: Some(classifier),
         })
     }
 
@@ -538,6 +567,51 @@ impl SoundToFace {
         face
     }
 
+    /// The phones of `samples` at `rate` (16 kHz) heard by the talker's own classifier
+    /// ([`PhoneClassifier`]) through the phone loop its scores were weighed with
+    /// ([`phones::LOOP_WEIGHT`], [`phones::LOOP_PENALTY`]); `None` for a map without one
+    /// (learnt before it). Sound that is not speech is refused as [`Aligner::recognise`]
+    /// refuses it.
+    pub fn recognise(
+        &self,
+        aligner: &Aligner,
+        samples: &[f32],
+        rate: u32,
+    ) -> Result<Option<Vec<crate::align::TimedPhone>>, AlignError> {
+        let lm = aligner.phone_loop(phones::LOOP_WEIGHT, phones::LOOP_PENALTY);
+        self.recognise_through(aligner, samples, rate, &lm)
+    }
+
+    /// Whether the map has its own phone classifier ([`Self::recognise`]).
+    pub fn hears_phones(&self) -> bool {
+        self.phones.is_some()
+    }
+
+    /// [`Self::recognise`] through the phone loop `lm`.
+    pub fn recognise_through(
+        &self,
+        aligner: &Aligner,
+        samples: &[f32],
+        rate: u32,
+        lm: &crate::align::PhoneLoop,
+    ) -> Result<Option<Vec<crate::align::TimedPhone>>, AlignError> {
+        let Some(classifier) = &self.phones else {
+            return Ok(None);
+        };
+        let ear = |heard: &crate::align::Evidence| {
+            let ev = evidence_rows(heard);
+            let mut scores = Vec::with_capacity(ev.len());
+            for start in (0..ev.len()).step_by(PREDICT_BLOCK) {
+                let rows = PREDICT_BLOCK.min(ev.len() - start);
+                let x = design_at(&ev, rows, |i| (start + i) as i64).map(|v| v as f32);
+                scores.extend(classifier.scores(&x));
+            }
+            scores
+        };
+        let free = aligner.phone_loop(crate::align::PHONE_WEIGHT, crate::align::PHONE_PENALTY);
+        aligner.recognise_by(samples, rate, &free, ear, lm).map(Some)
+    }
+
     /// Sentences and frames it was learnt from.
     pub fn learnt_from(&self) -> (usize, usize) {
         (self.manifest.sentences, self.manifest.frames)
@@ -562,6 +636,11 @@ impl SoundToFace {
                 if let Some(hidden) = &self.hidden {
                     write(staged, HIDDEN_IN, &hidden.input)?;
                     write(staged, HIDDEN_OUT, &hidden.output)?;
+                }
+                if let Some(phones) = &self.phones {
+                    write(staged, PHONES_IN, &phones.hidden.input)?;
+                    write(staged, PHONES_OUT, &phones.hidden.output)?;
+                    write(staged, PHONES_BIAS, &phones.bias_and_prior)?;
                 }
                 let json = serde_json::to_vec_pretty(&self.manifest).expect("manifest serialises");
                 crate::atomic::write_file(&staged.join(MANIFEST), &json).map_err(io)
@@ -608,10 +687,21 @@ impl SoundToFace {
                 output: read(HIDDEN_OUT, units, k)?,
             }),
         };
+        let phones = match m.phone_units {
+            0 => None,
+            units => Some(PhoneClassifier {
+                hidden: network::Hidden {
+                    input: read(PHONES_IN, d, units)?,
+                    output: read(PHONES_OUT, units, phones)?,
+                },
+                bias_and_prior: read(PHONES_BIAS, 2, phones)?,
+            }),
+        };
         Ok(SoundToFace {
             manifest: m,
             weights,
             hidden,
+            phones,
         })
     }
 }

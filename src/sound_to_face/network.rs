@@ -60,17 +60,48 @@ impl Hidden {
 }
 
 /// What the layer learns from: `rows` examples of `features` inputs, each written on demand
-/// by `row` (the design without its constant), standardised by `mean` and `scale`; the
-/// targets are `residual`'s rows, each output divided by `target_scale` while learning.
+/// by `row` (the design without its constant), standardised by `mean` and `scale`, and what
+/// it learns to give.
 pub struct Examples<'a, F> {
     pub rows: usize,
     pub features: usize,
     pub row: F,
     pub mean: &'a [f32],
     pub scale: &'a [f32],
-    pub residual: &'a DMatrix<f32>,
-    pub target_scale: &'a [f32],
+    pub target: Target<'a>,
 }
+
+/// What the layer's outputs learn.
+pub enum Target<'a> {
+    /// Values: `residual`'s rows by squared error, each output divided by `scale` while
+    /// learning (the map's hidden layer).
+    Values {
+        residual: &'a DMatrix<f32>,
+        scale: &'a [f32],
+    },
+    /// A class per row, `None` for a row not to learn from: the outputs are log-odds
+    /// learnt by softmax cross-entropy (a phone classifier).
+    Classes {
+        labels: &'a [Option<u8>],
+        classes: usize,
+    },
+}
+
+/// The layer's size and how long it learns.
+#[derive(Clone, Copy, Debug)]
+pub struct Schedule {
+    pub units: usize,
+    pub epochs: usize,
+    /// The learning rate halves after each pass from this one on.
+    pub anneal_from: usize,
+}
+
+/// The sound-to-face map's layer.
+pub const MAP: Schedule = Schedule {
+    units: UNITS,
+    epochs: EPOCHS,
+    anneal_from: ANNEAL_FROM,
+};
 
 /// Adam's moments of one parameter array.
 struct Adam {
@@ -109,9 +140,20 @@ fn add_row(z: &mut DMatrix<f32>, b: &DMatrix<f32>) {
 /// ridge's constant); `progress` is told each pass done.
 pub fn learn<F: Fn(usize, &mut [f32])>(
     examples: &Examples<'_, F>,
+    schedule: Schedule,
     mut progress: impl FnMut(usize),
 ) -> (Hidden, Vec<f32>) {
-    let (n, d, k) = (examples.rows, examples.features, examples.residual.ncols());
+    let (n, d) = (examples.rows, examples.features);
+    let k = match examples.target {
+        Target::Values { residual, .. } => residual.ncols(),
+        Target::Classes { classes, .. } => classes,
+    };
+    let units = schedule.units;
+    // Rows without a class teach nothing.
+    let taught: Vec<usize> = match examples.target {
+        Target::Classes { labels, .. } => (0..n).filter(|&i| labels[i].is_some()).collect(),
+        Target::Values { .. } => (0..n).collect(),
+    };
     // A feature constant over the examples is left out: it would be scaled without bound.
     let inverse: Vec<f32> = examples
         .scale
@@ -120,23 +162,24 @@ pub fn learn<F: Fn(usize, &mut [f32])>(
         .collect();
     let mut rng = Rng::new(SEED);
     let spread = (2.0 / d as f64).sqrt();
-    let mut w1 = DMatrix::from_fn(d, UNITS, |_, _| (rng.normal() * spread) as f32);
-    let mut b1 = DMatrix::<f32>::zeros(1, UNITS);
-    let mut w2 = DMatrix::<f32>::zeros(UNITS, k);
+    let mut w1 = DMatrix::from_fn(d, units, |_, _| (rng.normal() * spread) as f32);
+    let mut b1 = DMatrix::<f32>::zeros(1, units);
+    let mut w2 = DMatrix::<f32>::zeros(units, k);
     let mut b2 = DMatrix::<f32>::zeros(1, k);
     let mut adam = [
-        Adam::new(d * UNITS),
-        Adam::new(UNITS),
-        Adam::new(UNITS * k),
+        Adam::new(d * units),
+        Adam::new(units),
+        Adam::new(units * k),
         Adam::new(k),
     ];
-    let mut order: Vec<usize> = (0..n).collect();
+    let mut order = taught;
+    let n = order.len();
     let mut rate = LEARNING_RATE;
     let mut t = 0;
     let keep = 1.0 / (1.0 - DROPOUT);
     // Rows of the batch laid out contiguously: xᵀ, features × batch.
     let mut xt = DMatrix::<f32>::zeros(d, BATCH);
-    for epoch in 0..EPOCHS {
+    for epoch in 0..schedule.epochs {
         // Fisher–Yates.
         for i in (1..n).rev() {
             let j = (rng.next_u64() % (i as u64 + 1)) as usize;
@@ -157,8 +200,17 @@ pub fn learn<F: Fn(usize, &mut [f32])>(
                         (*v - examples.mean[j]) * inverse[j] * keep
                     };
                 }
-                for c in 0..k {
-                    target[(r, c)] = examples.residual[(i, c)] / examples.target_scale[c];
+                match examples.target {
+                    Target::Values { residual, scale } => {
+                        for c in 0..k {
+                            target[(r, c)] = residual[(i, c)] / scale[c];
+                        }
+                    }
+                    Target::Classes { labels, .. } => {
+                        if let Some(c) = labels[i] {
+                            target[(r, usize::from(c))] = 1.0;
+                        }
+                    }
                 }
             }
             let xt = xt.columns(0, b);
@@ -168,8 +220,12 @@ pub fn learn<F: Fn(usize, &mut [f32])>(
             let h = z.map(|v| v.max(0.0));
             let mut out = &h * &w2;
             add_row(&mut out, &b2);
-            // The mean squared error's gradient.
-            let g = (out - target) * (2.0 / b as f32);
+            let g = match examples.target {
+                // The mean squared error's gradient.
+                Target::Values { .. } => (out - target) * (2.0 / b as f32),
+                // Softmax cross-entropy's: the probabilities less the one-hot classes.
+                Target::Classes { .. } => (softmax_rows(out) - target) * (1.0 / b as f32),
+            };
             let gw2 = h.tr_mul(&g);
             let gb2 = g.row_sum();
             let mut gh = &g * w2.transpose();
@@ -186,12 +242,28 @@ pub fn learn<F: Fn(usize, &mut [f32])>(
             adam[2].step(w2.as_mut_slice(), gw2.as_slice(), WEIGHT_DECAY, rate, t);
             adam[3].step(b2.as_mut_slice(), gb2.as_slice(), 0.0, rate, t);
         }
-        if epoch + 1 >= ANNEAL_FROM {
+        if epoch + 1 >= schedule.anneal_from {
             rate *= 0.5;
         }
         progress(epoch + 1);
     }
-    fold((&w1, &b1), (&w2, &b2), examples.mean, &inverse, examples.target_scale)
+    let ones = vec![1.0; k];
+    let target_scale = match examples.target {
+        Target::Values { scale, .. } => scale,
+        Target::Classes { .. } => &ones,
+    };
+    fold((&w1, &b1), (&w2, &b2), examples.mean, &inverse, target_scale)
+}
+
+/// Each row of log-odds as probabilities (shifted by its largest first, so none overflows).
+pub fn softmax_rows(mut z: DMatrix<f32>) -> DMatrix<f32> {
+    for mut row in z.row_iter_mut() {
+        let top = row.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b));
+        row.apply(|v| *v = (*v - top).exp());
+        let sum = row.sum();
+        row.apply(|v| *v /= sum);
+    }
+    z
 }
 
 /// The layer on raw inputs, `relu(((x − mean)·inverse)·w1 + b1)·w2 + b2` with each output
@@ -270,6 +342,78 @@ mod tests {
         }
     }
 
+    /// Analytic: softmax of (0, ln 3) is (¼, ¾), and huge log-odds do not overflow.
+    #[test]
+    fn softmax_rows_are_probabilities() {
+        let p = softmax_rows(DMatrix::from_row_slice(2, 2, &[0.0, 3f32.ln(), 1000.0, 1000.0]));
+        assert!((p[(0, 0)] - 0.25).abs() < 1e-6 && (p[(0, 1)] - 0.75).abs() < 1e-6);
+        assert_eq!((p[(1, 0)], p[(1, 1)]), (0.5, 0.5));
+    }
+
+    /// A property: classes by the quadrant of (u, v) — 0 where the signs agree, 1 where
+    /// only u is negative, 2 where only v is — are not linearly separable (class 0 holds two
+    /// opposite quadrants), yet the layer learns them; and rows without a class are not
+    /// learnt from: the quadrant where both are negative is left unlabelled, and is read as
+    /// its neighbours 1 or 2, not as the class 0 its rows would have taught.
+    #[test]
+    fn the_layer_learns_classes_a_linear_map_cannot() {
+        let mut rng = Rng::new(5);
+        let n = 8000;
+        let points: Vec<(f32, f32)> = (0..n)
+            .map(|_| (rng.normal() as f32, rng.normal() as f32))
+            .collect();
+        let class = |(u, v): (f32, f32)| match (u < 0.0, v < 0.0) {
+            (true, false) => 1u8,
+            (false, true) => 2,
+            _ => 0,
+        };
+        let labels: Vec<Option<u8>> = points
+            .iter()
+            .map(|&p| (p.0 > 0.0 || p.1 > 0.0).then(|| class(p)))
+            .collect();
+        // Four noisy copies of each, so that dropping some out still leaves both heard.
+        let inputs: Vec<Vec<f32>> = points
+            .iter()
+            .map(|&(u, v)| {
+                (0..8)
+                    .map(|j| if j % 2 == 0 { u } else { v } + 0.02 * rng.normal() as f32)
+                    .collect()
+            })
+            .collect();
+        let examples = Examples {
+            rows: n,
+            features: 8,
+            row: |i: usize, out: &mut [f32]| out.copy_from_slice(&inputs[i]),
+            mean: &[0.0; 8],
+            scale: &[1.0; 8],
+            target: Target::Classes {
+                labels: &labels,
+                classes: 3,
+            },
+        };
+        let schedule = Schedule {
+            units: 32,
+            epochs: 20,
+            anneal_from: 15,
+        };
+        let (hidden, bias) = learn(&examples, schedule, |_| {});
+        let with_one = DMatrix::from_fn(n, 9, |i, j| if j == 8 { 1.0 } else { inputs[i][j] });
+        let mut logits = DMatrix::from_fn(n, 3, |_, c| bias[c]);
+        hidden.add_to(&with_one, &mut logits);
+        let mut right = [0usize; 2];
+        let mut all = [0usize; 2];
+        for (i, &p) in points.iter().enumerate() {
+            let row = logits.row(i);
+            let best = (0..3).max_by(|&a, &b| row[a].total_cmp(&row[b])).unwrap();
+            let labelled = usize::from(labels[i].is_some());
+            all[labelled] += 1;
+            right[labelled] += usize::from(best as u8 == class(p));
+        }
+        assert!(right[1] as f64 > 0.95 * all[1] as f64, "{right:?} of {all:?} right");
+        // The unlabelled quadrant is read as the classes beside it, 1 or 2, not as 0.
+        assert!((right[0] as f64) < 0.3 * all[0] as f64, "{right:?} of {all:?} right");
+    }
+
     /// A property no linear map has: |x| has no linear part, so the ridge leaves all of it;
     /// the layer must take most of it (the inputs are 16 noisy copies of x, so dropping some
     /// out still leaves x heard).
@@ -291,11 +435,13 @@ mod tests {
             row: |i: usize, out: &mut [f32]| out.copy_from_slice(&inputs[i]),
             mean: &[0.0; 16],
             scale: &[1.0; 16],
-            residual: &residual,
-            target_scale: &[0.6],
+            target: Target::Values {
+                residual: &residual,
+                scale: &[0.6],
+            },
         };
         let mut passes = 0;
-        let (hidden, bias) = learn(&examples, |done| passes = done);
+        let (hidden, bias) = learn(&examples, MAP, |done| passes = done);
         assert_eq!(passes, EPOCHS);
         let with_one = DMatrix::from_fn(n, 17, |i, j| if j == 16 { 1.0 } else { inputs[i][j] });
         let mut fitted = DMatrix::from_element(n, 1, bias[0]);

@@ -573,6 +573,36 @@ impl Talker {
         })
     }
 
+    /// The phones of the recording `audio`, its words unknown: heard by the talker's own ear
+    /// (its sound-to-face map's [`crate::sound_to_face::PhoneClassifier`]) where it has one,
+    /// else by the acoustic model's phone loop. Sound that is not speech is refused.
+    pub fn recognise(&self, audio: &Path) -> Result<Vec<crate::align::TimedPhone>, TalkerError> {
+        let sound = speech_sound(audio)?;
+        let failed = |e| TalkerError::Align {
+            path: audio.to_path_buf(),
+            source: Box::new(e),
+        };
+        let aligner = self.default_aligner().map_err(failed)?;
+        let (samples, rate) = (&sound.samples, sound.rate);
+        if let Some(map) = self.sound_to_face()? {
+            if let Some(phones) = map.recognise(aligner, samples, rate).map_err(failed)? {
+                return Ok(phones);
+            }
+        }
+        let lm = aligner.phone_loop(crate::align::PHONE_WEIGHT, crate::align::PHONE_PENALTY);
+        aligner.recognise(samples, rate, &lm).map_err(failed)
+    }
+
+    /// How [`Self::recognise`] hears phones, for a note to the user.
+    pub fn heard_by(&self) -> Result<&'static str, TalkerError> {
+        Ok(match self.sound_to_face()? {
+            Some(map) if map.hears_phones() => {
+                "the phones were heard by the talker's own ear (a classifier learnt on its recordings)"
+            }
+            _ => "the phones were recognised by the general acoustic model (far less exact)",
+        })
+    }
+
     /// A live phone recogniser on the talker's kept aligner (16 kHz sound).
     pub fn live_recogniser(&self) -> Result<crate::align::Recogniser<'_>, crate::align::AlignError> {
         let aligner = self.default_aligner()?;
@@ -659,7 +689,10 @@ impl Talker {
                 (hear(audio, Some(words))?, Some(words.clone()), Some(audio.clone()))
             }
             // (`perform` says how the lips were drawn: by the talker's map, or these phones.)
-            Speech::Sound(audio) => (hear(audio, None)?, None, Some(audio.clone())),
+            Speech::Sound(audio) => {
+                let phones = self.recognise(audio)?;
+                (crate::align::segments(&phones), None, Some(audio.clone()))
+            }
             Speech::Labels {
                 labels,
                 tier,
@@ -733,12 +766,13 @@ impl Talker {
             let drawn = match self.sound_to_face()? {
                 Some(map) => {
                     self.face_from_sound(map, audio, &mut utterance)?;
-                    "the lips were predicted from the sound by the talker's sound-to-face map"
+                    "; the lips were predicted from the sound by the talker's sound-to-face map"
                 }
-                None => "the phones were recognised from the sound alone",
+                None => "",
             };
             notes.push(format!(
-                "no words given: {drawn} (give the words for aligned phones and a closer lip sync)"
+                "no words given: {}{drawn} (give the words for aligned phones and a closer lip sync)",
+                self.heard_by()?
             ));
         }
         backdrop
