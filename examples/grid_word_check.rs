@@ -5,6 +5,8 @@
 //! `validation` and check it on `test`.
 //!
 //! `cargo run --release --example grid_word_check -- ../shared/data/grid-s1 SPLIT [THRESHOLD]`
+//! With `TALKER=DIR`, the fit as the talker's own ear hears it (`SoundToFace::align_checked`),
+//! and how many pass its rule.
 
 #[path = "common/grid.rs"]
 mod grid;
@@ -21,6 +23,11 @@ fn main() {
     let ids = grid::split(&grid, split, usize::MAX);
     let aligner = Aligner::load_default(&[]).unwrap();
     let lm = aligner.phone_loop(PHONE_WEIGHT, PHONE_PENALTY);
+    let talker = std::env::var("TALKER")
+        .ok()
+        .map(|dir| facespace::talker::Talker::load(std::path::Path::new(&dir)).unwrap());
+    let map = talker.as_ref().map(|t| t.sound_to_face().unwrap().expect("the talker has a map"));
+    let (mut passed, mut failed) = (0, 0);
     let (mut truth, mut lies) = (Vec::new(), Vec::new());
     for (k, id) in ids.iter().enumerate() {
         let audio = facespace::audio::read(
@@ -30,12 +37,29 @@ fn main() {
         )
         .unwrap();
         let other = &ids[(k + 1) % ids.len()];
-        for (text, out) in [
-            (grid::words(&grid, id), &mut truth),
-            (grid::words(&grid, other), &mut lies),
+        for (text, out, true_words) in [
+            (grid::words(&grid, id), &mut truth, true),
+            (grid::words(&grid, other), &mut lies, false),
         ] {
-            let stats = match aligner.align_checked(&audio.samples, audio.rate, &text, &lm) {
+            let checked = match map {
+                Some(map) => map
+                    .align_checked(&aligner, &audio.samples, audio.rate, &text)
+                    .map(|c| c.expect("the map has a phone classifier")),
+                None => aligner.align_checked(&audio.samples, audio.rate, &text, &lm),
+            };
+            let stats = match checked {
                 Ok((_, fit)) => {
+                    let ours = if map.is_some() {
+                        facespace::sound_to_face::ear_fit(&fit) >= facespace::sound_to_face::LEAST_FIT
+                    } else {
+                        fit.matches()
+                    };
+                    // True transcripts should pass, others fail.
+                    if ours == true_words {
+                        passed += 1;
+                    } else {
+                        failed += 1;
+                    }
                     let mut w = fit.words.clone();
                     w.sort_by(f64::total_cmp);
                     [
@@ -75,6 +99,7 @@ fn main() {
         show("true transcripts ", &truth, k);
         show("other sentences' ", &lies, k);
     }
+    println!("the rule: {passed} right, {failed} wrong");
     if let Some(t) = threshold {
         let accepted = truth.iter().filter(|w| w[1] >= t).count();
         let refused = lies.iter().filter(|w| w[1] < t).count();

@@ -102,9 +102,9 @@ pub enum AlignError {
         "the words do not seem to be what is said (fit {overall:+.2} nats/frame, least {least}; worst: {worst}) — fix the transcript, leave out the words to recognise the phones from the sound, or accept them anyway (--accept-mismatch)"
     )]
     WordsDoNotMatch {
-        /// The whole recording's fit ([`WordFit::overall`]).
+        /// The whole recording's fit ([`WordFit::overall`], or a talker's ear's).
         overall: f64,
-        /// The least a matching transcript has ([`LEAST_OVERALL_FIT`]).
+        /// The least a matching transcript has ([`LEAST_OVERALL_FIT`], or the ear's).
         least: f64,
         /// The worst-fitting words, worst first.
         worst: String,
@@ -239,7 +239,7 @@ impl Aligner {
 
     /// Aligns `samples` (mono, 16 kHz, −1…1) to the words of `text`.
     pub fn align(&self, samples: &[f32], rate: u32, text: &str) -> Result<Alignment, AlignError> {
-        self.search_words(samples, rate, text).map(|(a, _, _)| a)
+        self.search_words(samples, rate, text).map(|(a, ..)| a)
     }
 
     /// Aligns as [`Aligner::align`] and scores how well the words fit the sound
@@ -251,22 +251,31 @@ impl Aligner {
         text: &str,
         lm: &PhoneLoop,
     ) -> Result<(Alignment, WordFit), AlignError> {
-        let (alignment, forced, feats) = self.search_words(samples, rate, text)?;
+        let (alignment, forced, feats, _) = self.search_words(samples, rate, text)?;
         let (_, free) = self.free_path(&feats, lm)?;
-        let frames = feats.len();
-        let per_frame = |start: f64, end: f64| {
-            let (a, b) = (start * 100.0, end * 100.0);
-            let forced = forced.up_to(b, frames) - forced.up_to(a, frames);
-            let free = free.up_to(b, frames) - free.up_to(a, frames);
-            (forced - free) / (b - a).max(1.0)
-        };
-        let words = alignment
-            .words
-            .iter()
-            .map(|w| per_frame(w.start, w.end))
-            .collect();
-        let overall = per_frame(0.0, frames as f64 / 100.0);
-        Ok((alignment, WordFit { words, overall }))
+        let fit = word_fit(&alignment, &forced, &free, feats.len());
+        Ok((alignment, fit))
+    }
+
+    /// [`Self::align_checked`] with the fit scored by another ear: the words' graph and the
+    /// free loop `ear_lm` are both searched over `ear`'s scores of each phone in each frame of
+    /// the sound's [`Evidence`] (a talker's own classifier). The alignment is the acoustic
+    /// model's.
+    pub fn align_checked_by(
+        &self,
+        samples: &[f32],
+        rate: u32,
+        text: &str,
+        ear: impl FnOnce(&Evidence) -> Vec<Vec<f32>>,
+        ear_lm: &PhoneLoop,
+    ) -> Result<(Alignment, WordFit), AlignError> {
+        let (alignment, _, feats, graph) = self.search_words(samples, rate, text)?;
+        let scores = ear(&self.evidence_of(&feats));
+        let forced = search::viterbi_scored(&self.model, &graph, &scores).ok_or(AlignError::NoPath)?;
+        let loop_graph = search::Graph::phone_loop(&self.model, &ear_lm.transition);
+        let free = search::viterbi_scored(&self.model, &loop_graph, &scores).ok_or(AlignError::NoPath)?;
+        let fit = word_fit(&alignment, &forced, &free, feats.len());
+        Ok((alignment, fit))
     }
 
     /// The phones of a recording, the way every command takes one: with `words`, aligned to
@@ -298,13 +307,13 @@ impl Aligner {
         Ok(alignment.phones)
     }
 
-    /// The words' search: the alignment, its best path and the features it ran over.
+    /// The words' search: the alignment, its best path, the features it ran over and its graph.
     fn search_words(
         &self,
         samples: &[f32],
         rate: u32,
         text: &str,
-    ) -> Result<(Alignment, search::Path, Vec<[f32; frontend::FEATURE_DIM]>), AlignError> {
+    ) -> Result<(Alignment, search::Path, Vec<[f32; frontend::FEATURE_DIM]>, search::Graph), AlignError> {
         if rate != frontend::SAMPLE_RATE {
             return Err(AlignError::SampleRate(rate));
         }
@@ -330,7 +339,7 @@ impl Aligner {
         let graph = search::Graph::build(&self.model, &words, &prons);
         let path = search::viterbi(&self.model, &graph, &feats).ok_or(AlignError::NoPath)?;
         let alignment = graph.alignment(&self.model, &words, &path, feats.len());
-        Ok((alignment, path, feats))
+        Ok((alignment, path, feats, graph))
     }
 
     /// The front end's features of `samples`, after the checks every search needs: 16 kHz,
@@ -655,6 +664,24 @@ pub fn segments(phones: &[TimedPhone]) -> Vec<Segment> {
             phone: Phone::parse(&p.phone).unwrap_or(Phone::SIL),
         })
         .collect()
+}
+
+/// The fit of `alignment`'s words: the `forced` path's log-likelihood over each word's frames
+/// less the `free` loop's, per frame ([`WordFit`]); `frames` in all.
+fn word_fit(alignment: &Alignment, forced: &search::Path, free: &search::Path, frames: usize) -> WordFit {
+    let per_frame = |start: f64, end: f64| {
+        let (a, b) = (start * 100.0, end * 100.0);
+        let forced = forced.up_to(b, frames) - forced.up_to(a, frames);
+        let free = free.up_to(b, frames) - free.up_to(a, frames);
+        (forced - free) / (b - a).max(1.0)
+    };
+    let words = alignment
+        .words
+        .iter()
+        .map(|w| per_frame(w.start, w.end))
+        .collect();
+    let overall = per_frame(0.0, frames as f64 / 100.0);
+    WordFit { words, overall }
 }
 
 /// How well words fit their sound (goodness of pronunciation): per word, the forced

@@ -87,6 +87,11 @@ pub fn run(a: VisemesArgs) -> Result<()> {
             eprintln!("no words given: {}", talker.heard_by()?);
             align::segments(&phones)
         }
+        (Some(words), None, Some(talker)) => align::segments(
+            &talker
+                .hear_words(talker.aligner()?, &a.audio, words, a.accept_mismatch)
+                .with_context(|| format!("the speech {}", a.audio.display()))?,
+        ),
         (words, _, _) => {
             let phones = align::Aligner::load_default(&[])?
                 .hear(&speech.samples, speech.rate, words.as_deref(), a.accept_mismatch)

@@ -22,7 +22,9 @@
 mod network;
 mod phones;
 
-pub use phones::{LOOP_PENALTY, LOOP_WEIGHT, PhoneClassifier, frame_labels};
+pub use phones::{
+    LEAST_FIT, LOOP_PENALTY, LOOP_WEIGHT, PhoneClassifier, WORST_WORD_WEIGHT, ear_fit, frame_labels,
+};
 
 use std::path::Path;
 
@@ -290,6 +292,18 @@ fn learn_hidden(
         weights[(d, c)] += f64::from(b);
     }
     hidden
+}
+
+/// The classifier's scores of every phone in every frame `heard`, a block of frames at a time.
+fn ear_scores(classifier: &PhoneClassifier, heard: &crate::align::Evidence) -> Vec<Vec<f32>> {
+    let ev = evidence_rows(heard);
+    let mut scores = Vec::with_capacity(ev.len());
+    for start in (0..ev.len()).step_by(PREDICT_BLOCK) {
+        let rows = PREDICT_BLOCK.min(ev.len() - start);
+        let x = design_at(&ev, rows, |i| (start + i) as i64).map(|v| v as f32);
+        scores.extend(classifier.scores(&x));
+    }
+    scores
 }
 
 /// The feature rows of `rows` windows, the `i`-th centred on evidence frame `centre(i)`.
@@ -582,6 +596,30 @@ impl SoundToFace {
         self.recognise_through(aligner, samples, rate, &lm)
     }
 
+    /// The phones of `text` aligned to `samples` at `rate` (16 kHz), refused when the words
+    /// do not fit the sound as the talker's own classifier hears it ([`ear_fit`] under
+    /// [`LEAST_FIT`]: [`AlignError::WordsDoNotMatch`] naming the worst words); `None` for a
+    /// map without a classifier.
+    pub fn hear_words(
+        &self,
+        aligner: &Aligner,
+        samples: &[f32],
+        rate: u32,
+        text: &str,
+    ) -> Result<Option<Vec<crate::align::TimedPhone>>, AlignError> {
+        let Some((alignment, fit)) = self.align_checked(aligner, samples, rate, text)? else {
+            return Ok(None);
+        };
+        if ear_fit(&fit) < LEAST_FIT {
+            return Err(AlignError::WordsDoNotMatch {
+                overall: ear_fit(&fit),
+                least: LEAST_FIT,
+                worst: fit.worst_words(&alignment.words, 3),
+            });
+        }
+        Ok(Some(alignment.phones))
+    }
+
     /// Whether the map has its own phone classifier ([`Self::recognise`]).
     pub fn hears_phones(&self) -> bool {
         self.phones.is_some()
@@ -598,18 +636,28 @@ impl SoundToFace {
         let Some(classifier) = &self.phones else {
             return Ok(None);
         };
-        let ear = |heard: &crate::align::Evidence| {
-            let ev = evidence_rows(heard);
-            let mut scores = Vec::with_capacity(ev.len());
-            for start in (0..ev.len()).step_by(PREDICT_BLOCK) {
-                let rows = PREDICT_BLOCK.min(ev.len() - start);
-                let x = design_at(&ev, rows, |i| (start + i) as i64).map(|v| v as f32);
-                scores.extend(classifier.scores(&x));
-            }
-            scores
-        };
+        let ear = |heard: &crate::align::Evidence| ear_scores(classifier, heard);
         let free = aligner.phone_loop(crate::align::PHONE_WEIGHT, crate::align::PHONE_PENALTY);
         aligner.recognise_by(samples, rate, &free, ear, lm).map(Some)
+    }
+
+    /// `text` aligned to `samples` at `rate` (16 kHz), and how well its words fit the sound
+    /// as the talker's own classifier hears it ([`Aligner::align_checked_by`]: sharper than
+    /// the general acoustic model's fit; [`ear_fit`]); `None` for a map without a
+    /// classifier.
+    pub fn align_checked(
+        &self,
+        aligner: &Aligner,
+        samples: &[f32],
+        rate: u32,
+        text: &str,
+    ) -> Result<Option<(crate::align::Alignment, crate::align::WordFit)>, AlignError> {
+        let Some(classifier) = &self.phones else {
+            return Ok(None);
+        };
+        let lm = aligner.phone_loop(phones::LOOP_WEIGHT, phones::LOOP_PENALTY);
+        let ear = |heard: &crate::align::Evidence| ear_scores(classifier, heard);
+        aligner.align_checked_by(samples, rate, text, ear, &lm).map(Some)
     }
 
     /// Sentences and frames it was learnt from.

@@ -10,6 +10,7 @@ use nalgebra::DMatrix;
 
 use super::network::{self, Hidden, Schedule, Target};
 use super::{Heard, window_into};
+use crate::align::WordFit;
 use crate::align::model::AcousticModel;
 use crate::phonemes::Segment;
 
@@ -26,6 +27,21 @@ pub const SCHEDULE: Schedule = Schedule {
 pub const LOOP_WEIGHT: f64 = 0.5;
 /// See [`LOOP_WEIGHT`].
 pub const LOOP_PENALTY: f64 = 0.0;
+
+/// How much of the worst word's fit joins the whole recording's in [`ear_fit`].
+pub const WORST_WORD_WEIGHT: f64 = 0.1;
+/// Least [`ear_fit`] of words that match their sound, nats per frame: with
+/// [`WORST_WORD_WEIGHT`], the rule with the widest margin between GRID s1 validation's true
+/// transcripts and other sentences' (BENCHMARKS "Do the words match the speech?").
+pub const LEAST_FIT: f64 = -0.5;
+
+/// How well words fit their sound as the classifier hears it: the whole recording's fit
+/// plus [`WORST_WORD_WEIGHT`] times the worst word's (one wrong word among right ones pulls
+/// the whole little, itself much).
+pub fn ear_fit(fit: &WordFit) -> f64 {
+    let worst = fit.words.iter().copied().fold(f64::INFINITY, f64::min);
+    fit.overall + if worst.is_finite() { WORST_WORD_WEIGHT * worst } else { 0.0 }
+}
 
 /// Every `STRIDE`-th 10 ms frame is an example: neighbours say almost the same.
 const STRIDE: usize = 2;

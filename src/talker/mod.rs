@@ -593,6 +593,41 @@ impl Talker {
         aligner.recognise(samples, rate, &lm).map_err(failed)
     }
 
+    /// The phones of the recording `audio` aligned to its `words` by `aligner` (the talker's
+    /// own: [`Self::aligner`]), refused — unless `accept_mismatch` — when the words do not
+    /// fit the sound, as the talker's own ear hears it where it has one (far surer than the
+    /// general model's fit, BENCHMARKS "Do the words match the speech?").
+    pub fn hear_words(
+        &self,
+        aligner: &crate::align::Aligner,
+        audio: &Path,
+        words: &str,
+        accept_mismatch: bool,
+    ) -> Result<Vec<crate::align::TimedPhone>, TalkerError> {
+        let sound = speech_sound(audio)?;
+        let failed = |e| TalkerError::Align {
+            path: audio.to_path_buf(),
+            source: Box::new(e),
+        };
+        let (samples, rate) = (&sound.samples, sound.rate);
+        if let Some(map) = self.sound_to_face()?.filter(|_| !accept_mismatch) {
+            if let Some(phones) = map.hear_words(aligner, samples, rate, words).map_err(failed)? {
+                return Ok(phones);
+            }
+        }
+        aligner
+            .hear(samples, rate, Some(words), accept_mismatch)
+            .map_err(failed)
+    }
+
+    /// The talker's own aligner (the committed dictionary), loaded on first use and kept.
+    pub fn aligner(&self) -> Result<&crate::align::Aligner, TalkerError> {
+        self.default_aligner().map_err(|e| TalkerError::Align {
+            path: self.dir.clone(),
+            source: Box::new(e),
+        })
+    }
+
     /// How [`Self::recognise`] hears phones, for a note to the user.
     pub fn heard_by(&self) -> Result<&'static str, TalkerError> {
         Ok(match self.sound_to_face()? {
@@ -653,17 +688,13 @@ impl Talker {
                     source: Box::new(e),
                 })
         };
-        // A recording's phones: its words aligned and checked, or recognised without them.
-        let hear = |audio: &Path, words: Option<&str>| {
-            let sound = speech_sound(audio)?;
-            let failed = |e| TalkerError::Align {
+        let hear = |audio: &Path, words: &str| {
+            let aligner = aligner().map_err(|e| TalkerError::Align {
                 path: audio.to_path_buf(),
                 source: Box::new(e),
-            };
-            aligner()
-                .and_then(|a| a.hear(&sound.samples, sound.rate, words, request.accept_mismatch))
-                .map(|phones| crate::align::segments(&phones))
-                .map_err(failed)
+            })?;
+            let phones = self.hear_words(aligner, audio, words, request.accept_mismatch)?;
+            Ok::<_, TalkerError>(crate::align::segments(&phones))
         };
         Ok(match &request.speech {
             Speech::Text(text) => {
@@ -686,7 +717,7 @@ impl Talker {
                 (align(&wav, text)?, Some(text.clone()), Some(wav))
             }
             Speech::Recording { audio, words } => {
-                (hear(audio, Some(words))?, Some(words.clone()), Some(audio.clone()))
+                (hear(audio, words)?, Some(words.clone()), Some(audio.clone()))
             }
             // (`perform` says how the lips were drawn: by the talker's map, or these phones.)
             Speech::Sound(audio) => {
