@@ -60,6 +60,7 @@ fn main() {
         "old synth defaults (blend N=3, λ=3e-6)",
         "say without the words (the talker's sound-to-face map)",
         "say without the words, phones recognised (no sound-to-face map)",
+        "say without the words, the phones the talker's ear hears, performed (no map's face)",
     ];
     // The same talker without its map: the phones recognised from the sound drive the blend.
     let mut phones_only = Talker::load(&root.join("models/grid")).unwrap();
@@ -85,10 +86,26 @@ fn main() {
                 staging.path(),
             )
             .unwrap();
+        // The phones the talker's own ear hears, performed as labels (the map's face unused).
+        let labels = staging.path().join("ear.lab");
+        let ear = facespace::align::segments(&talker.recognise(&clip).unwrap());
+        facespace::phonemes::write_labels(&labels, &ear).unwrap();
+        let by_ear = talker
+            .perform(
+                &SayRequest::new(Speech::Labels {
+                    labels,
+                    tier: None,
+                    map: facespace::phonemes::PhoneMap::default(),
+                    audio: Some(clip.clone()),
+                }),
+                staging.path(),
+            )
+            .unwrap();
         for system in 0..systems.len() {
             let backdrop = match system {
                 3 => &heard.backdrop,
                 4 => &recognised.backdrop,
+                5 => &by_ear.backdrop,
                 _ => &p.backdrop,
             };
             let frames = if system == 0 {
@@ -97,6 +114,8 @@ fn main() {
                 heard.utterance.variants()[0].1.clone()
             } else if system == 4 {
                 recognised.utterance.variants()[0].1.clone()
+            } else if system == 5 {
+                by_ear.utterance.variants()[0].1.clone()
             } else {
                 let (top_n, lambda) = others[system - 1];
                 let blend = Blend {

@@ -620,7 +620,7 @@ fn killed_talker_sound_to_face_leaves_the_talker_whole() {
         let t = facespace::talker::Talker::load(&talker).unwrap();
         if let Some(map) = t.sound_to_face().unwrap() {
             assert_eq!(map.learnt_from(), (1, 75));
-            let files = ["weights.npy", "hidden_in.npy", "hidden_out.npy"]
+            let files = ["weights.npy", "hidden_in.npy", "hidden_out.npy", "phones_in.npy", "phones_out.npy", "phones_bias.npy"]
                 .map(|f| std::fs::read(talker.join("sound-to-face").join(f)).unwrap())
                 .to_vec();
             let mut first = first.lock().unwrap();

@@ -14,10 +14,17 @@
 //! leaves ([`network`]). Window, κ, λ and the layer were chosen on GRID s1's validation
 //! split (BENCHMARKS.md).
 //!
+//! Learnt from the same windows, the talker's own ear ([`PhoneClassifier`]) hears his phones
+//! far better than the general acoustic model does: it recognises phones without words and
+//! judges whether given words fit the sound.
+//!
 //! The folder: `sound-to-face.json` (its constants, the model's hash), `weights.npy`
 //! (features × face-space parameters, f32), and for the layer `hidden_in.npy` (features ×
 //! units) and `hidden_out.npy` (units × parameters): `face = x·W + relu(x·H_in)·H_out`,
-//! `x = [window, 1]`. A version-1 folder (the ridge alone) still loads.
+//! `x = [window, 1]`; for the ear `phones_in.npy` (features × units), `phones_out.npy`
+//! (units × phones) and `phones_bias.npy` (the outputs' bias, then each phone's log prior):
+//! log-odds `relu(x·P_in)·P_out + bias`. Folders of versions 1 (the ridge alone) and 2 (no
+//! ear) still load.
 
 mod network;
 mod phones;
@@ -86,6 +93,13 @@ const CHUNK: usize = 32;
 const GROUP: usize = 4;
 /// The ridge, per learnt frame of evidence summed (validation: flat from 100 to 1 000).
 pub const RIDGE: f64 = 1000.0;
+
+/// The map's share of the face, away from the bilabials, when the phones were heard by the
+/// talker's own ear: the rest is the phones' own synthesis — two estimates of the face, each
+/// wrong in its own way (GRID s1 validation, mouth r_pca / inner r_h: the map alone 0.854 /
+/// 0.873, the ear's phones alone 0.853 / 0.864, shares 0.3 0.869 / 0.879, 0.5 and 0.7 0.874 /
+/// 0.884, 0.7 with the lip motion nearer the recording's: 0.94× against 0.90×).
+pub const MAP_SHARE: f32 = 0.7;
 
 /// What can go wrong learning, loading or using a map.
 #[derive(Debug, Error)]
@@ -558,14 +572,18 @@ impl SoundToFace {
 
     /// Writes `face` (frames × shape ‖ appearance, [`Self::predict_utterance`]) into
     /// `frames`, keeping their poses, and their own shape and appearance at the bilabials of
-    /// `target`, the phones they were synthesised from ([`closure_weight`]).
-    pub fn apply(face: &DMatrix<f32>, frames: &mut Frames, target: &[Segment]) {
+    /// `target`, the phones they were synthesised from ([`closure_weight`]); elsewhere the
+    /// map's face takes [`MAP_SHARE`] when this map's own ear heard those phones, all of it
+    /// when the general acoustic model did (its phones are too often wrong to blend in).
+    pub fn apply(&self, face: &DMatrix<f32>, frames: &mut Frames, target: &[Segment]) {
+        let share = if self.hears_phones() { MAP_SHARE } else { 1.0 };
         let params = frames.layout().params_range();
         let fps = frames.fps();
         let n = frames.len().min(face.nrows());
         let mut values = frames.values_mut();
         for i in 0..n {
             let keep = closure_weight(target, i as f64 / fps, fps);
+            let keep = keep + (1.0 - keep) * (1.0 - share);
             for (j, p) in params.clone().enumerate() {
                 values[(i, p)] = keep * values[(i, p)] + (1.0 - keep) * face[(i, j)];
             }

@@ -32,8 +32,9 @@ pub const LOOP_PENALTY: f64 = 0.0;
 pub const WORST_WORD_WEIGHT: f64 = 0.1;
 /// Least [`ear_fit`] of words that match their sound, nats per frame: with
 /// [`WORST_WORD_WEIGHT`], the rule with the widest margin between GRID s1 validation's true
-/// transcripts and other sentences' (BENCHMARKS "Do the words match the speech?").
-pub const LEAST_FIT: f64 = -0.5;
+/// transcripts and other sentences', its threshold midway between the closest of each
+/// (BENCHMARKS "The talker's own ear").
+pub const LEAST_FIT: f64 = -0.514;
 
 /// How well words fit their sound as the classifier hears it: the whole recording's fit
 /// plus [`WORST_WORD_WEIGHT`] times the worst word's (one wrong word among right ones pulls

@@ -758,7 +758,7 @@ impl Talker {
             .map_err(failed)?;
         let frames = std::iter::once(&mut utterance.synthesis.frames).chain(utterance.smoothed.as_mut());
         for f in frames {
-            crate::sound_to_face::SoundToFace::apply(&face, f, &utterance.target);
+            map.apply(&face, f, &utterance.target);
         }
         let (sentences, _) = map.learnt_from();
         utterance.method = format!("lips from the sound: the talker's map learnt on {sentences} sentences");
