@@ -761,7 +761,14 @@ impl Talker {
             map.apply(&face, f, &utterance.target);
         }
         let (sentences, _) = map.learnt_from();
-        utterance.method = format!("lips from the sound: the talker's map learnt on {sentences} sentences");
+        utterance.method = if map.hears_phones() {
+            format!(
+                "lips from the sound: the talker's map learnt on {sentences} sentences, {:.0} % of the face, the rest from the phones its ear heard",
+                100.0 * crate::sound_to_face::MAP_SHARE
+            )
+        } else {
+            format!("lips from the sound: the talker's map learnt on {sentences} sentences")
+        };
         Ok(())
     }
 
@@ -802,7 +809,7 @@ impl Talker {
                 None => "",
             };
             notes.push(format!(
-                "no words given: {}{drawn} (give the words for aligned phones and a closer lip sync)",
+                "no words given: {}{drawn} (give the words for aligned phones and a surer lip sync)",
                 self.heard_by()?
             ));
         }
