@@ -663,6 +663,38 @@ fn phones_are_recognised_without_words() {
     }
 }
 
+/// The hybrid search (issue 34): phones heard by another ear follow its scores — a made-up
+/// ear that hears /aa/ in the first half of a clip and /m/ in the second, every other phone
+/// far below, gives exactly those two phones, split at the half; and the sound is still
+/// refused first when it is not speech, whatever the ear says.
+#[test]
+fn another_ears_scores_drive_the_phone_loop() {
+    let a = aligner();
+    let audio = clip_audio("bbbf9a");
+    let lm = a.phone_loop(align::PHONE_WEIGHT, align::PHONE_PENALTY);
+    let flat = a.phone_loop(0.0, 0.0);
+    let (aa, m) = (a.model.ci("AA").unwrap(), a.model.ci("M").unwrap());
+    let phones = a.model.ci_names.len();
+    let mut frames = 0;
+    let ear = |heard: &align::Evidence| {
+        frames = heard.scores.len();
+        (0..frames)
+            .map(|t| {
+                let heard = if t < frames / 2 { aa } else { m };
+                (0..phones).map(|c| if c == heard { 0.0 } else { -50.0 }).collect()
+            })
+            .collect()
+    };
+    let got = a.recognise_by(&audio.samples, audio.rate, &lm, ear, &flat).unwrap();
+    let names: Vec<&str> = got.iter().map(|p| p.phone.as_str()).collect();
+    assert_eq!(names, ["AA", "M"], "{got:?}");
+    assert!((got[0].end - (frames / 2) as f64 * 0.01).abs() < 0.011, "{got:?}");
+    assert!((got[1].end - frames as f64 * 0.01).abs() < 1e-9, "{got:?}");
+    let (_, drums) = not_speech().remove(5);
+    let e = a.recognise_by(&drums, frontend::SAMPLE_RATE, &lm, |_| unreachable!(), &flat);
+    assert!(matches!(e, Err(AlignError::NoSpeech { .. })), "{e:?}");
+}
+
 /// Three seconds each (16 kHz) of sounds that are not speech: white and brown noise, a pure
 /// tone, plucked notes with their harmonics, sustained organ chords, and drums over a bass.
 pub fn not_speech() -> Vec<(&'static str, Vec<f32>)> {
