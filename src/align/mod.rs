@@ -239,7 +239,7 @@ impl Aligner {
 
     /// Aligns `samples` (mono, 16 kHz, −1…1) to the words of `text`.
     pub fn align(&self, samples: &[f32], rate: u32, text: &str) -> Result<Alignment, AlignError> {
-        self.search_words(samples, rate, text).map(|(a, ..)| a)
+        self.search_words(samples, rate, text).map(|w| w.alignment)
     }
 
     /// Aligns as [`Aligner::align`] and scores how well the words fit the sound
@@ -251,10 +251,10 @@ impl Aligner {
         text: &str,
         lm: &PhoneLoop,
     ) -> Result<(Alignment, WordFit), AlignError> {
-        let (alignment, forced, feats, _) = self.search_words(samples, rate, text)?;
-        let (_, free) = self.free_path(&feats, lm)?;
-        let fit = word_fit(&alignment, &forced, &free, feats.len());
-        Ok((alignment, fit))
+        let words = self.search_words(samples, rate, text)?;
+        let (_, free) = self.free_path(&words.feats, lm)?;
+        let fit = word_fit(&words.alignment, &words.path, &free, words.feats.len());
+        Ok((words.alignment, fit))
     }
 
     /// [`Self::align_checked`] with the fit scored by another ear: the words' graph and the
@@ -269,13 +269,13 @@ impl Aligner {
         ear: impl FnOnce(&Evidence) -> Vec<Vec<f32>>,
         ear_lm: &PhoneLoop,
     ) -> Result<(Alignment, WordFit), AlignError> {
-        let (alignment, _, feats, graph) = self.search_words(samples, rate, text)?;
-        let scores = ear(&self.evidence_of(&feats));
-        let forced = search::viterbi_scored(&self.model, &graph, &scores).ok_or(AlignError::NoPath)?;
+        let words = self.search_words(samples, rate, text)?;
+        let scores = ear(&self.evidence_of(&words.feats));
+        let forced = search::viterbi_scored(&self.model, &words.graph, &scores).ok_or(AlignError::NoPath)?;
         let loop_graph = search::Graph::phone_loop(&self.model, &ear_lm.transition);
         let free = search::viterbi_scored(&self.model, &loop_graph, &scores).ok_or(AlignError::NoPath)?;
-        let fit = word_fit(&alignment, &forced, &free, feats.len());
-        Ok((alignment, fit))
+        let fit = word_fit(&words.alignment, &forced, &free, words.feats.len());
+        Ok((words.alignment, fit))
     }
 
     /// The phones of a recording, the way every command takes one: with `words`, aligned to
@@ -307,13 +307,13 @@ impl Aligner {
         Ok(alignment.phones)
     }
 
-    /// The words' search: the alignment, its best path, the features it ran over and its graph.
+    /// The words' search ([`WordSearch`]).
     fn search_words(
         &self,
         samples: &[f32],
         rate: u32,
         text: &str,
-    ) -> Result<(Alignment, search::Path, Vec<[f32; frontend::FEATURE_DIM]>, search::Graph), AlignError> {
+    ) -> Result<WordSearch, AlignError> {
         if rate != frontend::SAMPLE_RATE {
             return Err(AlignError::SampleRate(rate));
         }
@@ -339,7 +339,12 @@ impl Aligner {
         let graph = search::Graph::build(&self.model, &words, &prons);
         let path = search::viterbi(&self.model, &graph, &feats).ok_or(AlignError::NoPath)?;
         let alignment = graph.alignment(&self.model, &words, &path, feats.len());
-        Ok((alignment, path, feats, graph))
+        Ok(WordSearch {
+            alignment,
+            path,
+            feats,
+            graph,
+        })
     }
 
     /// The front end's features of `samples`, after the checks every search needs: 16 kHz,
@@ -664,6 +669,15 @@ pub fn segments(phones: &[TimedPhone]) -> Vec<Segment> {
             phone: Phone::parse(&p.phone).unwrap_or(Phone::SIL),
         })
         .collect()
+}
+
+/// A words' search ([`Aligner::search_words`]): the alignment, its best path, the features it
+/// ran over and its graph.
+struct WordSearch {
+    alignment: Alignment,
+    path: search::Path,
+    feats: Vec<[f32; frontend::FEATURE_DIM]>,
+    graph: search::Graph,
 }
 
 /// The fit of `alignment`'s words: the `forced` path's log-likelihood over each word's frames

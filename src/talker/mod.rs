@@ -584,10 +584,10 @@ impl Talker {
         };
         let aligner = self.default_aligner().map_err(failed)?;
         let (samples, rate) = (&sound.samples, sound.rate);
-        if let Some(map) = self.sound_to_face()? {
-            if let Some(phones) = map.recognise(aligner, samples, rate).map_err(failed)? {
-                return Ok(phones);
-            }
+        if let Some(map) = self.sound_to_face()?
+            && let Some(phones) = map.recognise(aligner, samples, rate).map_err(failed)?
+        {
+            return Ok(phones);
         }
         let lm = aligner.phone_loop(crate::align::PHONE_WEIGHT, crate::align::PHONE_PENALTY);
         aligner.recognise(samples, rate, &lm).map_err(failed)
@@ -610,10 +610,10 @@ impl Talker {
             source: Box::new(e),
         };
         let (samples, rate) = (&sound.samples, sound.rate);
-        if let Some(map) = self.sound_to_face()?.filter(|_| !accept_mismatch) {
-            if let Some(phones) = map.hear_words(aligner, samples, rate, words).map_err(failed)? {
-                return Ok(phones);
-            }
+        if let Some(map) = self.sound_to_face()?.filter(|_| !accept_mismatch)
+            && let Some(phones) = map.hear_words(aligner, samples, rate, words).map_err(failed)?
+        {
+            return Ok(phones);
         }
         aligner
             .hear(samples, rate, Some(words), accept_mismatch)
