@@ -410,8 +410,15 @@ impl Aligner {
         lm: &PhoneLoop,
     ) -> Result<Vec<TimedPhone>, AlignError> {
         let (graph, path) = self.free_path(feats, lm)?;
+        self.check_speech(&graph, &path, feats.len())?;
+        Ok(merge_pieces(graph.phones(&self.model, &path, feats.len())))
+    }
+
+    /// Refuses a phone loop's `path` over `frames` frames that holds too little speech
+    /// ([`LEAST_SPEECH`], [`MOST_NOISE_PER_SPEECH`]).
+    fn check_speech(&self, graph: &search::Graph, path: &search::Path, frames: usize) -> Result<(), AlignError> {
         let (mut speech, mut noise) = (0u32, 0u32);
-        for (phone, start, end) in graph.phone_spans(&path, feats.len()) {
+        for (phone, start, end) in graph.phone_spans(path, frames) {
             if usize::from(phone) == self.model.sil {
                 continue;
             }
@@ -421,12 +428,12 @@ impl Aligner {
                 speech += end - start;
             }
         }
-        let frames = feats.len() as f64;
+        let frames = frames as f64;
         let (speech, noise) = (f64::from(speech) / frames, f64::from(noise) / frames);
         if speech < LEAST_SPEECH || noise > MOST_NOISE_PER_SPEECH * speech {
             return Err(AlignError::NoSpeech { speech, noise });
         }
-        Ok(merge_pieces(graph.phones(&self.model, &path, feats.len())))
+        Ok(())
     }
 
     /// Phones heard by another ear: sound that [`Self::recognise`] refuses (through `lm`) is
@@ -442,8 +449,12 @@ impl Aligner {
         ear_lm: &PhoneLoop,
     ) -> Result<Vec<TimedPhone>, AlignError> {
         let feats = self.features(samples, rate)?;
-        self.recognise_features(&feats, lm)?;
-        let scores = ear(&self.evidence_of(&feats));
+        // One scoring of every phone's states serves the refusal's search and the evidence.
+        let states = search::ci_state_scores(&self.model, &feats);
+        let free = search::Graph::phone_loop(&self.model, &lm.transition);
+        let path = search::viterbi_states(&self.model, &free, &states).ok_or(AlignError::NoPath)?;
+        self.check_speech(&free, &path, feats.len())?;
+        let scores = ear(&self.evidence_from(&feats, &states));
         let graph = search::Graph::phone_loop(&self.model, &ear_lm.transition);
         let path = search::viterbi_scored(&self.model, &graph, &scores).ok_or(AlignError::NoPath)?;
         Ok(merge_pieces(graph.phones(&self.model, &path, scores.len())))
@@ -468,7 +479,16 @@ impl Aligner {
 
     /// [`Self::acoustic_evidence`] of front-end features (a live [`Recogniser`]'s).
     pub fn evidence_of(&self, feats: &[[f32; frontend::FEATURE_DIM]]) -> Evidence {
-        let mut scores = search::phone_scores(&self.model, feats);
+        self.evidence_from(feats, &search::ci_state_scores(&self.model, feats))
+    }
+
+    /// [`Self::evidence_of`] with the phones' state scores already computed.
+    fn evidence_from(
+        &self,
+        feats: &[[f32; frontend::FEATURE_DIM]],
+        states: &[Vec<[f32; model::STATES]>],
+    ) -> Evidence {
+        let mut scores = search::phone_scores(states);
         for row in &mut scores {
             let best = row.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b));
             row.iter_mut().for_each(|v| *v -= best);

@@ -452,24 +452,12 @@ impl<'a> Scorer<'a> {
 
 /// Per frame, each context-independent phone's best state score (log-likelihood; fillers
 /// included): what the acoustic model hears in that frame, before any search.
-pub(super) fn phone_scores(
-    model: &AcousticModel,
-    feats: &[[f32; FEATURE_DIM]],
-) -> Vec<Vec<f32>> {
-    let mut scorer = Scorer::new(model);
-    feats
+pub(super) fn phone_scores(states: &[Vec<[f32; STATES]>]) -> Vec<Vec<f32>> {
+    states
         .iter()
-        .enumerate()
-        .map(|(t, feat)| {
-            scorer.set_frame(t as u32, feat);
-            (0..model.ci_names.len())
-                .map(|ci| {
-                    let (senones, _) = model.context_independent(ci);
-                    senones
-                        .iter()
-                        .map(|&s| scorer.score(s))
-                        .fold(f32::NEG_INFINITY, f32::max)
-                })
+        .map(|row| {
+            row.iter()
+                .map(|s| s.iter().copied().fold(f32::NEG_INFINITY, f32::max))
                 .collect()
         })
         .collect()
@@ -501,6 +489,44 @@ pub(super) fn viterbi(
     let mut decoder = Decoder::new(model, g);
     for feat in feats {
         decoder.step(g, feat)?;
+    }
+    decoder.finish(g)
+}
+
+/// What scores a state in one frame of the search.
+#[derive(Clone, Copy)]
+enum Emission<'a> {
+    /// The acoustic model, on demand (the scorer set to the frame).
+    Acoustic,
+    /// Every state of a phone its phone's score (a hybrid recogniser's).
+    Phones(&'a [f32]),
+    /// The acoustic model's scores of each context-independent phone's states, computed
+    /// beforehand ([`ci_state_scores`]; a graph of context-independent phones only).
+    States(&'a [[f32; STATES]]),
+}
+
+/// Per frame, the acoustic model's score of each state of each context-independent phone
+/// (fillers included): every search over a phone loop and the phones' evidence from one
+/// scoring.
+pub(super) fn ci_state_scores(model: &AcousticModel, feats: &[[f32; FEATURE_DIM]]) -> Vec<Vec<[f32; STATES]>> {
+    let mut scorer = Scorer::new(model);
+    feats
+        .iter()
+        .enumerate()
+        .map(|(t, feat)| {
+            scorer.set_frame(t as u32, feat);
+            (0..model.ci_names.len())
+                .map(|ci| model.context_independent(ci).0.map(|s| scorer.score(s)))
+                .collect()
+        })
+        .collect()
+}
+
+/// [`viterbi`] of a phone loop ([`Graph::phone_loop`]) over scores from [`ci_state_scores`].
+pub(super) fn viterbi_states(model: &AcousticModel, g: &Graph, states: &[Vec<[f32; STATES]>]) -> Option<Path> {
+    let mut decoder = Decoder::new(model, g);
+    for row in states {
+        decoder.advance(g, Emission::States(row))?;
     }
     decoder.finish(g)
 }
@@ -562,20 +588,20 @@ impl<'m> Decoder<'m> {
     /// Decodes one more frame; `None` when the beam lost every hypothesis.
     pub(super) fn step(&mut self, g: &Graph, feat: &[f32; FEATURE_DIM]) -> Option<()> {
         self.scorer.set_frame(self.frames as u32, feat);
-        self.advance(g, None)
+        self.advance(g, Emission::Acoustic)
     }
 
     /// Decodes one more frame whose states all score their phone's entry of `phones` (a
     /// hybrid recogniser's scaled likelihoods, [`viterbi_scored`]); `None` as [`Self::step`].
     pub(super) fn step_scored(&mut self, g: &Graph, phones: &[f32]) -> Option<()> {
-        self.advance(g, Some(phones))
+        self.advance(g, Emission::Phones(phones))
     }
 
     /// One frame of the search, each state scored by the acoustic model (`phones` `None`, the
     /// scorer set to the frame) or by its phone's score.
     // States index the transition matrix in both its dimensions and the scores beside it.
     #[allow(clippy::needless_range_loop)]
-    fn advance(&mut self, g: &Graph, phones: Option<&[f32]>) -> Option<()> {
+    fn advance(&mut self, g: &Graph, emission: Emission<'_>) -> Option<()> {
         let model = self.model;
         let n = g.nodes.len();
         let ninf = f32::NEG_INFINITY;
@@ -623,9 +649,10 @@ impl<'m> Decoder<'m> {
                     from = (self.records.len() - 1) as u32;
                 }
                 if v > ninf {
-                    v += match phones {
-                        Some(scores) => scores[usize::from(node.phone)],
-                        None => self.scorer.score(node.senones[j]),
+                    v += match emission {
+                        Emission::Phones(scores) => scores[usize::from(node.phone)],
+                        Emission::States(scores) => scores[usize::from(node.phone)][j],
+                        Emission::Acoustic => self.scorer.score(node.senones[j]),
                     };
                 }
                 self.next[h][j] = v;
