@@ -486,9 +486,19 @@ pub(super) fn viterbi(
     g: &Graph,
     feats: &[[f32; FEATURE_DIM]],
 ) -> Option<Path> {
+    best_path(model, g, feats.iter().map(Emission::Acoustic))
+}
+
+/// The search over every frame's `emissions`, beam-pruned; `None` when the beam lost every
+/// hypothesis or no final HMM was reached.
+fn best_path<'e>(
+    model: &AcousticModel,
+    g: &Graph,
+    emissions: impl Iterator<Item = Emission<'e>>,
+) -> Option<Path> {
     let mut decoder = Decoder::new(model, g);
-    for feat in feats {
-        decoder.step(g, feat)?;
+    for emission in emissions {
+        decoder.advance(g, emission)?;
     }
     decoder.finish(g)
 }
@@ -496,8 +506,8 @@ pub(super) fn viterbi(
 /// What scores a state in one frame of the search.
 #[derive(Clone, Copy)]
 enum Emission<'a> {
-    /// The acoustic model, on demand (the scorer set to the frame).
-    Acoustic,
+    /// The acoustic model's scores of these features, on demand.
+    Acoustic(&'a [f32; FEATURE_DIM]),
     /// Every state of a phone its phone's score (a hybrid recogniser's).
     Phones(&'a [f32]),
     /// The acoustic model's scores of each context-independent phone's states, computed
@@ -524,21 +534,13 @@ pub(super) fn ci_state_scores(model: &AcousticModel, feats: &[[f32; FEATURE_DIM]
 
 /// [`viterbi`] of a phone loop ([`Graph::phone_loop`]) over scores from [`ci_state_scores`].
 pub(super) fn viterbi_states(model: &AcousticModel, g: &Graph, states: &[Vec<[f32; STATES]>]) -> Option<Path> {
-    let mut decoder = Decoder::new(model, g);
-    for row in states {
-        decoder.advance(g, Emission::States(row))?;
-    }
-    decoder.finish(g)
+    best_path(model, g, states.iter().map(|row| Emission::States(row)))
 }
 
 /// [`viterbi`] with every state of a phone scoring that phone's entry of the frame's row of
 /// `scores` (frames × context-independent phones) in place of the acoustic model's.
 pub(super) fn viterbi_scored(model: &AcousticModel, g: &Graph, scores: &[Vec<f32>]) -> Option<Path> {
-    let mut decoder = Decoder::new(model, g);
-    for row in scores {
-        decoder.step_scored(g, row)?;
-    }
-    decoder.finish(g)
+    best_path(model, g, scores.iter().map(|row| Emission::Phones(row)))
 }
 
 /// The Viterbi search's state between frames, so that features can arrive a few at a time
@@ -587,18 +589,10 @@ impl<'m> Decoder<'m> {
 
     /// Decodes one more frame; `None` when the beam lost every hypothesis.
     pub(super) fn step(&mut self, g: &Graph, feat: &[f32; FEATURE_DIM]) -> Option<()> {
-        self.scorer.set_frame(self.frames as u32, feat);
-        self.advance(g, Emission::Acoustic)
+        self.advance(g, Emission::Acoustic(feat))
     }
 
-    /// Decodes one more frame whose states all score their phone's entry of `phones` (a
-    /// hybrid recogniser's scaled likelihoods, [`viterbi_scored`]); `None` as [`Self::step`].
-    pub(super) fn step_scored(&mut self, g: &Graph, phones: &[f32]) -> Option<()> {
-        self.advance(g, Emission::Phones(phones))
-    }
-
-    /// One frame of the search, each state scored by the acoustic model (`phones` `None`, the
-    /// scorer set to the frame) or by its phone's score.
+    /// One frame of the search, each state scored as `emission` says.
     // States index the transition matrix in both its dimensions and the scores beside it.
     #[allow(clippy::needless_range_loop)]
     fn advance(&mut self, g: &Graph, emission: Emission<'_>) -> Option<()> {
@@ -606,6 +600,9 @@ impl<'m> Decoder<'m> {
         let n = g.nodes.len();
         let ninf = f32::NEG_INFINITY;
         let t = self.frames;
+        if let Emission::Acoustic(feat) = emission {
+            self.scorer.set_frame(t as u32, feat);
+        }
         // Exits of the previous frame.
         for h in 0..n {
             self.exit[h] = (ninf, NONE);
@@ -652,7 +649,7 @@ impl<'m> Decoder<'m> {
                     v += match emission {
                         Emission::Phones(scores) => scores[usize::from(node.phone)],
                         Emission::States(scores) => scores[usize::from(node.phone)][j],
-                        Emission::Acoustic => self.scorer.score(node.senones[j]),
+                        Emission::Acoustic(_) => self.scorer.score(node.senones[j]),
                     };
                 }
                 self.next[h][j] = v;
