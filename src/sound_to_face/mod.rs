@@ -151,9 +151,6 @@ struct Manifest {
     /// Units of the phone classifier's layer; 0 for none (versions 1 and 2).
     #[serde(default)]
     phone_units: usize,
-    /// The classifier's window ([`phones::WINDOW`]), where it has one.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    phone_window: Option<(i64, usize)>,
 }
 
 /// A talker's map from sound to face (see the module).
@@ -194,34 +191,8 @@ pub fn evidence_rows(heard: &crate::align::Evidence) -> Vec<Vec<f32>> {
         .collect()
 }
 
-/// A window of evidence frames around a centre: ±`half` frames, every `step`-th.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Window {
-    /// Frames either side (10 ms each).
-    pub half: i64,
-    /// Frames between taps.
-    pub step: usize,
-}
-
-impl Window {
-    fn taps(self) -> impl Iterator<Item = i64> {
-        (-self.half..=self.half).step_by(self.step)
-    }
-
-    /// Features of a design row of `width` evidence features, the constant left out.
-    fn features(self, width: usize) -> usize {
-        self.taps().count() * width
-    }
-}
-
-/// The map's window.
-const MAP_WINDOW: Window = Window {
-    half: HALF_WINDOW,
-    step: TAP_STEP,
-};
-
 fn taps() -> impl Iterator<Item = i64> {
-    MAP_WINDOW.taps()
+    (-HALF_WINDOW..=HALF_WINDOW).step_by(TAP_STEP)
 }
 
 /// How much of the phones' own synthesis a frame at `t` seconds keeps: 1 inside a bilabial
@@ -262,9 +233,9 @@ struct Heard {
     labels: Vec<Option<u8>>,
 }
 
-/// Each feature of a `window`'s design row standardised: the mean and s.d. of its evidence
-/// feature over every frame heard, alike at every tap.
-fn standardisation(heard: &[Heard], window: Window) -> (Vec<f32>, Vec<f32>) {
+/// Each feature of a window's design row standardised (for the hidden layer and the ear):
+/// the mean and s.d. of its evidence feature over every frame heard, alike at every tap.
+fn standardisation(heard: &[Heard]) -> (Vec<f32>, Vec<f32>) {
     let width = heard[0].evidence[0].len();
     let stats: Vec<(f64, f64)> = (0..width)
         .map(|k| {
@@ -275,7 +246,7 @@ fn standardisation(heard: &[Heard], window: Window) -> (Vec<f32>, Vec<f32>) {
             crate::eval::mean_and_sd(&values)
         })
         .collect();
-    let d = window.features(width);
+    let d = taps().count() * width;
     let mean = (0..d).map(|j| stats[j % width].0 as f32).collect();
     let scale = (0..d).map(|j| stats[j % width].1 as f32).collect();
     (mean, scale)
@@ -321,7 +292,7 @@ fn learn_hidden(
         features: d,
         row: |i: usize, out: &mut [f32]| {
             let (s, centre) = index[i];
-            window_into(MAP_WINDOW, &heard[s].evidence, centre, out);
+            window_into(&heard[s].evidence, centre, out);
         },
         mean,
         scale,
@@ -343,31 +314,20 @@ fn ear_scores(classifier: &PhoneClassifier, heard: &crate::align::Evidence) -> V
     let mut scores = Vec::with_capacity(ev.len());
     for start in (0..ev.len()).step_by(PREDICT_BLOCK) {
         let rows = PREDICT_BLOCK.min(ev.len() - start);
-        let x = design_in(phones::WINDOW, &ev, rows, |i| (start + i) as i64).map(|v| v as f32);
+        let x = design_at(&ev, rows, |i| (start + i) as i64).map(|v| v as f32);
         scores.extend(classifier.scores(&x));
     }
     scores
 }
 
-/// The feature rows of `rows` of the map's windows, the `i`-th centred on evidence frame
-/// `centre(i)`.
+/// The feature rows of `rows` windows, the `i`-th centred on evidence frame `centre(i)`.
 fn design_at(evidence: &[Vec<f32>], rows: usize, centre: impl Fn(usize) -> i64) -> DMatrix<f64> {
-    design_in(MAP_WINDOW, evidence, rows, centre)
-}
-
-/// [`design_at`] of `window`.
-fn design_in(
-    window: Window,
-    evidence: &[Vec<f32>],
-    rows: usize,
-    centre: impl Fn(usize) -> i64,
-) -> DMatrix<f64> {
     let width = evidence.first().map_or(0, Vec::len);
-    let d = window.features(width) + 1;
+    let d = taps().count() * width + 1;
     let mut x = DMatrix::zeros(rows, d);
     let mut row = vec![0f32; d - 1];
     for i in 0..rows {
-        window_into(window, evidence, centre(i), &mut row);
+        window_into(evidence, centre(i), &mut row);
         for (j, &v) in row.iter().enumerate() {
             x[(i, j)] = f64::from(v);
         }
@@ -376,12 +336,12 @@ fn design_in(
     x
 }
 
-/// The `window` of evidence around frame `centre` (every tap's row in turn, edges repeated)
+/// The window of evidence around frame `centre` (every tap's row in turn, edges repeated)
 /// into `out`, without the constant.
-fn window_into(window: Window, evidence: &[Vec<f32>], centre: i64, out: &mut [f32]) {
+fn window_into(evidence: &[Vec<f32>], centre: i64, out: &mut [f32]) {
     let width = evidence.first().map_or(0, Vec::len);
     let last = evidence.len() as i64 - 1;
-    for (tap, offset) in window.taps().enumerate() {
+    for (tap, offset) in taps().enumerate() {
         let t = (centre + offset).clamp(0, last) as usize;
         out[tap * width..(tap + 1) * width].copy_from_slice(&evidence[t]);
     }
@@ -519,14 +479,14 @@ impl SoundToFace {
         }
         let mut weights = ridge(xtx, &xty, RIDGE)
             .ok_or_else(|| SoundToFaceError::Learn("the sums are not positive definite".into()))?;
-        let (mean, scale) = standardisation(&heard, MAP_WINDOW);
+        // One standardisation of the windows serves the hidden layer and the ear.
+        let (mean, scale) = standardisation(&heard);
         let stage = "learning the face from the sound: its hidden layer";
         let hidden = learn_hidden(&heard, (&mean, &scale), &mut weights, |done| {
             progress(Progress { stage, done, total: network::EPOCHS })
         });
         let phones = aligner.model.ci_names.len();
         let stage = "learning the talker's phones";
-        let (mean, scale) = standardisation(&heard, phones::WINDOW);
         let classifier = PhoneClassifier::learn(&heard, phones, (&mean, &scale), |done| {
             progress(Progress { stage, done, total: phones::SCHEDULE.epochs })
         });
@@ -544,7 +504,6 @@ impl SoundToFace {
                 frames,
                 hidden: network::UNITS,
                 phone_units: phones::SCHEDULE.units,
-                phone_window: Some((phones::WINDOW.half, phones::WINDOW.step)),
             },
             weights: weights.map(|v| v as f32),
             hidden: Some(hidden),
@@ -794,18 +753,11 @@ impl SoundToFace {
                 output: read(HIDDEN_OUT, units, k)?,
             }),
         };
-        let ear = phones::WINDOW;
-        if m.phone_units > 0 && m.phone_window != Some((ear.half, ear.step)) {
-            return Err(SoundToFaceError::Mismatch(format!(
-                "{}: its phone classifier was learnt with another window (learn it again)",
-                dir.display()
-            )));
-        }
         let phones = match m.phone_units {
             0 => None,
             units => Some(PhoneClassifier {
                 hidden: network::Hidden {
-                    input: read(PHONES_IN, ear.features(width) + 1, units)?,
+                    input: read(PHONES_IN, d, units)?,
                     output: read(PHONES_OUT, units, phones)?,
                 },
                 bias_and_prior: read(PHONES_BIAS, 2, phones)?,

@@ -1,5 +1,6 @@
 //! The talker's own ear: a classifier of the acoustic model's context-independent phones
-//! from the map's evidence windows, learnt on the codebook's recordings and their aligned
+//! from the map's evidence windows (±100 ms and ±300 ms heard unheard words no better:
+//! BENCHMARKS "The talker's own ear"), learnt on the codebook's recordings and their aligned
 //! phones. The general acoustic model was trained on American read speech; one hidden layer
 //! learnt on an hour of this talker hears their own phones far better — in the words their
 //! recordings hold: on words it never heard it does worse than the general model
@@ -11,7 +12,7 @@
 use nalgebra::DMatrix;
 
 use super::network::{self, Hidden, Schedule, Target};
-use super::{Heard, Window, window_into};
+use super::{Heard, window_into};
 use crate::align::WordFit;
 use crate::align::model::AcousticModel;
 use crate::phonemes::Segment;
@@ -47,10 +48,6 @@ pub fn ear_fit(fit: &WordFit) -> f64 {
     let worst = fit.words.iter().copied().fold(f64::INFINITY, f64::min);
     fit.overall + if worst.is_finite() { WORST_WORD_WEIGHT * worst } else { 0.0 }
 }
-
-/// The classifier's window of evidence: the map's (on training sentences with letters it
-/// never heard, ±100 ms and ±300 ms did about as well: BENCHMARKS "The talker's own ear").
-pub const WINDOW: Window = super::MAP_WINDOW;
 
 /// Every `STRIDE`-th 10 ms frame is an example: neighbours say almost the same.
 const STRIDE: usize = 2;
@@ -116,7 +113,7 @@ impl PhoneClassifier {
             features: mean.len(),
             row: |i: usize, out: &mut [f32]| {
                 let (s, t) = index[i];
-                window_into(WINDOW, &heard[s].evidence, t as i64, out);
+                window_into(&heard[s].evidence, t as i64, out);
             },
             mean,
             scale,
