@@ -50,7 +50,7 @@ fn main() {
             let stats = match checked {
                 Ok((_, fit)) => {
                     let ours = if map.is_some() {
-                        facespace::sound_to_face::ear_fit(&fit) >= facespace::sound_to_face::LEAST_FIT
+                        facespace::sound_to_face::ear_matches(&fit)
                     } else {
                         fit.matches()
                     };

@@ -74,22 +74,19 @@ pub fn run(a: AlignArgs) -> Result<()> {
                 Some(map) => map.align_checked(&aligner, samples, rate, text).with_context(aligning)?,
                 None => None,
             };
-            let (alignment, f) = match by_ear {
+            let (alignment, checked) = match by_ear {
                 Some((alignment, f)) => {
                     let score = facespace::sound_to_face::ear_fit(&f);
-                    let least = facespace::sound_to_face::LEAST_FIT;
-                    fit = Some((score, least, score >= least, f));
-                    (alignment, None)
+                    let matches = facespace::sound_to_face::ear_matches(&f);
+                    (alignment, (score, facespace::sound_to_face::LEAST_FIT, matches, f))
                 }
                 None => {
                     let (alignment, f) =
                         aligner.align_checked(samples, rate, text, &lm).with_context(aligning)?;
-                    (alignment, Some(f))
+                    (alignment, (f.overall, align::LEAST_OVERALL_FIT, f.matches(), f))
                 }
             };
-            if let Some(f) = f {
-                fit = Some((f.overall, align::LEAST_OVERALL_FIT, f.matches(), f));
-            }
+            fit = Some(checked);
             alignment
         }
         None => {

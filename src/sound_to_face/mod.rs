@@ -30,7 +30,8 @@ mod network;
 mod phones;
 
 pub use phones::{
-    LEAST_FIT, LOOP_PENALTY, LOOP_WEIGHT, PhoneClassifier, WORST_WORD_WEIGHT, ear_fit, frame_labels,
+    LEAST_FIT, LOOP_PENALTY, LOOP_WEIGHT, PhoneClassifier, WORST_WORD_WEIGHT, ear_fit, ear_matches,
+    frame_labels,
 };
 
 use std::path::Path;
@@ -628,7 +629,7 @@ impl SoundToFace {
         let Some((alignment, fit)) = self.align_checked(aligner, samples, rate, text)? else {
             return Ok(None);
         };
-        if ear_fit(&fit) < LEAST_FIT {
+        if !ear_matches(&fit) {
             return Err(AlignError::WordsDoNotMatch {
                 overall: ear_fit(&fit),
                 least: LEAST_FIT,

@@ -49,6 +49,12 @@ pub fn ear_fit(fit: &WordFit) -> f64 {
     fit.overall + if worst.is_finite() { WORST_WORD_WEIGHT * worst } else { 0.0 }
 }
 
+/// Whether words match their sound as the classifier hears it: [`ear_fit`] at least
+/// [`LEAST_FIT`].
+pub fn ear_matches(fit: &WordFit) -> bool {
+    ear_fit(fit) >= LEAST_FIT
+}
+
 /// Every `STRIDE`-th 10 ms frame is an example: neighbours say almost the same.
 const STRIDE: usize = 2;
 
