@@ -399,32 +399,7 @@ impl<'a> Scorer<'a> {
         if self.top_frame[block] == self.frame {
             return self.top[block];
         }
-        let m = self.model;
-        let nd = m.n_density;
-        let stream = block % STREAMS;
-        let acc = &mut self.densities;
-        acc.copy_from_slice(&m.log_norm[block * nd..(block + 1) * nd]);
-        for k in 0..STREAM_DIM {
-            let x = self.feat[stream * STREAM_DIM + k];
-            let off = block * nd * STREAM_DIM + k * nd;
-            let means = &m.means[off..off + nd];
-            let inv = &m.inv_2var[off..off + nd];
-            for ((a, &mu), &iv) in acc.iter_mut().zip(means).zip(inv) {
-                let d = x - mu;
-                *a -= d * d * iv;
-            }
-        }
-        let mut top = [(0u16, f32::NEG_INFINITY); TOP_N];
-        for (d, &s) in acc.iter().enumerate() {
-            if s > top[TOP_N - 1].1 {
-                let mut k = TOP_N - 1;
-                while k > 0 && top[k - 1].1 < s {
-                    top[k] = top[k - 1];
-                    k -= 1;
-                }
-                top[k] = (d as u16, s);
-            }
-        }
+        let top = best_densities(self.model, block, &self.feat, &mut self.densities);
         self.top[block] = top;
         self.top_frame[block] = self.frame;
         top
@@ -435,19 +410,160 @@ impl<'a> Scorer<'a> {
         if self.senone_frame[sen] == self.frame {
             return self.senone[sen];
         }
-        let cb = self.model.senone_codebook[sen] as usize;
-        let mut total = 0.0;
-        for s in 0..STREAMS {
-            let top = self.codebook(cb * STREAMS + s);
-            let mixw = &self.model.log_mixw[s * self.model.n_density * self.model.n_senones..];
-            let terms = top.map(|(d, g)| g + mixw[d as usize * self.model.n_senones + sen]);
-            let best = terms.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b));
-            total += best + terms.iter().map(|&t| (t - best).exp()).sum::<f32>().ln();
-        }
+        let model = self.model;
+        let total = senone_score(model, sen, |block| self.codebook(block));
         self.senone[sen] = total;
         self.senone_frame[sen] = self.frame;
         total
     }
+}
+
+/// The [`TOP_N`] best Gaussians (density, log density) of codebook stream `block` at `feat`,
+/// best first (the first of equals first); `scratch` holds the codebook's densities.
+fn best_densities(
+    m: &AcousticModel,
+    block: usize,
+    feat: &[f32; FEATURE_DIM],
+    scratch: &mut [f32],
+) -> [(u16, f32); TOP_N] {
+    let nd = m.n_density;
+    let stream = block % STREAMS;
+    let x: &[f32; STREAM_DIM] = feat[stream * STREAM_DIM..][..STREAM_DIM].try_into().expect("a stream");
+    let span = block * nd * STREAM_DIM..(block + 1) * nd * STREAM_DIM;
+    densities(scratch, &m.log_norm[block * nd..(block + 1) * nd], x, &m.means[span.clone()], &m.inv_2var[span])
+}
+
+/// A senone's log-likelihood: per stream, the log-sum of mixture weight × density over its
+/// codebook's best Gaussians (`top` of each codebook stream block), summed over the streams.
+fn senone_score(m: &AcousticModel, sen: usize, mut top: impl FnMut(usize) -> [(u16, f32); TOP_N]) -> f32 {
+    let cb = m.senone_codebook[sen] as usize;
+    let mut total = 0.0;
+    for s in 0..STREAMS {
+        let best_n = top(cb * STREAMS + s);
+        let mixw = &m.log_mixw[s * m.n_density * m.n_senones..];
+        let terms = best_n.map(|(d, g)| g + mixw[d as usize * m.n_senones + sen]);
+        let best = terms.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b));
+        total += best + terms.iter().map(|&t| (t - best).exp()).sum::<f32>().ln();
+    }
+    total
+}
+
+/// Log densities of one codebook's Gaussians at `x` (one stream): `acc[d] = log_norm[d] −
+/// Σ_k (x_k − μ_dk)² / (2σ²_dk)`, `means` and `inv_2var` laid out dimension by dimension; and
+/// the best [`TOP_N`] of them.
+fn densities(
+    acc: &mut [f32],
+    log_norm: &[f32],
+    x: &[f32; STREAM_DIM],
+    means: &[f32],
+    inv_2var: &[f32],
+) -> [(u16, f32); TOP_N] {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: this CPU has AVX2 (checked just above).
+        return unsafe { densities_avx2(acc, log_norm, x, means, inv_2var) };
+    }
+    densities_lanes(acc, log_norm, x, means, inv_2var)
+}
+
+/// [`densities_lanes`] compiled for AVX2: the same operations in the same order (no fused
+/// multiply-add), so the same densities to the bit.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn densities_avx2(
+    acc: &mut [f32],
+    log_norm: &[f32],
+    x: &[f32; STREAM_DIM],
+    means: &[f32],
+    inv_2var: &[f32],
+) -> [(u16, f32); TOP_N] {
+    densities_lanes(acc, log_norm, x, means, inv_2var)
+}
+
+/// [`densities`] 32 Gaussians at a time, their sums held in registers over every dimension
+/// (each Gaussian's terms added in the order of its dimensions).
+#[inline(always)]
+fn densities_lanes(
+    acc: &mut [f32],
+    log_norm: &[f32],
+    x: &[f32; STREAM_DIM],
+    means: &[f32],
+    inv_2var: &[f32],
+) -> [(u16, f32); TOP_N] {
+    const LANES: usize = 32;
+    let nd = acc.len();
+    let mut start = 0;
+    while start < nd {
+        let width = LANES.min(nd - start);
+        let mut sum = [0f32; LANES];
+        sum[..width].copy_from_slice(&log_norm[start..start + width]);
+        for (k, &xk) in x.iter().enumerate() {
+            let off = k * nd + start;
+            if width == LANES {
+                let mu: &[f32; LANES] = means[off..off + LANES].try_into().expect("32 means");
+                let iv: &[f32; LANES] = inv_2var[off..off + LANES].try_into().expect("32 weights");
+                for i in 0..LANES {
+                    let d = xk - mu[i];
+                    sum[i] -= d * d * iv[i];
+                }
+            } else {
+                for i in 0..width {
+                    let d = xk - means[off + i];
+                    sum[i] -= d * d * inv_2var[off + i];
+                }
+            }
+        }
+        acc[start..start + width].copy_from_slice(&sum[..width]);
+        start += width;
+    }
+    best_of(acc)
+}
+
+/// The [`TOP_N`] largest of `values` with their indices, largest first, the first of equals
+/// first. Only values at least a bound are ranked: the [`TOP_N`]th largest of the maxima of 32
+/// disjoint sets (every 32nd value), which the [`TOP_N`]th largest value cannot be below.
+#[inline(always)]
+fn best_of(values: &[f32]) -> [(u16, f32); TOP_N] {
+    const SETS: usize = 32;
+    let insert = |top: &mut [(u16, f32); TOP_N], d: usize, s: f32| {
+        if s > top[TOP_N - 1].1 {
+            let mut k = TOP_N - 1;
+            while k > 0 && top[k - 1].1 < s {
+                top[k] = top[k - 1];
+                k -= 1;
+            }
+            top[k] = (d as u16, s);
+        }
+    };
+    let mut bound = f32::NEG_INFINITY;
+    if values.len() >= 2 * SETS {
+        let mut maxima = [f32::NEG_INFINITY; SETS];
+        for row in values.chunks_exact(SETS) {
+            for (m, &v) in maxima.iter_mut().zip(row) {
+                *m = if v > *m { v } else { *m };
+            }
+        }
+        for (i, &v) in values.chunks_exact(SETS).remainder().iter().enumerate() {
+            maxima[i] = if v > maxima[i] { v } else { maxima[i] };
+        }
+        let mut top = [(0u16, f32::NEG_INFINITY); TOP_N];
+        for (i, &m) in maxima.iter().enumerate() {
+            insert(&mut top, i, m);
+        }
+        bound = top[TOP_N - 1].1;
+    }
+    // Eight values at a time, those with none at the bound passed over in one comparison.
+    let mut top = [(0u16, f32::NEG_INFINITY); TOP_N];
+    for (c, eight) in values.chunks(8).enumerate() {
+        if eight.iter().fold(false, |any, &s| any | (s >= bound)) {
+            for (i, &s) in eight.iter().enumerate() {
+                if s >= bound {
+                    insert(&mut top, 8 * c + i, s);
+                }
+            }
+        }
+    }
+    top
 }
 
 /// Per frame, each context-independent phone's best state score (log-likelihood; fillers
@@ -519,18 +635,28 @@ enum Emission<'a> {
 /// (fillers included): every search over a phone loop and the phones' evidence from one
 /// scoring.
 pub(super) fn ci_state_scores(model: &AcousticModel, feats: &[[f32; FEATURE_DIM]]) -> Vec<Vec<[f32; STATES]>> {
-    let mut scorer = Scorer::new(model);
-    feats
-        .iter()
-        .enumerate()
-        .map(|(t, feat)| {
-            scorer.set_frame(t as u32, feat);
-            (0..model.ci_names.len())
-                .map(|ci| model.context_independent(ci).0.map(|s| scorer.score(s)))
-                .collect()
-        })
-        .collect()
+    let blocks = model.n_codebooks * STREAMS;
+    let mut scratch = vec![0.0; model.n_density];
+    let mut top = vec![[(0u16, f32::NEG_INFINITY); TOP_N]; FRAME_BLOCK * blocks];
+    let senones: Vec<[u16; STATES]> = (0..model.ci_names.len()).map(|ci| model.context_independent(ci).0).collect();
+    let mut scores = Vec::with_capacity(feats.len());
+    for chunk in feats.chunks(FRAME_BLOCK) {
+        // Codebook by codebook, so that each one's Gaussians stay in the cache over the frames.
+        for block in 0..blocks {
+            for (t, feat) in chunk.iter().enumerate() {
+                top[t * blocks + block] = best_densities(model, block, feat, &mut scratch);
+            }
+        }
+        for t in 0..chunk.len() {
+            let top = &top[t * blocks..(t + 1) * blocks];
+            scores.push(senones.iter().map(|ci| ci.map(|s| senone_score(model, s.into(), |b| top[b]))).collect());
+        }
+    }
+    scores
 }
+
+/// Frames [`ci_state_scores`] scores together.
+const FRAME_BLOCK: usize = 64;
 
 /// [`viterbi`] of a phone loop ([`Graph::phone_loop`]) over scores from [`ci_state_scores`].
 pub(super) fn viterbi_states(model: &AcousticModel, g: &Graph, states: &[Vec<[f32; STATES]>]) -> Option<Path> {
