@@ -891,3 +891,27 @@ impl<'m> Decoder<'m> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The bounded ranking against a full stable sort, over lengths that are and are not
+    /// multiples of the sets and of eight, with many ties (values rounded to a coarse grid).
+    #[test]
+    fn best_of_ranks_as_a_full_sort_does() {
+        let mut rng = crate::rng::Rng::new(7);
+        for len in [1, 3, 8, 31, 64, 100, 128, 130] {
+            for _ in 0..200 {
+                let values: Vec<f32> = (0..len).map(|_| (rng.range(-20.0, 0.0) * 2.0).round() as f32).collect();
+                let mut order: Vec<usize> = (0..len).collect();
+                order.sort_by(|&a, &b| values[b].total_cmp(&values[a]));
+                let mut expected = [(0u16, f32::NEG_INFINITY); TOP_N];
+                for (slot, &d) in expected.iter_mut().zip(&order) {
+                    *slot = (d as u16, values[d]);
+                }
+                assert_eq!(best_of(&values), expected, "{values:?}");
+            }
+        }
+    }
+}
