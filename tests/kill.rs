@@ -124,6 +124,7 @@ fn killed_runs(args: &[&str], out: &Path, check: impl Fn(&Path)) {
 
 #[test]
 fn killed_model_builds_and_encodes_leave_whole_outputs() {
+    let _apart = common::timed_apart();
     let dir = tempfile::tempdir().unwrap();
     let faces = common::faces_dir();
     let model = dir.path().join("model");
@@ -179,6 +180,7 @@ fn frame_count(path: &Path) -> usize {
 
 #[test]
 fn killed_decodes_tracks_and_synthesis_leave_whole_outputs() {
+    let _apart = common::timed_apart();
     let dir = tempfile::tempdir().unwrap();
     let p = |name: &str| dir.path().join(name).to_str().unwrap().to_owned();
     let clip = common::root().join("tests/data/clip");
@@ -337,6 +339,7 @@ fn png(path: &Path) {
 
 #[test]
 fn killed_exports_reports_and_the_demo_leave_whole_outputs() {
+    let _apart = common::timed_apart();
     let dir = tempfile::tempdir().unwrap();
     let p = |name: &str| dir.path().join(name).to_str().unwrap().to_owned();
     let clip = common::root().join("tests/data/clip");
@@ -570,6 +573,7 @@ fn one_sentence_talker(dir: &Path) -> PathBuf {
 /// leaves no staging behind.
 #[test]
 fn killed_talker_mouths_leave_the_talker_whole() {
+    let _apart = common::timed_apart();
     let dir = tempfile::tempdir().unwrap();
     let talker = one_sentence_talker(dir.path());
     let recordings = common::root().join("tests/data/grid");
@@ -594,6 +598,7 @@ fn killed_talker_mouths_leave_the_talker_whole() {
 /// learns the same map. Without `--least-frames` its one sentence is refused.
 #[test]
 fn killed_talker_sound_to_face_leaves_the_talker_whole() {
+    let _apart = common::timed_apart();
     let dir = tempfile::tempdir().unwrap();
     let talker = one_sentence_talker(dir.path());
     let recordings = common::root().join("tests/data/grid");
@@ -636,6 +641,7 @@ fn killed_talker_sound_to_face_leaves_the_talker_whole() {
 /// text-to-speech engine; `.ci/run` installs Festival.)
 #[test]
 fn killed_say_leaves_nothing_in_the_temporary_folder() {
+    let _apart = common::timed_apart();
     if facespace::tts::available().is_none() {
         eprintln!(
             "skipped: no text-to-speech engine (apt-get install festival festvox-us-slt-hts)"

@@ -39,16 +39,8 @@ fn call_video() -> std::path::PathBuf {
     common::root().join("models/grid/demo/bbbf9a.mp4")
 }
 
-/// One browser of this file at a time: SwiftShader renders on the CPU, and two or three pages
-/// drawing at 25 fps on a two-core machine starve each other's event loops (the timing these
-/// tests measure).
-fn one_browser() -> std::sync::MutexGuard<'static, ()> {
-    static LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
-    LOCK.lock().unwrap_or_else(|e| e.into_inner())
-}
-
 /// The live page open in headless Chromium (WebGL2 on SwiftShader, and `extra` switches),
-/// ready, holding [`one_browser`]; `None` (the test skipped) without Chromium.
+/// ready, holding [`common::timed_apart`]; `None` (the test skipped) without Chromium.
 fn open_page(
     extra: &[String],
 ) -> Option<(std::sync::MutexGuard<'static, ()>, common::cdp::Browser, common::cdp::Page)> {
@@ -56,7 +48,7 @@ fn open_page(
         eprintln!("skipped: no Chromium on PATH (.ci/run installs the distribution's package)");
         return None;
     };
-    let one = one_browser();
+    let one = common::timed_apart();
     let mut switches = webgl();
     switches.extend_from_slice(extra);
     let mut browser = common::cdp::Browser::launch_with(chromium, &switches);

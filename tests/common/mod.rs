@@ -176,6 +176,15 @@ pub fn lenna_frames(dir: &Path, count: usize) -> PathBuf {
     frames
 }
 
+/// One at a time of the tests that time the machine and those that load it: the live page
+/// (SwiftShader renders on the CPU; two pages, or a page beside the kill tests' children,
+/// starve its event loop and the pacing it measures) and the kill tests (each runs the CLI as
+/// child processes on both cores).
+pub fn timed_apart() -> std::sync::MutexGuard<'static, ()> {
+    static LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    LOCK.lock().unwrap_or_else(|e| e.into_inner())
+}
+
 /// A Chromium on PATH, if any (`.ci/run` installs the distribution's package).
 pub fn chromium() -> Option<&'static str> {
     ["chromium", "chromium-browser", "google-chrome"]
