@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-pub use dictionary::{DEFAULT_DURATIONS, dictionary, text_to_segments};
+pub use dictionary::{DEFAULT_DURATIONS, pronunciation, text_to_segments};
 pub use labels::{
     format_htk, format_tsv, parse_htk, parse_textgrid, parse_tsv, read_htk, read_labels,
     read_textgrid, read_tsv, write_labels,
