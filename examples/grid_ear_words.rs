@@ -86,8 +86,8 @@ fn main() {
             }
         };
         let heard: [Vec<TimedPhone>; 3] = [
-            with.map_or_else(Vec::new, |m| m.recognise(&aligner, &sound.samples, sound.rate).unwrap().unwrap()),
-            without.recognise(&aligner, &sound.samples, sound.rate).unwrap().unwrap(),
+            with.map_or_else(Vec::new, |m| m.recognise(&aligner, &sound.samples, sound.rate).unwrap().unwrap().0),
+            without.recognise(&aligner, &sound.samples, sound.rate).unwrap().unwrap().0,
             general,
         ];
         for (count, phones) in counts.iter_mut().zip(&heard) {

@@ -173,7 +173,7 @@ fn main() {
         if let Some(map) = map {
             score(format!("talker's ear, {weight} / {penalty}"), &|_, samples| {
                 let phones = map.recognise_through(&aligner, samples, frontend::SAMPLE_RATE, &lm).unwrap();
-                (phones.expect("the map has a phone classifier"), Vec::new(), None)
+                (phones.expect("the map has a phone classifier").0, Vec::new(), None)
             });
             continue;
         }

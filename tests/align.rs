@@ -685,7 +685,11 @@ fn another_ears_scores_drive_the_phone_loop() {
             })
             .collect()
     };
-    let got = a.recognise_by(&audio.samples, audio.rate, &lm, ear, &flat).unwrap();
+    let (got, heard) = a.recognise_by(&audio.samples, audio.rate, &lm, ear, &flat).unwrap();
+    // The evidence given back is what the ear was given: the sound's acoustic evidence.
+    let evidence = a.acoustic_evidence(&audio.samples, audio.rate).unwrap();
+    assert_eq!(heard.scores.len(), frames);
+    assert!(heard.scores == evidence.scores && heard.cepstra == evidence.cepstra);
     let names: Vec<&str> = got.iter().map(|p| p.phone.as_str()).collect();
     assert_eq!(names, ["AA", "M"], "{got:?}");
     assert!((got[0].end - (frames / 2) as f64 * 0.01).abs() < 0.011, "{got:?}");

@@ -439,7 +439,8 @@ impl Aligner {
     /// Phones heard by another ear: sound that [`Self::recognise`] refuses (through `lm`) is
     /// refused, then `ear` scores each phone in each frame of the sound's [`Evidence`]
     /// (scaled log-likelihoods: a talker's own classifier) and the best path of the loop
-    /// `ear_lm` through those scores is the answer.
+    /// `ear_lm` through those scores is the answer, given with the evidence it was heard by
+    /// (a talker's map draws the lips from the same: computed once).
     pub fn recognise_by(
         &self,
         samples: &[f32],
@@ -447,17 +448,18 @@ impl Aligner {
         lm: &PhoneLoop,
         ear: impl FnOnce(&Evidence) -> Vec<Vec<f32>>,
         ear_lm: &PhoneLoop,
-    ) -> Result<Vec<TimedPhone>, AlignError> {
+    ) -> Result<(Vec<TimedPhone>, Evidence), AlignError> {
         let feats = self.features(samples, rate)?;
         // One scoring of every phone's states serves the refusal's search and the evidence.
         let states = search::ci_state_scores(&self.model, &feats);
         let free = search::Graph::phone_loop(&self.model, &lm.transition);
         let path = search::viterbi_states(&self.model, &free, &states).ok_or(AlignError::NoPath)?;
         self.check_speech(&free, &path, feats.len())?;
-        let scores = ear(&self.evidence_from(&feats, &states));
+        let heard = self.evidence_from(&feats, &states);
+        let scores = ear(&heard);
         let graph = search::Graph::phone_loop(&self.model, &ear_lm.transition);
         let path = search::viterbi_scored(&self.model, &graph, &scores).ok_or(AlignError::NoPath)?;
-        Ok(merge_pieces(graph.phones(&self.model, &path, scores.len())))
+        Ok((merge_pieces(graph.phones(&self.model, &path, scores.len())), heard))
     }
 
     /// The best path of the phone loop `lm` over `feats`, and the loop's graph.

@@ -76,16 +76,25 @@ pub fn run(a: VisemesArgs) -> Result<()> {
         .as_deref()
         .map(facespace::talker::Talker::load)
         .transpose()?;
+    let staging = tempfile::tempdir()?;
+    let perform = |talker: &facespace::talker::Talker, speech| {
+        let request = facespace::talker::SayRequest::new(speech);
+        talker.perform(&request, staging.path())
+    };
+    // Without words, a talker performs from the sound itself, as `say` does: its own ear
+    // hears the phones (its map's classifier, where it has one), and its sound-to-face map
+    // opens the mouth as the recording did from the same hearing (B/C/D as the real face
+    // chooses them: 82 % of the time on GRID s1's test split, against 42 % from the
+    // recognised phones; BENCHMARKS "The face from the sound").
+    let mut performed = None;
     let segments = match (&words, &a.labels, &talker) {
         (None, Some(l), _) => read_labels(l, None, &PhoneMap::default())
             .with_context(|| format!("reading {}", l.display()))?,
-        // The talker's own ear hears its phones (its map's classifier, where it has one).
         (None, None, Some(talker)) => {
-            let phones = talker
-                .recognise(&a.audio)
+            let p = perform(talker, facespace::talker::Speech::Sound(a.audio.clone()))
                 .with_context(|| format!("the speech {}", a.audio.display()))?;
             eprintln!("no words given: {}", talker.heard_by()?);
-            align::segments(&phones)
+            performed.insert(p).target.clone()
         }
         (Some(words), None, Some(talker)) => align::segments(
             &talker
@@ -112,26 +121,23 @@ pub fn run(a: VisemesArgs) -> Result<()> {
                 dir.display()
             )
         })?;
-        // With words or labels the talker performs from the same phones, written as labels
-        // in a folder of its own; without, from the sound itself, as `say` does — its
-        // sound-to-face map opens the mouth as the recording did (B/C/D as the real face
-        // chooses them: 82 % of the time on GRID s1's test split, against 42 % from the
-        // recognised phones; BENCHMARKS "The face from the sound").
-        let staging = tempfile::tempdir()?;
-        let speech = if words.is_none() && a.labels.is_none() {
-            facespace::talker::Speech::Sound(a.audio.clone())
-        } else {
-            let labels = staging.path().join("phones.lab");
-            facespace::phonemes::write_labels(&labels, &segments)?;
-            facespace::talker::Speech::Labels {
-                labels,
-                tier: None,
-                map: PhoneMap::default(),
-                audio: None,
+        // With words or labels the talker performs from the same phones, written as labels.
+        let p = match performed {
+            Some(p) => p,
+            None => {
+                let labels = staging.path().join("phones.lab");
+                facespace::phonemes::write_labels(&labels, &segments)?;
+                perform(
+                    talker,
+                    facespace::talker::Speech::Labels {
+                        labels,
+                        tier: None,
+                        map: PhoneMap::default(),
+                        audio: None,
+                    },
+                )?
             }
         };
-        let request = facespace::talker::SayRequest::new(speech);
-        let p = talker.perform(&request, staging.path())?;
         let frames = p.utterance.variants()[0].1.clone();
         let opening = visemes::openings(&talker.model, &frames);
         let fps = frames.fps();

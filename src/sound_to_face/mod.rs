@@ -513,16 +513,9 @@ impl SoundToFace {
     }
 
     /// The face-space shape ‖ appearance of each of `frames` frames at `fps` (rows), from
-    /// the sound `samples` at `rate` (16 kHz).
-    pub fn predict(
-        &self,
-        aligner: &Aligner,
-        samples: &[f32],
-        rate: u32,
-        frames: usize,
-        fps: f64,
-    ) -> Result<DMatrix<f32>, AlignError> {
-        let ev = evidence(aligner, samples, rate)?;
+    /// what the acoustic model heard in the sound ([`Aligner::acoustic_evidence`]).
+    pub fn predict(&self, heard: &crate::align::Evidence, frames: usize, fps: f64) -> DMatrix<f32> {
+        let ev = evidence_rows(heard);
         // In blocks of frames: ten minutes of speech would make a 0.25 GB design matrix.
         let mut face = DMatrix::zeros(frames, self.weights.ncols());
         for start in (0..frames).step_by(PREDICT_BLOCK) {
@@ -530,7 +523,7 @@ impl SoundToFace {
             let x = design(&ev, block.clone(), fps).map(|v| v as f32);
             face.rows_mut(start, block.len()).copy_from(&self.face_of(&x));
         }
-        Ok(face)
+        face
     }
 
     /// The shape ‖ appearance of frames centred on the evidence frames `centres` of
@@ -555,20 +548,13 @@ impl SoundToFace {
 
     /// [`Self::predict`] with the motion scaled by [`AMPLITUDE_GAIN`] about the utterance's
     /// own mean: the face a whole recording without its words says.
-    pub fn predict_utterance(
-        &self,
-        aligner: &Aligner,
-        samples: &[f32],
-        rate: u32,
-        frames: usize,
-        fps: f64,
-    ) -> Result<DMatrix<f32>, AlignError> {
-        let mut face = self.predict(aligner, samples, rate, frames, fps)?;
+    pub fn predict_utterance(&self, heard: &crate::align::Evidence, frames: usize, fps: f64) -> DMatrix<f32> {
+        let mut face = self.predict(heard, frames, fps);
         for mut column in face.column_iter_mut() {
             let mean = column.mean();
             column.apply(|v| *v = mean + AMPLITUDE_GAIN * (*v - mean));
         }
-        Ok(face)
+        face
     }
 
     /// Writes `face` (frames × shape ‖ appearance, [`Self::predict_utterance`]) into
@@ -604,13 +590,14 @@ impl SoundToFace {
     /// ([`PhoneClassifier`]) through the phone loop its scores were weighed with
     /// ([`phones::LOOP_WEIGHT`], [`phones::LOOP_PENALTY`]); `None` for a map without one
     /// (learnt before it). Sound that is not speech is refused as [`Aligner::recognise`]
-    /// refuses it.
+    /// refuses it. With the phones, the evidence they were heard by
+    /// ([`Self::predict_utterance`] draws the face from it).
     pub fn recognise(
         &self,
         aligner: &Aligner,
         samples: &[f32],
         rate: u32,
-    ) -> Result<Option<Vec<crate::align::TimedPhone>>, AlignError> {
+    ) -> Result<Option<(Vec<crate::align::TimedPhone>, crate::align::Evidence)>, AlignError> {
         let lm = aligner.phone_loop(phones::LOOP_WEIGHT, phones::LOOP_PENALTY);
         self.recognise_through(aligner, samples, rate, &lm)
     }
@@ -651,7 +638,7 @@ impl SoundToFace {
         samples: &[f32],
         rate: u32,
         lm: &crate::align::PhoneLoop,
-    ) -> Result<Option<Vec<crate::align::TimedPhone>>, AlignError> {
+    ) -> Result<Option<(Vec<crate::align::TimedPhone>, crate::align::Evidence)>, AlignError> {
         let Some(classifier) = &self.phones else {
             return Ok(None);
         };

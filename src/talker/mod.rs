@@ -31,6 +31,7 @@ use crate::synth::output::{OutputError, OutputOptions};
 use crate::synth::unit::UnitSelection;
 use crate::synth::{Request, Smoothing, SynthError, Synthesiser, Utterance};
 use crate::video::{Sink, VideoError};
+use crate::align::Evidence;
 use crate::{Progress, atomic};
 use footage::{Footage, FootageError, Plan};
 
@@ -267,9 +268,9 @@ pub enum TalkerError {
     },
 }
 
-/// The phones of a request's speech, its words when there were words, and the sound to put
-/// under the video.
-type Heard = (Vec<Segment>, Option<String>, Option<PathBuf>);
+/// The phones of a request's speech, its words when there were words, the sound to put
+/// under the video, and what the talker's own ear heard in it when it recognised the phones.
+type Heard = (Vec<Segment>, Option<String>, Option<PathBuf>, Option<Evidence>);
 
 /// A talker, loaded (module docs).
 pub struct Talker {
@@ -577,6 +578,12 @@ impl Talker {
     /// (its sound-to-face map's [`crate::sound_to_face::PhoneClassifier`]) where it has one,
     /// else by the acoustic model's phone loop. Sound that is not speech is refused.
     pub fn recognise(&self, audio: &Path) -> Result<Vec<crate::align::TimedPhone>, TalkerError> {
+        Ok(self.hear_sound(audio)?.0)
+    }
+
+    /// [`Self::recognise`], with the evidence the talker's own ear heard the phones by
+    /// (`None` when the acoustic model's phone loop heard them).
+    fn hear_sound(&self, audio: &Path) -> Result<(Vec<crate::align::TimedPhone>, Option<Evidence>), TalkerError> {
         let sound = speech_sound(audio)?;
         let failed = |e| TalkerError::Align {
             path: audio.to_path_buf(),
@@ -585,12 +592,12 @@ impl Talker {
         let aligner = self.default_aligner().map_err(failed)?;
         let (samples, rate) = (&sound.samples, sound.rate);
         if let Some(map) = self.sound_to_face()?
-            && let Some(phones) = map.recognise(aligner, samples, rate).map_err(failed)?
+            && let Some((phones, heard)) = map.recognise(aligner, samples, rate).map_err(failed)?
         {
-            return Ok(phones);
+            return Ok((phones, Some(heard)));
         }
         let lm = aligner.phone_loop(crate::align::PHONE_WEIGHT, crate::align::PHONE_PENALTY);
-        aligner.recognise(samples, rate, &lm).map_err(failed)
+        Ok((aligner.recognise(samples, rate, &lm).map_err(failed)?, None))
     }
 
     /// The phones of the recording `audio` aligned to its `words` by `aligner` (the talker's
@@ -654,7 +661,7 @@ impl Talker {
     ) -> Result<(Vec<Segment>, PathBuf, Vec<String>), TalkerError> {
         let mut notes = Vec::new();
         let request = SayRequest::new(Speech::Text(text.into()));
-        let (phones, _, sound) = self.phones(&request, staging, &mut notes)?;
+        let (phones, _, sound, _) = self.phones(&request, staging, &mut notes)?;
         let sound = sound.unwrap_or_else(|| staging.join("speech.wav"));
         Ok((phones, sound, notes))
     }
@@ -714,15 +721,15 @@ impl Talker {
                         .unwrap_or_default();
                     notes.push(format!("{note}{hint}"));
                 }
-                (align(&wav, text)?, Some(text.clone()), Some(wav))
+                (align(&wav, text)?, Some(text.clone()), Some(wav), None)
             }
             Speech::Recording { audio, words } => {
-                (hear(audio, words)?, Some(words.clone()), Some(audio.clone()))
+                (hear(audio, words)?, Some(words.clone()), Some(audio.clone()), None)
             }
             // (`perform` says how the lips were drawn: by the talker's map, or these phones.)
             Speech::Sound(audio) => {
-                let phones = self.recognise(audio)?;
-                (crate::align::segments(&phones), None, Some(audio.clone()))
+                let (phones, heard) = self.hear_sound(audio)?;
+                (crate::align::segments(&phones), None, Some(audio.clone()), heard)
             }
             Speech::Labels {
                 labels,
@@ -733,29 +740,36 @@ impl Talker {
                 crate::phonemes::read_labels(labels, tier.as_deref(), map)?,
                 None,
                 audio.clone(),
+                None,
             ),
         })
     }
 
     /// Replaces the synthesised shape and appearance of `utterance` (both variants) by
-    /// what `map` predicts from the recording `audio`; the poses stay.
+    /// what `map` predicts from the recording `audio` (from `heard`, its evidence, when the
+    /// talker's ear has computed it already); the poses stay.
     fn face_from_sound(
         &self,
         map: &crate::sound_to_face::SoundToFace,
         audio: &Path,
+        heard: Option<Evidence>,
         utterance: &mut crate::synth::Utterance,
     ) -> Result<(), TalkerError> {
-        let sound = speech_sound(audio)?;
-        let failed = |e| TalkerError::Align {
-            path: audio.to_path_buf(),
-            source: Box::new(e),
+        let heard = match heard {
+            Some(heard) => heard,
+            None => {
+                let sound = speech_sound(audio)?;
+                self.default_aligner()
+                    .and_then(|a| a.acoustic_evidence(&sound.samples, sound.rate))
+                    .map_err(|e| TalkerError::Align {
+                        path: audio.to_path_buf(),
+                        source: Box::new(e),
+                    })?
+            }
         };
-        let aligner = self.default_aligner().map_err(failed)?;
         // One prediction for both variants (they share the frame grid).
         let raw = &utterance.synthesis.frames;
-        let face = map
-            .predict_utterance(aligner, &sound.samples, sound.rate, raw.len(), raw.fps())
-            .map_err(failed)?;
+        let face = map.predict_utterance(&heard, raw.len(), raw.fps());
         let frames = std::iter::once(&mut utterance.synthesis.frames).chain(utterance.smoothed.as_mut());
         for f in frames {
             map.apply(&face, f, &utterance.target);
@@ -782,7 +796,7 @@ impl Talker {
         staging: &Path,
     ) -> Result<Performance, TalkerError> {
         let mut notes = Vec::new();
-        let (target, words, sound) = self.phones(request, staging, &mut notes)?;
+        let (target, words, sound, heard) = self.phones(request, staging, &mut notes)?;
         let fps = self.footage.fps;
         crate::synth::validate_request(&target, fps)?;
         let n = crate::synth::frame_count(&target, fps);
@@ -803,7 +817,7 @@ impl Talker {
         if let Speech::Sound(audio) = &request.speech {
             let drawn = match self.sound_to_face()? {
                 Some(map) => {
-                    self.face_from_sound(map, audio, &mut utterance)?;
+                    self.face_from_sound(map, audio, heard, &mut utterance)?;
                     "; the lips were predicted from the sound by the talker's sound-to-face map"
                 }
                 None => "",
