@@ -79,7 +79,7 @@ pub fn run(a: VisemesArgs) -> Result<()> {
     let staging = tempfile::tempdir()?;
     let perform = |talker: &facespace::talker::Talker, speech| {
         let request = facespace::talker::SayRequest::new(speech);
-        talker.perform(&request, staging.path())
+        anyhow::Ok(talker.perform(&request, staging.path())?)
     };
     // Without words, a talker performs from the sound itself, as `say` does: its own ear
     // hears the phones (its map's classifier, where it has one), and its sound-to-face map
