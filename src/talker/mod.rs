@@ -18,6 +18,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
+use crate::align::Evidence;
 use crate::codebook::{Codebook, CodebookError};
 use crate::manifest::{self, ManifestError};
 use crate::model::{FaceModel, ModelError};
@@ -31,7 +32,6 @@ use crate::synth::output::{OutputError, OutputOptions};
 use crate::synth::unit::UnitSelection;
 use crate::synth::{Request, Smoothing, SynthError, Synthesiser, Utterance};
 use crate::video::{Sink, VideoError};
-use crate::align::Evidence;
 use crate::{Progress, atomic};
 use footage::{Footage, FootageError, Plan};
 
