@@ -448,7 +448,11 @@ impl SoundToFace {
                 let y = DMatrix::from_fn(s.frames.len(), params.len(), |i, j| {
                     f64::from(s.frames.row(i)[params.start + j])
                 });
-                let sums = (x.tr_mul(&x), x.tr_mul(&y));
+                // Through the transpose's copy, so that the products run as blocked matrix
+                // products (`matrixmultiply`); `tr_mul` takes one dot product per element, half
+                // of a whole `talker sound-to-face`.
+                let xt = x.transpose();
+                let sums = (&xt * &x, &xt * &y);
                 let heard = Heard {
                     labels: frame_labels(&s.segments, ev.len(), &aligner.model),
                     evidence: ev,
