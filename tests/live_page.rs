@@ -40,15 +40,15 @@ fn call_video() -> std::path::PathBuf {
 }
 
 /// The live page open in headless Chromium (WebGL2 on SwiftShader, and `extra` switches),
-/// ready, holding [`common::timed_apart`]; `None` (the test skipped) without Chromium.
+/// ready, holding [`common::timing_alone`]; `None` (the test skipped) without Chromium.
 fn open_page(
     extra: &[String],
-) -> Option<(std::sync::MutexGuard<'static, ()>, common::cdp::Browser, common::cdp::Page)> {
+) -> Option<(std::sync::RwLockWriteGuard<'static, ()>, common::cdp::Browser, common::cdp::Page)> {
     let Some(chromium) = common::chromium() else {
         eprintln!("skipped: no Chromium on PATH (.ci/run installs the distribution's package)");
         return None;
     };
-    let one = common::timed_apart();
+    let one = common::timing_alone();
     let mut switches = webgl();
     switches.extend_from_slice(extra);
     let mut browser = common::cdp::Browser::launch_with(chromium, &switches);

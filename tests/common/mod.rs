@@ -176,13 +176,21 @@ pub fn lenna_frames(dir: &Path, count: usize) -> PathBuf {
     frames
 }
 
-/// One at a time of the tests that time the machine and those that load it: the live page
-/// (SwiftShader renders on the CPU; two pages, or a page beside the kill tests' children,
-/// starve its event loop and the pacing it measures) and the kill tests (each runs the CLI as
-/// child processes on both cores).
-pub fn timed_apart() -> std::sync::MutexGuard<'static, ()> {
-    static LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
-    LOCK.lock().unwrap_or_else(|e| e.into_inner())
+/// The tests that time the machine run alone; those that load it share it with each other.
+/// The live page (SwiftShader renders on the CPU; two pages, or a page beside the kill tests'
+/// children, starve its event loop and the pacing it measures) takes [`timing_alone`]; the
+/// kill tests (each runs the CLI as child processes on both cores) take [`loading`], so they
+/// run beside each other and beside the rest of the suite, never beside a page.
+static MACHINE: std::sync::RwLock<()> = std::sync::RwLock::new(());
+
+/// Held while a test measures real-time pacing: no [`loading`] test runs meanwhile.
+pub fn timing_alone() -> std::sync::RwLockWriteGuard<'static, ()> {
+    MACHINE.write().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Held while a test loads every core with child processes: kept apart from [`timing_alone`].
+pub fn loading() -> std::sync::RwLockReadGuard<'static, ()> {
+    MACHINE.read().unwrap_or_else(|e| e.into_inner())
 }
 
 /// A Chromium on PATH, if any (`.ci/run` installs the distribution's package).
