@@ -356,8 +356,42 @@ fn ridge(mut xtx: DMatrix<f64>, xty: &DMatrix<f64>, lambda: f64) -> Option<DMatr
         xtx[(j, j)] += lambda;
     }
     let l = cholesky(xtx)?;
-    let inner = l.solve_lower_triangular(xty)?;
-    l.tr_solve_lower_triangular(&inner)
+    let inner = solve_lower(&l, xty.clone())?;
+    solve_lower_transposed(&l, inner)
+}
+
+/// `L⁻¹ B` for a lower-triangular `l`, by blocks of rows: each block's earlier rows taken off
+/// by one matrix product, then its own small triangle solved — nalgebra's solve subtracts a
+/// column at a time. `None` for a zero on the diagonal.
+fn solve_lower(l: &DMatrix<f64>, mut b: DMatrix<f64>) -> Option<DMatrix<f64>> {
+    let n = l.nrows();
+    let mut k = 0;
+    while k < n {
+        let s = CHOLESKY_BLOCK.min(n - k);
+        let (done, mut block) = b.rows_range_pair_mut(..k, k..k + s);
+        block.gemm(-1.0, &l.view((k, 0), (s, k)), &done, 1.0);
+        let solved = l.view((k, k), (s, s)).solve_lower_triangular(&block)?;
+        block.copy_from(&solved);
+        k += s;
+    }
+    Some(b)
+}
+
+/// `L⁻ᵀ B` for a lower-triangular `l`, by blocks of rows from the last, as [`solve_lower`].
+fn solve_lower_transposed(l: &DMatrix<f64>, mut b: DMatrix<f64>) -> Option<DMatrix<f64>> {
+    let n = l.nrows();
+    let mut end = n;
+    while end > 0 {
+        let k = end.saturating_sub(CHOLESKY_BLOCK);
+        let (mut block, done) = b.rows_range_pair_mut(k..end, end..);
+        // The rows below the block, transposed once so the product runs blocked.
+        let below = l.view((end, k), (n - end, end - k)).transpose();
+        block.gemm(-1.0, &below, &done, 1.0);
+        let solved = l.view((k, k), (end - k, end - k)).tr_solve_lower_triangular(&block)?;
+        block.copy_from(&solved);
+        end = k;
+    }
+    Some(b)
 }
 
 /// Columns factored at a time by [`cholesky`].
@@ -710,9 +744,19 @@ impl SoundToFace {
     /// Loads the folder `dir` for `model` (its hash checked) and the acoustic model of
     /// `aligner` (its phone count checked).
     pub fn load(dir: &Path, model: &FaceModel, phones: usize) -> Result<SoundToFace, SoundToFaceError> {
+        Self::load_for(dir, model, &model.hash(), phones)
+    }
+
+    /// [`SoundToFace::load`] with the model's hash already taken (it reads every array of it).
+    pub(crate) fn load_for(
+        dir: &Path,
+        model: &FaceModel,
+        model_hash: &str,
+        phones: usize,
+    ) -> Result<SoundToFace, SoundToFaceError> {
         let (m, _): (Manifest, _) =
             manifest::read_versions(&dir.join(MANIFEST), FORMAT, 1..=SOUND_TO_FACE_VERSION)?;
-        if m.model_hash != model.hash() {
+        if m.model_hash != model_hash {
             return Err(SoundToFaceError::Mismatch(format!(
                 "{}: learnt with another face model (learn it again)",
                 dir.display()
@@ -790,6 +834,24 @@ mod tests {
 
     /// The blocked factor is nalgebra's unblocked one (an independent implementation), over
     /// sizes with a partial last block, and a matrix that is not positive definite is refused.
+    #[test]
+    fn blocked_triangular_solves_match_nalgebras() {
+        let mut rng = crate::rng::Rng::new(7);
+        for n in [1, 63, 64, 65, 200] {
+            let m = DMatrix::from_fn(n + 3, n, |_, _| rng.normal());
+            let l = cholesky(m.tr_mul(&m) + DMatrix::identity(n, n)).unwrap();
+            let b = DMatrix::from_fn(n, 5, |_, _| rng.normal());
+            let forward = solve_lower(&l, b.clone()).unwrap();
+            let backward = solve_lower_transposed(&l, b.clone()).unwrap();
+            assert!((&forward - l.solve_lower_triangular(&b).unwrap()).amax() < 1e-9);
+            assert!((&backward - l.tr_solve_lower_triangular(&b).unwrap()).amax() < 1e-9);
+            assert!((&l * &forward - &b).amax() < 1e-9);
+            assert!((l.transpose() * &backward - &b).amax() < 1e-9);
+        }
+        let singular = DMatrix::from_row_slice(2, 2, &[1.0, 0.0, 1.0, 0.0]);
+        assert!(solve_lower(&singular, DMatrix::identity(2, 1)).is_none());
+    }
+
     #[test]
     fn blocked_cholesky_is_the_cholesky_factor() {
         let mut rng = crate::rng::Rng::new(9);
