@@ -370,16 +370,24 @@ impl Mouths {
     /// header checked against them; each piece of the video is decoded into its detail when a
     /// frame of it is first drawn ([`Mouths::detail`]).
     pub fn load(dir: &Path, model: &FaceModel) -> Result<Mouths, MouthsError> {
+        Self::load_for(dir, model, &model.hash())
+    }
+
+    /// [`Mouths::load`] with the model's hash already taken (it reads every array of it).
+    pub(crate) fn load_for(
+        dir: &Path,
+        model: &FaceModel,
+        model_hash: &str,
+    ) -> Result<Mouths, MouthsError> {
         let m: Manifest = manifest::read(&dir.join(MANIFEST), FORMAT, MOUTHS_VERSION)?;
         let inconsistent = |reason: String| MouthsError::Inconsistent {
             dir: dir.into(),
             reason,
         };
-        if m.model_hash != model.hash() {
+        if m.model_hash != model_hash {
             return Err(inconsistent(format!(
-                "made for model {}, not this talker's {}",
-                m.model_hash,
-                model.hash()
+                "made for model {}, not this talker's {model_hash}",
+                m.model_hash
             )));
         }
         let pixels = region(model)?;

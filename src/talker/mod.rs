@@ -284,6 +284,9 @@ pub struct Talker {
     pub codebook: Codebook,
     /// The idle footage.
     pub footage: Footage,
+    /// The model's hash as loaded, which the parts loaded later are checked against (taking
+    /// it reads every array of the model: 10 MB for GRID s1's).
+    model_hash: String,
     /// The aligner with the committed dictionary, loaded when first needed and kept, with the
     /// phone bigram it estimates, for every later request without extra dictionaries.
     aligner: std::sync::OnceLock<crate::align::Aligner>,
@@ -510,6 +513,7 @@ impl Talker {
             model,
             codebook,
             footage,
+            model_hash: hash,
             aligner: std::sync::OnceLock::new(),
             mouths: std::sync::OnceLock::new(),
             sound_to_face: std::sync::OnceLock::new(),
@@ -547,7 +551,7 @@ impl Talker {
                 .model
                 .ci_names
                 .len();
-            crate::sound_to_face::SoundToFace::load(&path, &self.model, phones)
+            crate::sound_to_face::SoundToFace::load_for(&path, &self.model, &self.model_hash, phones)
         };
         loaded_once(&self.sound_to_face, load)
             .map(Some)
@@ -566,7 +570,7 @@ impl Talker {
         let load = || {
             let path = manifest::member(&self.dir, name)
                 .map_err(crate::mouths::MouthsError::Manifest)?;
-            crate::mouths::Mouths::load(&path, &self.model)
+            crate::mouths::Mouths::load_for(&path, &self.model, &self.model_hash)
         };
         loaded_once(&self.mouths, load).map(Some).map_err(|source| TalkerError::Mouths {
             dir: self.dir.clone(),
