@@ -129,6 +129,41 @@ impl Adam {
     }
 }
 
+/// `aᵀ b`, where `a` is the column-major data of a `rows`-row matrix: one blocked product that
+/// reads the transpose through its strides. nalgebra's `tr_mul` takes a dot product per
+/// element, and its own products of views with a row stride read out of bounds where a side
+/// is under six (its fallback loop).
+fn tr_product(a: &[f32], rows: usize, b: &DMatrix<f32>) -> DMatrix<f32> {
+    assert_eq!(b.nrows(), rows, "tr_product: mismatched shapes");
+    let m = if rows == 0 { 0 } else { a.len() / rows };
+    assert_eq!(a.len(), rows * m, "tr_product: mismatched shapes");
+    let n = b.ncols();
+    let mut c = DMatrix::<f32>::zeros(m, n);
+    if m > 0 && n > 0 && rows > 0 {
+        // SAFETY: `a` holds m columns of `rows` (read as m × rows: row stride `rows`), `b` is
+        // rows × n and `c` m × n, both column-major; the shapes are checked above.
+        unsafe {
+            matrixmultiply::sgemm(
+                m,
+                rows,
+                n,
+                1.0,
+                a.as_ptr(),
+                rows as isize,
+                1,
+                b.as_ptr(),
+                1,
+                rows as isize,
+                0.0,
+                c.as_mut_ptr(),
+                1,
+                m as isize,
+            );
+        }
+    }
+    c
+}
+
 /// Adds the row vector `b` to every row of `z`.
 fn add_row(z: &mut DMatrix<f32>, b: &DMatrix<f32>) {
     for (mut column, &b) in z.column_iter_mut().zip(b.iter()) {
@@ -177,6 +212,9 @@ pub fn learn<F: Fn(usize, &mut [f32])>(
     let mut rate = LEARNING_RATE;
     let mut t = 0;
     let keep = 1.0 / (1.0 - DROPOUT);
+    // An input is dropped when `rng.uniform() < DROPOUT`, i.e. when its 53 bits fall below
+    // this (exact: both sides are scaled by 2⁵³), compared as integers.
+    let drop_below = (f64::from(DROPOUT) * (1u64 << 53) as f64).ceil() as u64;
     // Rows of the batch laid out contiguously: xᵀ, features × batch.
     let mut xt = DMatrix::<f32>::zeros(d, BATCH);
     for epoch in 0..schedule.epochs {
@@ -193,7 +231,7 @@ pub fn learn<F: Fn(usize, &mut [f32])>(
                 let row = column.data.into_slice_mut();
                 (examples.row)(i, row);
                 for (j, v) in row.iter_mut().enumerate() {
-                    let dropped = rng.uniform() < f64::from(DROPOUT);
+                    let dropped = rng.next_u64() >> 11 < drop_below;
                     *v = if dropped {
                         0.0
                     } else {
@@ -213,9 +251,9 @@ pub fn learn<F: Fn(usize, &mut [f32])>(
                     }
                 }
             }
+            // The batch's rows as xᵀ's columns, read without a transposed copy.
+            let mut z = tr_product(&xt.as_slice()[..d * b], d, &w1);
             let xt = xt.columns(0, b);
-            let x = xt.transpose();
-            let mut z = &x * &w1;
             add_row(&mut z, &b1);
             let h = z.map(|v| v.max(0.0));
             let mut out = &h * &w2;
@@ -226,7 +264,7 @@ pub fn learn<F: Fn(usize, &mut [f32])>(
                 // Softmax cross-entropy's: the probabilities less the one-hot classes.
                 Target::Classes { .. } => (softmax_rows(out) - target) * (1.0 / b as f32),
             };
-            let gw2 = h.tr_mul(&g);
+            let gw2 = tr_product(h.as_slice(), b, &g);
             let gb2 = g.row_sum();
             let mut gh = &g * w2.transpose();
             gh.zip_apply(&z, |gh, z| {
@@ -343,6 +381,21 @@ mod tests {
     }
 
     /// Analytic: softmax of (0, ln 3) is (¼, ¾), and huge log-odds do not overflow.
+    #[test]
+    fn tr_product_is_the_transposes_product() {
+        let mut rng = Rng::new(3);
+        // Sides under six too, where nalgebra's own loop takes over from its blocked product.
+        for (rows, m, n) in [(1, 1, 1), (3, 2, 5), (7, 4, 1), (40, 9, 13), (300, 256, 63)] {
+            let a = DMatrix::<f32>::from_fn(rows, m, |_, _| rng.normal() as f32);
+            let b = DMatrix::<f32>::from_fn(rows, n, |_, _| rng.normal() as f32);
+            let ours = tr_product(a.as_slice(), rows, &b);
+            let reference = a.cast::<f64>().tr_mul(&b.cast::<f64>());
+            assert_eq!(ours.shape(), (m, n));
+            assert!((ours.cast::<f64>() - reference).amax() < 1e-3 * rows as f64);
+        }
+        assert_eq!(tr_product(&[], 0, &DMatrix::zeros(0, 3)).shape(), (0, 3));
+    }
+
     #[test]
     fn softmax_rows_are_probabilities() {
         let p = softmax_rows(DMatrix::from_row_slice(2, 2, &[0.0, 3f32.ln(), 1000.0, 1000.0]));
