@@ -135,7 +135,7 @@ impl Adam {
 /// is under six (its fallback loop).
 fn tr_product(a: &[f32], rows: usize, b: &DMatrix<f32>) -> DMatrix<f32> {
     assert_eq!(b.nrows(), rows, "tr_product: mismatched shapes");
-    let m = if rows == 0 { 0 } else { a.len() / rows };
+    let m = a.len().checked_div(rows).unwrap_or(0);
     assert_eq!(a.len(), rows * m, "tr_product: mismatched shapes");
     let n = b.ncols();
     let mut c = DMatrix::<f32>::zeros(m, n);
