@@ -350,13 +350,13 @@ fn window_into(evidence: &[Vec<f32>], centre: i64, out: &mut [f32]) {
 
 /// The ridge regression's weights from its sums: `(XᵀX + λ I)⁻¹ XᵀY`, the last feature (the
 /// constant) not shrunk.
-fn ridge(mut xtx: DMatrix<f64>, xty: &DMatrix<f64>, lambda: f64) -> Option<DMatrix<f64>> {
+fn ridge(mut xtx: DMatrix<f64>, xty: DMatrix<f64>, lambda: f64) -> Option<DMatrix<f64>> {
     let d = xtx.nrows();
     for j in 0..d.saturating_sub(1) {
         xtx[(j, j)] += lambda;
     }
     let l = cholesky(xtx)?;
-    let inner = solve_lower(&l, xty.clone())?;
+    let inner = solve_lower(&l, xty)?;
     solve_lower_transposed(&l, inner)
 }
 
@@ -516,7 +516,7 @@ impl SoundToFace {
                 "only {frames} frames of the codebook's recordings have sound (at least {least_frames} needed: a map learnt on less follows the lips worse than recognised phones)"
             )));
         }
-        let mut weights = ridge(xtx, &xty, RIDGE)
+        let mut weights = ridge(xtx, xty, RIDGE)
             .ok_or_else(|| SoundToFaceError::Learn("the sums are not positive definite".into()))?;
         // One standardisation of the windows serves the hidden layer and the ear.
         let (mean, scale) = standardisation(&heard);
@@ -820,7 +820,7 @@ mod tests {
         let (n, d, k, lambda) = (40, 6, 3, 2.5);
         let x = DMatrix::from_fn(n, d, |_, j| if j == d - 1 { 1.0 } else { rng.normal() });
         let y = DMatrix::from_fn(n, k, |_, _| rng.normal());
-        let w = ridge(x.tr_mul(&x), &x.tr_mul(&y), lambda).unwrap();
+        let w = ridge(x.tr_mul(&x), x.tr_mul(&y), lambda).unwrap();
         let mut a = DMatrix::zeros(n + d - 1, d);
         a.rows_mut(0, n).copy_from(&x);
         for j in 0..d - 1 {
@@ -832,8 +832,8 @@ mod tests {
         assert!((w - reference).abs().max() < 1e-10);
     }
 
-    /// The blocked factor is nalgebra's unblocked one (an independent implementation), over
-    /// sizes with a partial last block, and a matrix that is not positive definite is refused.
+    /// The blocked solves are nalgebra's column-at-a-time ones, over sizes with a partial last
+    /// block, and a zero on the diagonal is refused.
     #[test]
     fn blocked_triangular_solves_match_nalgebras() {
         let mut rng = crate::rng::Rng::new(7);
@@ -852,6 +852,8 @@ mod tests {
         assert!(solve_lower(&singular, DMatrix::identity(2, 1)).is_none());
     }
 
+    /// The blocked factor is nalgebra's unblocked one (an independent implementation), over
+    /// sizes with a partial last block, and a matrix that is not positive definite is refused.
     #[test]
     fn blocked_cholesky_is_the_cholesky_factor() {
         let mut rng = crate::rng::Rng::new(9);
@@ -873,7 +875,7 @@ mod tests {
         let mut rng = crate::rng::Rng::new(3);
         let x = DMatrix::from_fn(30, 4, |_, j| if j == 3 { 1.0 } else { rng.normal() });
         let truth = DMatrix::from_fn(4, 2, |i, j| (i as f64) - 2.0 * j as f64);
-        let w = ridge(x.tr_mul(&x), &x.tr_mul(&(&x * &truth)), 0.0).unwrap();
+        let w = ridge(x.tr_mul(&x), x.tr_mul(&(&x * &truth)), 0.0).unwrap();
         assert!((w - truth).abs().max() < 1e-9);
     }
 

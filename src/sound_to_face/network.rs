@@ -380,11 +380,11 @@ mod tests {
         }
     }
 
-    /// Analytic: softmax of (0, ln 3) is (¼, ¾), and huge log-odds do not overflow.
+    /// Against nalgebra's `tr_mul` in f64, over sides under six too (where nalgebra's own
+    /// loop takes over from its blocked product), and with no rows at all.
     #[test]
     fn tr_product_is_the_transposes_product() {
         let mut rng = Rng::new(3);
-        // Sides under six too, where nalgebra's own loop takes over from its blocked product.
         for (rows, m, n) in [(1, 1, 1), (3, 2, 5), (7, 4, 1), (40, 9, 13), (300, 256, 63)] {
             let a = DMatrix::<f32>::from_fn(rows, m, |_, _| rng.normal() as f32);
             let b = DMatrix::<f32>::from_fn(rows, n, |_, _| rng.normal() as f32);
@@ -396,6 +396,7 @@ mod tests {
         assert_eq!(tr_product(&[], 0, &DMatrix::zeros(0, 3)).shape(), (0, 3));
     }
 
+    /// Analytic: softmax of (0, ln 3) is (¼, ¾), and huge log-odds do not overflow.
     #[test]
     fn softmax_rows_are_probabilities() {
         let p = softmax_rows(DMatrix::from_row_slice(2, 2, &[0.0, 3f32.ln(), 1000.0, 1000.0]));
