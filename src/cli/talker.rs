@@ -65,8 +65,8 @@ pub struct BuildArgs {
     model: PathBuf,
     /// The talker's recordings: each NAME.mp4 with its words in NAME.txt (or phone labels
     /// NAME.lab / .TextGrid / .tsv). They become the corpus (kept in the talker's corpus/),
-    /// the codebook (appearance re-centred per sentence) and, from the --footage-clips whose
-    /// head sat most alike, the idle footage.
+    /// the codebook (appearance re-centred per sentence) and, from the --footage-clips takes
+    /// where his head sat as it usually does and alike, the idle footage.
     #[arg(long, conflicts_with_all = ["codebook", "footage", "footage_from"])]
     recordings: Option<PathBuf>,
     /// A codebook built with the model (`codebook build --photometric sentence`), instead of
@@ -78,7 +78,8 @@ pub struct BuildArgs {
     #[arg(long, num_args = 1.., required_unless_present_any = ["footage_from", "recordings"])]
     footage: Vec<PathBuf>,
     /// Instead of --footage: a folder of the codebook's recordings (NAME.mp4), from which the
-    /// --footage-clips takes whose head sat most alike are used.
+    /// --footage-clips takes are used: the one whose head sat most as it usually does, and
+    /// those whose head sat nearest it.
     #[arg(long, conflicts_with = "footage")]
     footage_from: Option<PathBuf>,
     /// Validation sentences of the talker, tracked with the model and not in the codebook (a
@@ -220,7 +221,7 @@ fn build(a: BuildArgs) -> Result<()> {
                 codebook: codebook.clone(),
                 footage: match &a.footage_from {
                     Some(dir) => {
-                        let names = facespace::talker::footage::closest_takes(
+                        let names = facespace::talker::footage::footage_takes(
                             &model,
                             &cb,
                             a.footage_clips,

@@ -114,7 +114,8 @@ pub struct Identity {
 /// phone labels of the same stem) and a model of the talker. They become the corpus
 /// (`T/corpus/`, kept: an interrupted build resumes after it), the codebook (appearance
 /// re-centred per sentence, re-lit to the footage when spoken) and, from the
-/// `footage_clips` recordings whose head sat most alike, the idle footage.
+/// `footage_clips` recordings whose head sat as it usually does and alike
+/// ([`super::footage::footage_takes`]), the idle footage.
 #[derive(Clone, Debug)]
 pub struct Recordings {
     /// The whole-face (or lower-face region) model of the talker.
@@ -197,7 +198,7 @@ pub fn parts_from_recordings(
             cb
         }
     };
-    let names = super::footage::closest_takes(&model, &codebook, recordings.footage_clips)
+    let names = super::footage::footage_takes(&model, &codebook, recordings.footage_clips)
         .map_err(|source| TalkerError::Model {
             dir: dir.clone(),
             source: Box::new(source),
