@@ -18,6 +18,9 @@
 //! chooser's switch cost and `FACESPACE_DETAIL_GAIN` the detail's gain (chosen on validation);
 //! `FACESPACE_FEATURES` adds each feature's accuracy alone, `FACESPACE_GEOMETRY` where the lips
 //! sit below the nose in each clip and each drawing (the footage's head pitch).
+//! `FACESPACE_ENCODED` scores the drawn frames as a viewer gets them: written to an MP4 by the
+//! writer `say` uses and decoded (the recordings are scored as stored, x264 at CRF 21);
+//! `FACESPACE_ENCODED=QP` at that quantiser instead.
 //! `FACESPACE_TALKER=T` scores another talker than the committed GRID one, e.g. the 720×576
 //! one built from `examples/grid_upscale`'s folder (given as GRID).
 
@@ -116,6 +119,8 @@ fn main() {
             sharpness: mouth_sharpness(images, marks),
         }
     };
+    // The drawn frames as a viewer gets them: through the MP4 writer `say` uses, decoded.
+    let encoded = std::env::var("FACESPACE_ENCODED").ok().map(|q| q.parse::<u8>().ok());
     // Per sentence: the recording, then each system.
     let mut sentences: Vec<Vec<Drawn>> = Vec::new();
     let mut switches = 0usize;
@@ -168,8 +173,11 @@ fn main() {
             }
             for r in &renderers {
                 let r = r.as_ref();
-                let images =
+                let mut images =
                     facespace::render::images(r, &frames, backdrop.background().unwrap()).unwrap();
+                if let Some(qp) = encoded {
+                    images = as_written(&images, qp);
+                }
                 drawn.push(draw(&images, &marks));
                 if std::ptr::eq(backdrop, &own) {
                     strip_rows.push(images);
@@ -292,4 +300,22 @@ fn save_strip(rows: &[Vec<image::RgbImage>], lips: &[[f64; 2]], first: usize, ou
         }
     }
     strip.save(out).unwrap();
+}
+
+/// `images` written to an MP4 as `say` writes its video (`video::mp4::Writer::create`, 25
+/// fps), or at the quantiser `qp`, and decoded again.
+fn as_written(images: &[image::RgbImage], qp: Option<u8>) -> Vec<image::RgbImage> {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("drawn.mp4");
+    let (w, h) = images[0].dimensions();
+    let mut writer = match qp {
+        Some(qp) => facespace::video::mp4::Writer::create_with_qp(&path, w, h, 25.0, qp),
+        None => facespace::video::mp4::Writer::create(&path, w, h, 25.0),
+    }
+    .unwrap();
+    for image in images {
+        writer.write(image).unwrap();
+    }
+    writer.finish(&path, None).unwrap();
+    facespace::video::Source::open(&path).and_then(|source| source.collect()).unwrap()
 }

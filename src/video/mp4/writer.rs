@@ -17,6 +17,14 @@ use super::{AudioTrack, Mp4Error};
 /// Track ticks per frame: the timescale is fps × this, so 29.97 fps is exact to 1/1000.
 const FRAME_TICKS: u32 = 1000;
 
+/// The quantiser of the videos written for viewers ([`Writer::create`]: `say`, `synth`, the
+/// demo, decoded clips): about the bit rate of the recordings a talker is made from (GRID s1's
+/// clips, x264 at CRF 21: ≈ 240 kbit/s at 360×288; QP 20 gives ≈ 240 here). At OpenH264's
+/// own quantiser (26, a third of the bits) the encoder smoothed away the recorded mouths'
+/// detail: a discriminator told the drawn mouths from the recordings 0.95 of the time, against
+/// 0.69 before encoding (BENCHMARKS.md, "What a viewer gets").
+pub const VIEWING_QP: u8 = 20;
+
 /// Encodes frames to an H.264 MP4, written beside its destination and renamed into place on
 /// [`Writer::finish`] (dropped unfinished, it leaves nothing behind).
 pub struct Writer {
@@ -33,13 +41,13 @@ pub struct Writer {
 }
 
 impl Writer {
-    /// `width` and `height` must be even (4:2:0).
+    /// A writer at [`VIEWING_QP`]; `width` and `height` must be even (4:2:0).
     pub fn create(path: &Path, width: u32, height: u32, fps: f64) -> Result<Self, Mp4Error> {
-        Self::create_at(path, width, height, fps, None)
+        Self::create_with_qp(path, width, height, fps, VIEWING_QP)
     }
 
-    /// [`Writer::create`] at one quantiser for every frame (`qp`, 0–51; lower keeps more):
-    /// for video kept as data, whose fine detail is the point.
+    /// [`Writer::create`] at another quantiser for every frame (`qp`, 0–51; lower keeps more):
+    /// video kept as data, whose fine detail is the point, takes a lower one.
     pub fn create_with_qp(
         path: &Path,
         width: u32,
@@ -47,35 +55,21 @@ impl Writer {
         fps: f64,
         qp: u8,
     ) -> Result<Self, Mp4Error> {
-        Self::create_at(path, width, height, fps, Some(qp))
-    }
-
-    fn create_at(
-        path: &Path,
-        width: u32,
-        height: u32,
-        fps: f64,
-        qp: Option<u8>,
-    ) -> Result<Self, Mp4Error> {
         if width == 0 || height == 0 || width % 2 == 1 || height % 2 == 1 {
             return Err(Mp4Error::OddSize { width, height });
         }
         // At least one tick per frame at the timescale fps × FRAME_TICKS.
         crate::facespace::check_fps(fps)?;
         let timescale = (fps * f64::from(FRAME_TICKS)).round() as u32;
-        // About 0.25 bit per pixel: visually clean for faces; the codec report measures it.
-        let bits = (f64::from(width * height) * fps * 0.25) as u32;
-        // One quantiser: rate control on, with bits to spare, held to it (with rate control
-        // off OpenH264 keeps its own default quantiser whatever the range).
-        let (bits, mode, qp) = match qp {
-            Some(q) => (bits.saturating_mul(64), RateControlMode::Bufferbased, QpRange::new(q, q)),
-            None => (bits, RateControlMode::Off, QpRange::new(12, 36)),
-        };
+        // One quantiser: rate control on, with bits to spare (64 × a quarter bit per pixel),
+        // held to it (with rate control off OpenH264 keeps its own default quantiser whatever
+        // the range).
+        let bits = ((f64::from(width * height) * fps * 0.25) as u32).saturating_mul(64);
         let config = EncoderConfig::new()
             .bitrate(BitRate::from_bps(bits.max(100_000)))
             .max_frame_rate(FrameRate::from_hz(fps as f32))
-            .rate_control_mode(mode)
-            .qp(qp)
+            .rate_control_mode(RateControlMode::Bufferbased)
+            .qp(QpRange::new(qp, qp))
             .skip_frames(false)
             // Speed over a few per cent of size: the faces are smooth and mostly static.
             .complexity(Complexity::Low)
