@@ -617,8 +617,13 @@ pub fn footage_takes(
     codebook: &crate::codebook::Codebook,
     count: usize,
 ) -> Result<Vec<String>, crate::model::ModelError> {
+    let upper: Vec<usize> = if model.shape.n_landmarks() == 68 {
+        (17..48).collect()
+    } else {
+        (0..model.shape.n_landmarks()).collect()
+    };
     let mut shapes = Vec::with_capacity(codebook.sentences.len());
-    let mut pictured = Vec::with_capacity(codebook.sentences.len());
+    let mut placed = Vec::with_capacity(codebook.sentences.len());
     for s in &codebook.sentences {
         let v = s.frames.values();
         let n = v.nrows().max(1) as f32;
@@ -632,17 +637,9 @@ pub fn footage_takes(
                 .map(|(&b, &var)| f64::from(b) / f64::from(var).sqrt().max(f64::MIN_POSITIVE))
                 .collect(),
         );
-        pictured.push(model.landmarks(params)?.points);
+        let points = model.landmarks(params)?.points;
+        placed.push(upper.iter().map(|&i| points[i]).collect());
     }
-    let upper: Vec<usize> = if model.shape.n_landmarks() == 68 {
-        (17..48).collect()
-    } else {
-        (0..model.shape.n_landmarks()).collect()
-    };
-    let placed: Vec<Vec<crate::shape::Point>> = pictured
-        .iter()
-        .map(|points| upper.iter().map(|&i| points[i]).collect())
-        .collect();
     Ok(usual_and_alike(&shapes, &placed, count)
         .into_iter()
         .map(|j| codebook.sentences[j].name.clone())
@@ -659,12 +656,7 @@ fn usual_and_alike(shapes: &[Vec<f64>], placed: &[Vec<crate::shape::Point>], cou
         return Vec::new();
     };
     let median: Vec<f64> = (0..first.len())
-        .map(|k| {
-            let mut values: Vec<f64> = shapes.iter().map(|s| s[k]).collect();
-            values.sort_by(f64::total_cmp);
-            let mid = values.len() / 2;
-            if values.len() % 2 == 1 { values[mid] } else { 0.5 * (values[mid - 1] + values[mid]) }
-        })
+        .map(|k| crate::plot::median(&shapes.iter().map(|s| s[k]).collect::<Vec<_>>()))
         .collect();
     let unusual = |s: &[f64]| s.iter().zip(&median).map(|(a, m)| (a - m).powi(2)).sum::<f64>();
     let usual = (0..shapes.len())
