@@ -55,6 +55,9 @@ pub struct AcousticModel {
     pub dir: PathBuf,
     /// CI phone names in `mdef` order (`+NSN+ +SPN+ AA … ZH`, `SIL` among them).
     pub ci_names: Vec<String>,
+    /// [`AcousticModel::ci`] of every one- and two-letter name ([`short_name`]; `u8::MAX`:
+    /// none): the phone language model looks up each phone of 135 000 pronunciations.
+    short_ci: Vec<u8>,
     ci_filler: Vec<bool>,
     /// The CI id of `SIL`.
     pub sil: usize,
@@ -202,9 +205,18 @@ impl AcousticModel {
         if senone_codebook.contains(&u16::MAX) {
             return Err(bad("mdef", "a senone belongs to no phone".into()));
         }
+        let mut short_ci = vec![u8::MAX; 26 * 27];
+        for (i, name) in mdef.ci_names.iter().enumerate().take(usize::from(u8::MAX)) {
+            if let Some(k) = short_name(name.as_bytes()) {
+                if short_ci[k] == u8::MAX {
+                    short_ci[k] = i as u8;
+                }
+            }
+        }
         Ok(AcousticModel {
             dir: dir.to_owned(),
             ci_names: mdef.ci_names,
+            short_ci,
             ci_filler: mdef.ci_filler,
             sil: mdef.sil,
             tree: mdef.tree,
@@ -224,9 +236,12 @@ impl AcousticModel {
         })
     }
 
-    /// The CI phone id of an ARPAbet name (`AA`, `SIL`, …).
+    /// The CI phone id of an ARPAbet name (`AA`, `SIL`, …), in any case.
     pub fn ci(&self, name: &str) -> Option<usize> {
-        self.ci_names.iter().position(|n| n.eq_ignore_ascii_case(name))
+        match short_name(name.as_bytes()) {
+            Some(k) => Some(self.short_ci[k]).filter(|&c| c != u8::MAX).map(usize::from),
+            None => self.ci_names.iter().position(|n| n.eq_ignore_ascii_case(name)),
+        }
     }
 
     /// Whether a CI phone is a filler (silence or noise).
@@ -373,6 +388,17 @@ fn gaussians(
         }
     }
     (t_means, t_inv, log_norm)
+}
+
+/// A name of one or two ASCII letters, in any case, as an index below 26 × 27; any other
+/// name `None`.
+fn short_name(name: &[u8]) -> Option<usize> {
+    let letter = |c: u8| c.is_ascii_alphabetic().then(|| usize::from(c.to_ascii_uppercase() - b'A'));
+    match *name {
+        [a] => Some(letter(a)? * 27 + 26),
+        [a, b] => Some(letter(a)? * 27 + letter(b)?),
+        _ => None,
+    }
 }
 
 /// Little-endian reader over a byte slice that reports truncation.
@@ -676,5 +702,33 @@ impl Mdef {
             bases,
             sseq,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    /// The table of short names gives what a search of every name ignoring case gives, for
+    /// every one- and two-letter name in either case, longer ones and ones not letters.
+    #[test]
+    fn ci_matches_a_search_of_every_name() {
+        let Ok(aligner) = crate::align::Aligner::load_default(&[]) else {
+            panic!("the committed acoustic model loads");
+        };
+        let m = &aligner.model;
+        let linear = |name: &str| m.ci_names.iter().position(|n| n.eq_ignore_ascii_case(name));
+        let letters: Vec<char> = ('a'..='z').chain('A'..='Z').collect();
+        let mut names: Vec<String> = letters.iter().map(|c| c.to_string()).collect();
+        for &a in &letters {
+            for &b in &letters {
+                names.push(format!("{a}{b}"));
+            }
+        }
+        names.extend(["", "sil", "Sil", "+NSN+", "+nsn+", "ZHA", "a1", "1a", "é", "aé"].map(String::from));
+        let mut found = 0;
+        for name in &names {
+            assert_eq!(m.ci(name), linear(name), "{name:?}");
+            found += usize::from(linear(name).is_some());
+        }
+        assert!(found > 2 * 39, "{found} names found: the phones in both cases");
     }
 }
