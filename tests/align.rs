@@ -868,6 +868,39 @@ fn live_phones_arrive_within_their_lag() {
     assert!(!live.finish().unwrap().is_empty());
 }
 
+/// A letter as the talker says it: GRID s1 (Scottish) says Z "zed", which the American
+/// dictionary lacks. On lrwz5a ("lay red with z five again", test split, committed as
+/// `lrwz5a.wav`) the aligner given the model folder's `variants.dict` chooses Z EH D, the word
+/// where the corpus's own alignment puts it, and the true transcript fits; the same model
+/// folder without that file squeezes "z" into the "d" of "zed" and refuses its true words.
+#[test]
+fn a_letter_said_as_the_talker_says_it_fits() {
+    let audio = audio::read(&grid().join("lrwz5a.wav"), 16_000, 600.0).unwrap();
+    let text = transcript("lrwz5a");
+    let check = |a: &Aligner| {
+        let lm = a.phone_loop(align::PHONE_WEIGHT, align::PHONE_PENALTY);
+        a.align_checked(&audio.samples, audio.rate, &text, &lm).unwrap()
+    };
+    let (alignment, fit) = check(aligner());
+    assert!(fit.matches(), "{fit:?}");
+    let z = alignment.words.iter().position(|w| w.word == "z").unwrap();
+    let phones: Vec<&str> = alignment.phones.iter().filter(|p| p.word == Some(z)).map(|p| p.phone.as_str()).collect();
+    assert_eq!(phones, ["Z", "EH", "D"]);
+    // The corpus's word alignment (lrwz5a.align, 25 000 units a second): z 1.31–1.72 s.
+    let word = &alignment.words[z];
+    assert!((word.start - 1.31).abs() < 0.05 && (word.end - 1.72).abs() < 0.05, "{word:?}");
+
+    let american = tempfile::tempdir().unwrap();
+    for entry in std::fs::read_dir(align::default_model_dir()).unwrap() {
+        let path = entry.unwrap().path();
+        if path.file_name().unwrap() != align::VARIANTS {
+            std::fs::copy(&path, american.path().join(path.file_name().unwrap())).unwrap();
+        }
+    }
+    let (_, fit) = check(&Aligner::load(american.path(), &[]).unwrap());
+    assert!(!fit.matches(), "without the variant: {fit:?}");
+}
+
 /// Do the words match the speech? (issue 34) On the three committed clips (recorded, none
 /// used to set the thresholds) each true transcript fits and each other clip's transcript
 /// does not, its worst words among those it does not share; `align` warns about the latter.

@@ -200,6 +200,10 @@ pub struct Aligner {
 /// a build that runs away from its source tree (a Python wheel) carries its own copy.
 pub const MODEL_DIR_VAR: &str = "FACESPACE_ACOUSTIC_MODEL";
 
+/// A model folder's pronunciations that its (American) dictionary lacks, such as the letter Z
+/// said "zed": read after the dictionary, as `--dict` files are.
+pub const VARIANTS: &str = "variants.dict";
+
 /// The en-us model folder: [`MODEL_DIR_VAR`]'s when set, else the committed one.
 pub fn default_model_dir() -> PathBuf {
     match std::env::var_os(MODEL_DIR_VAR) {
@@ -209,11 +213,16 @@ pub fn default_model_dir() -> PathBuf {
 }
 
 impl Aligner {
-    /// Loads the model of `dir` and its dictionary (`cmudict-en-us.dict.gz` beside it), plus
-    /// the pronunciations of `extra` dictionary files.
+    /// Loads the model of `dir` and its dictionary (`cmudict-en-us.dict.gz` beside it, with
+    /// the pronunciations of [`VARIANTS`] there when it exists), plus the pronunciations of
+    /// `extra` dictionary files.
     pub fn load(dir: &Path, extra: &[PathBuf]) -> Result<Self, AlignError> {
         let model = AcousticModel::load(dir)?;
         let mut dict = Dictionary::load(&dir.join("cmudict-en-us.dict.gz"), &model)?;
+        let variants = dir.join(VARIANTS);
+        if variants.is_file() {
+            dict.add_file(&variants, &model)?;
+        }
         for path in extra {
             dict.add_file(path, &model)?;
         }
