@@ -207,10 +207,10 @@ impl AcousticModel {
         }
         let mut short_ci = vec![u8::MAX; 26 * 27];
         for (i, name) in mdef.ci_names.iter().enumerate().take(usize::from(u8::MAX)) {
-            if let Some(k) = short_name(name.as_bytes()) {
-                if short_ci[k] == u8::MAX {
-                    short_ci[k] = i as u8;
-                }
+            if let Some(k) = short_name(name.as_bytes())
+                && short_ci[k] == u8::MAX
+            {
+                short_ci[k] = i as u8;
             }
         }
         Ok(AcousticModel {
