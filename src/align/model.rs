@@ -206,7 +206,7 @@ impl AcousticModel {
             return Err(bad("mdef", "a senone belongs to no phone".into()));
         }
         let mut short_ci = vec![u8::MAX; 26 * 27];
-        for (i, name) in mdef.ci_names.iter().enumerate().take(usize::from(u8::MAX)) {
+        for (i, name) in mdef.ci_names.iter().enumerate().take(usize::from(u8::MAX) - 1) {
             if let Some(k) = short_name(name.as_bytes())
                 && short_ci[k] == u8::MAX
             {
@@ -238,7 +238,8 @@ impl AcousticModel {
 
     /// The CI phone id of an ARPAbet name (`AA`, `SIL`, …), in any case.
     pub fn ci(&self, name: &str) -> Option<usize> {
-        match short_name(name.as_bytes()) {
+        // The table holds ids below `u8::MAX` only: a model with more phones searches.
+        match short_name(name.as_bytes()).filter(|_| self.ci_names.len() < usize::from(u8::MAX)) {
             Some(k) => Some(self.short_ci[k]).filter(|&c| c != u8::MAX).map(usize::from),
             None => self.ci_names.iter().position(|n| n.eq_ignore_ascii_case(name)),
         }
