@@ -27,7 +27,10 @@ fn main() {
         .ok()
         .map(|dir| facespace::talker::Talker::load(std::path::Path::new(&dir)).unwrap());
     let map = talker.as_ref().map(|t| t.sound_to_face().unwrap().expect("the talker has a map"));
-    let (mut passed, mut failed) = (0, 0);
+    // (true transcripts accepted, other sentences' refused — a transcript that does not align
+    // at all is refused, as the commands refuse it) and the clips judged wrongly.
+    let (mut accepted, mut refused) = (0, 0);
+    let mut wrong: Vec<String> = Vec::new();
     let (mut truth, mut lies) = (Vec::new(), Vec::new());
     for (k, id) in ids.iter().enumerate() {
         let audio = facespace::audio::read(
@@ -47,19 +50,19 @@ fn main() {
                     .map(|c| c.expect("the map has a phone classifier")),
                 None => aligner.align_checked(&audio.samples, audio.rate, &text, &lm),
             };
+            let matches = match &checked {
+                Ok((_, fit)) if map.is_some() => facespace::sound_to_face::ear_matches(fit),
+                Ok((_, fit)) => fit.matches(),
+                Err(_) => false,
+            };
+            match (true_words, matches) {
+                (true, true) => accepted += 1,
+                (false, false) => refused += 1,
+                (true, false) => wrong.push(format!("{id} refused")),
+                (false, true) => wrong.push(format!("{id} with {other}'s words accepted")),
+            }
             let stats = match checked {
                 Ok((_, fit)) => {
-                    let ours = if map.is_some() {
-                        facespace::sound_to_face::ear_matches(&fit)
-                    } else {
-                        fit.matches()
-                    };
-                    // True transcripts should pass, others fail.
-                    if ours == true_words {
-                        passed += 1;
-                    } else {
-                        failed += 1;
-                    }
                     let mut w = fit.words.clone();
                     w.sort_by(f64::total_cmp);
                     [
@@ -99,7 +102,11 @@ fn main() {
         show("true transcripts ", &truth, k);
         show("other sentences' ", &lies, k);
     }
-    println!("the rule: {passed} right, {failed} wrong");
+    println!(
+        "the rule: {accepted}/{n} true transcripts accepted, {refused}/{n} other sentences' refused{}",
+        if wrong.is_empty() { String::new() } else { format!(" (wrong: {})", wrong.join(", ")) },
+        n = ids.len()
+    );
     if let Some(t) = threshold {
         let accepted = truth.iter().filter(|w| w[1] >= t).count();
         let refused = lies.iter().filter(|w| w[1] < t).count();
