@@ -886,7 +886,8 @@ fn a_letter_said_as_the_talker_says_it_fits() {
     let z = alignment.words.iter().position(|w| w.word == "z").unwrap();
     let phones: Vec<&str> = alignment.phones.iter().filter(|p| p.word == Some(z)).map(|p| p.phone.as_str()).collect();
     assert_eq!(phones, ["Z", "EH", "D"]);
-    // The corpus's word alignment (lrwz5a.align, 25 000 units a second): z 1.31–1.72 s.
+    // The corpus's own word alignment (`align/lrwz5a.align` in GRID s1's folder, not committed
+    // here; 25 000 units a second): z 1.31–1.72 s.
     let word = &alignment.words[z];
     assert!((word.start - 1.31).abs() < 0.05 && (word.end - 1.72).abs() < 0.05, "{word:?}");
 

@@ -624,10 +624,8 @@ pub fn footage_takes(
     };
     let mut shapes = Vec::with_capacity(codebook.sentences.len());
     let mut placed = Vec::with_capacity(codebook.sentences.len());
-    for s in &codebook.sentences {
-        let v = s.frames.values();
-        let n = v.nrows().max(1) as f32;
-        let row: Vec<f32> = v.columns().into_iter().map(|c| c.sum() / n).collect();
+    for (k, s) in codebook.sentences.iter().enumerate() {
+        let row: Vec<f32> = codebook.sentence_mean(k).into_iter().map(|m| m as f32).collect();
         let params = s.frames.layout().split(&row).map_err(crate::model::ModelError::from)?;
         shapes.push(
             params
