@@ -92,7 +92,32 @@ impl Shape {
             _ => Shape::B,
         })
     }
+
+    /// A diphthong's two targets — the vowel it starts on and the one it glides to — as the
+    /// shapes above: /ay/ D → B, /aw/ D → E, /ey/ C → B, /ow/ E → F, /oy/ E → B (Rhubarb's
+    /// README draws "Hi" so, D then B). `None` for a monophthong or a consonant.
+    pub fn of_diphthong(phone: Phone) -> Option<(Shape, Shape)> {
+        Some(match phone.name() {
+            "ay" => (Shape::D, Shape::B),
+            "aw" => (Shape::D, Shape::E),
+            "ey" => (Shape::C, Shape::B),
+            "ow" => (Shape::E, Shape::F),
+            "oy" => (Shape::E, Shape::B),
+            _ => return None,
+        })
+    }
+
+    /// The shapes a phone's time holds: a diphthong's onset for its first [`GLIDE_ONSET`] and
+    /// its glide for the rest ([`Shape::of_diphthong`]), any other phone its one shape
+    /// ([`Shape::of_phone`]); `None` for /hh/.
+    fn targets(phone: Phone) -> Option<(Shape, Shape)> {
+        Shape::of_diphthong(phone).or_else(|| Shape::of_phone(phone).map(|s| (s, s)))
+    }
 }
+
+/// The share of a diphthong's time its first target holds before the glide (Rhubarb gives
+/// the onset 0.6 of it too). A fixed phonetic prior, not tuned on GRID.
+pub const GLIDE_ONSET: f64 = 0.6;
 
 /// Which extended shapes (G, H, X) a rig has; the others fall back to their basic shape.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -185,8 +210,9 @@ fn centiseconds(t: f64) -> u32 {
 }
 
 /// The cues of `segments` over a recording of `duration` seconds: each phone's shape
-/// ([`Shape::of_phone`]; /hh/ takes the next phone's), mapped for the rig, joined where
-/// equal, X (or A) where no phone is, the last ending at the duration truncated to 0.01 s.
+/// ([`Shape::of_phone`]; a diphthong's two, [`Shape::of_diphthong`]; /hh/ takes the next
+/// phone's first), mapped for the rig, joined where equal, X (or A) where no phone is, the
+/// last ending at the duration truncated to 0.01 s.
 pub fn cues(
     segments: &[Segment],
     duration: f64,
@@ -211,17 +237,20 @@ pub fn cues(
     let mut at = 0;
     for (i, s) in segments.iter().enumerate() {
         // /hh/ breathes into the next sounding phone's shape.
-        let shape = Shape::of_phone(s.phone)
-            .or_else(|| {
-                segments[i + 1..]
-                    .iter()
-                    .filter(|n| n.phone != Phone::SIL)
-                    .find_map(|n| Shape::of_phone(n.phone))
-            })
-            .unwrap_or(Shape::C);
+        let (onset, glide) = Shape::targets(s.phone).unwrap_or_else(|| {
+            let next = segments[i + 1..]
+                .iter()
+                .filter(|n| n.phone != Phone::SIL)
+                .find_map(|n| Shape::targets(n.phone))
+                .map_or(Shape::C, |t| t.0);
+            (next, next)
+        });
         let (a, b) = (centiseconds(s.start).min(end), centiseconds(s.end).min(end));
+        let from = at.max(a);
+        let turn = (f64::from(a) + GLIDE_ONSET * f64::from(b.saturating_sub(a))).round() as u32;
         join(&mut out, at, a, rest);
-        join(&mut out, at.max(a), b, extended.map(shape));
+        join(&mut out, from, turn.max(from), extended.map(onset));
+        join(&mut out, turn.max(from), b, extended.map(glide));
         at = at.max(b);
     }
     join(&mut out, at, end, rest);

@@ -184,6 +184,20 @@ fn phones_take_the_documented_shapes() {
     }
 }
 
+/// Each diphthong holds its onset for 0.6 of its time, then the shape it glides to (/ay/ D → B,
+/// /aw/ D → E, /ey/ C → B, /ow/ E → F, /oy/ E → B); a monophthong holds one shape throughout.
+#[test]
+fn diphthongs_glide_from_their_onset() {
+    for (phone, letters) in [("ay", "XDBX"), ("aw", "XDEX"), ("ey", "XCBX"), ("ow", "XEFX"), ("oy", "XEBX"), ("aa", "XDX")] {
+        let cues = visemes::cues(&[seg(phone, 0.1, 0.3)], 0.4, Extended::default()).unwrap();
+        let got: String = cues.iter().map(|c| c.shape.letter()).collect();
+        assert_eq!(got, letters, "/{phone}/");
+        if letters.len() == 4 {
+            assert_eq!((cues[1].start, cues[1].end, cues[2].end), (10, 22, 30), "/{phone}/");
+        }
+    }
+}
+
 fn seg(phone: &str, start: f64, end: f64) -> Segment {
     Segment {
         phone: Phone::parse(phone).unwrap(),
@@ -192,7 +206,9 @@ fn seg(phone: &str, start: f64, end: f64) -> Segment {
     }
 }
 
-/// "Hi" from its phones: /hh/ opens into the /ay/ it breathes into, silence is X; the cues
+/// "Hi" from its phones: /hh/ opens into the /ay/ it breathes into, which glides from D to B
+/// after 0.6 of its time (Rhubarb's README draws "Hi" D, a C tween, then B from 0.31 s: B here
+/// from 0.32 s), silence is X; the cues
 /// cover the recording from 0 to its duration truncated to 0.01 s, contiguous, neighbours
 /// different; phones past the end are cut; without X the pauses close with A.
 #[test]
@@ -209,8 +225,13 @@ fn cues_cover_the_recording() {
             },
             Cue {
                 start: 5,
-                end: 43,
+                end: 32,
                 shape: Shape::D
+            },
+            Cue {
+                start: 32,
+                end: 43,
+                shape: Shape::B
             },
             Cue {
                 start: 43,
