@@ -463,11 +463,12 @@ fn densities(
         // SAFETY: this CPU has AVX2 (checked just above).
         return unsafe { densities_avx2(acc, log_norm, x, means, inv_2var) };
     }
-    densities_lanes(acc, log_norm, x, means, inv_2var)
+    densities_lanes(acc, log_norm, x, means, inv_2var, at_least)
 }
 
 /// [`densities_lanes`] compiled for AVX2: the same operations in the same order (no fused
-/// multiply-add), so the same densities to the bit.
+/// multiply-add), so the same densities to the bit; eight comparisons with the bound in one
+/// instruction ([`at_least_avx2`]).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 unsafe fn densities_avx2(
@@ -477,7 +478,23 @@ unsafe fn densities_avx2(
     means: &[f32],
     inv_2var: &[f32],
 ) -> [(u16, f32); TOP_N] {
-    densities_lanes(acc, log_norm, x, means, inv_2var)
+    densities_lanes(acc, log_norm, x, means, inv_2var, |eight, bound| at_least_avx2(eight, bound))
+}
+
+/// [`at_least`] by AVX: one comparison of eight lanes and their sign bits gathered.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn at_least_avx2(eight: &[f32; 8], bound: f32) -> u32 {
+    use std::arch::x86_64::{_CMP_GE_OQ, _mm256_cmp_ps, _mm256_loadu_ps, _mm256_movemask_ps, _mm256_set1_ps};
+    // SAFETY: `eight` holds the eight floats read.
+    let v = unsafe { _mm256_loadu_ps(eight.as_ptr()) };
+    _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(v, _mm256_set1_ps(bound))) as u32
+}
+
+/// Bit i set where `eight[i] >= bound`.
+fn at_least(eight: &[f32; 8], bound: f32) -> u32 {
+    (0..8).fold(0u32, |m, i| m | (u32::from(eight[i] >= bound) << i))
 }
 
 /// [`densities`] 32 Gaussians at a time, their sums held in registers over every dimension
@@ -489,34 +506,36 @@ fn densities_lanes(
     x: &[f32; STREAM_DIM],
     means: &[f32],
     inv_2var: &[f32],
+    at_least: impl Fn(&[f32; 8], f32) -> u32,
 ) -> [(u16, f32); TOP_N] {
     const LANES: usize = 32;
     let nd = acc.len();
     let mut start = 0;
-    while start < nd {
-        let width = LANES.min(nd - start);
-        let mut sum = [0f32; LANES];
-        sum[..width].copy_from_slice(&log_norm[start..start + width]);
+    // Whole groups of 32 with lengths known when compiled, so that no copy is a call.
+    while start + LANES <= nd {
+        let mut sum: [f32; LANES] = log_norm[start..start + LANES].try_into().expect("32 norms");
         for (k, &xk) in x.iter().enumerate() {
             let off = k * nd + start;
-            if width == LANES {
-                let mu: &[f32; LANES] = means[off..off + LANES].try_into().expect("32 means");
-                let iv: &[f32; LANES] = inv_2var[off..off + LANES].try_into().expect("32 weights");
-                for i in 0..LANES {
-                    let d = xk - mu[i];
-                    sum[i] -= d * d * iv[i];
-                }
-            } else {
-                for i in 0..width {
-                    let d = xk - means[off + i];
-                    sum[i] -= d * d * inv_2var[off + i];
-                }
+            let mu: &[f32; LANES] = means[off..off + LANES].try_into().expect("32 means");
+            let iv: &[f32; LANES] = inv_2var[off..off + LANES].try_into().expect("32 weights");
+            for i in 0..LANES {
+                let d = xk - mu[i];
+                sum[i] -= d * d * iv[i];
             }
         }
-        acc[start..start + width].copy_from_slice(&sum[..width]);
-        start += width;
+        let out: &mut [f32; LANES] = (&mut acc[start..start + LANES]).try_into().expect("32 sums");
+        *out = sum;
+        start += LANES;
     }
-    best_of(acc)
+    for (d, a) in acc.iter_mut().enumerate().skip(start) {
+        let mut sum = log_norm[d];
+        for (k, &xk) in x.iter().enumerate() {
+            let diff = xk - means[k * nd + d];
+            sum -= diff * diff * inv_2var[k * nd + d];
+        }
+        *a = sum;
+    }
+    best_of(acc, at_least)
 }
 
 /// The [`TOP_N`] largest of `values` with their indices, largest first, the first of equals
@@ -526,7 +545,7 @@ fn densities_lanes(
 /// it runs in vector registers (ranking the 32 maxima one by one was a third of the scoring's
 /// time, most of it in mispredicted branches).
 #[inline(always)]
-fn best_of(values: &[f32]) -> [(u16, f32); TOP_N] {
+fn best_of(values: &[f32], at_least: impl Fn(&[f32; 8], f32) -> u32) -> [(u16, f32); TOP_N] {
     const SETS: usize = 32;
     let insert = |top: &mut [(u16, f32); TOP_N], d: usize, s: f32| {
         if s > top[TOP_N - 1].1 {
@@ -552,13 +571,12 @@ fn best_of(values: &[f32]) -> [(u16, f32); TOP_N] {
         // At least TOP_N − 1 maxima are taken away before the last round, all at or above what
         // is left: TOP_N values of disjoint sets are at or above the bound.
         for round in 0..TOP_N {
-            let mut eight = [f32::NEG_INFINITY; 8];
-            for row in maxima.chunks_exact(8) {
-                for (e, &v) in eight.iter_mut().zip(row) {
-                    *e = if v > *e { v } else { *e };
-                }
-            }
-            let greatest = eight.iter().fold(f32::NEG_INFINITY, |a, &v| if v > a { v } else { a });
+            // Halving, so that the 32 reduce in five vector steps, not 31 in a chain.
+            let max = |a: f32, b: f32| if b > a { b } else { a };
+            let sixteen: [f32; 16] = std::array::from_fn(|i| max(maxima[i], maxima[i + 16]));
+            let eight: [f32; 8] = std::array::from_fn(|i| max(sixteen[i], sixteen[i + 8]));
+            let four: [f32; 4] = std::array::from_fn(|i| max(eight[i], eight[i + 4]));
+            let greatest = max(max(four[0], four[2]), max(four[1], four[3]));
             if round + 1 == TOP_N {
                 bound = greatest;
             } else {
@@ -568,17 +586,24 @@ fn best_of(values: &[f32]) -> [(u16, f32); TOP_N] {
             }
         }
     }
-    // Eight values at a time, those with none at the bound passed over in one comparison.
+    // Eight values at a time: a mask of those at the bound, its set bits ranked in order (no
+    // branch on each value).
     let mut top = [(0u16, f32::NEG_INFINITY); TOP_N];
-    for (c, eight) in values.chunks(8).enumerate() {
-        if eight.iter().fold(false, |any, &s| any | (s >= bound)) {
-            for (i, &s) in eight.iter().enumerate() {
-                if s >= bound {
-                    insert(&mut top, 8 * c + i, s);
-                }
-            }
+    let mut rank = |first: usize, eight: &[f32], mut mask: u32| {
+        while mask != 0 {
+            let i = mask.trailing_zeros() as usize;
+            insert(&mut top, first + i, eight[i]);
+            mask &= mask - 1;
         }
+    };
+    let groups = values.chunks_exact(8);
+    let rest = groups.remainder();
+    for (c, eight) in groups.enumerate() {
+        let eight: &[f32; 8] = eight.try_into().expect("8 values");
+        rank(8 * c, eight, at_least(eight, bound));
     }
+    let mask = rest.iter().enumerate().fold(0u32, |m, (i, &s)| m | (u32::from(s >= bound) << i));
+    rank(values.len() - rest.len(), rest, mask);
     top
 }
 
@@ -929,7 +954,32 @@ mod tests {
                 for (slot, &d) in expected.iter_mut().zip(&order) {
                     *slot = (d as u16, values[d]);
                 }
-                assert_eq!(best_of(&values), expected, "{values:?}");
+                assert_eq!(best_of(&values, at_least), expected, "{values:?}");
+                #[cfg(target_arch = "x86_64")]
+                if std::arch::is_x86_feature_detected!("avx2") {
+                    // SAFETY: this CPU has AVX2 (checked just above).
+                    let by_avx = best_of(&values, |e, b| unsafe { at_least_avx2(e, b) });
+                    assert_eq!(by_avx, expected, "{values:?}");
+                }
+            }
+        }
+    }
+
+    /// Eight comparisons in one AVX instruction as one by one: ties, signed zeros, infinities
+    /// and NaN (never at least anything).
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn at_least_by_avx_as_one_by_one() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let odd = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 0.0, -0.0, -1.5, 2.0, -1e30];
+        for bound in [0.0, -0.0, -1.5, f32::NEG_INFINITY, f32::INFINITY, f32::NAN, 3.0] {
+            for shift in 0..8 {
+                let eight: [f32; 8] = std::array::from_fn(|i| odd[(i + shift) % 8]);
+                // SAFETY: this CPU has AVX2 (checked above).
+                let by_avx = unsafe { at_least_avx2(&eight, bound) };
+                assert_eq!(by_avx, at_least(&eight, bound), "{eight:?} ≥ {bound}");
             }
         }
     }

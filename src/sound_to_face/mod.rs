@@ -315,14 +315,19 @@ fn ear_scores(classifier: &PhoneClassifier, heard: &crate::align::Evidence) -> V
     let mut scores = Vec::with_capacity(ev.len());
     for start in (0..ev.len()).step_by(PREDICT_BLOCK) {
         let rows = PREDICT_BLOCK.min(ev.len() - start);
-        let x = design_at(&ev, rows, |i| (start + i) as i64).map(|v| v as f32);
+        let x: DMatrix<f32> = design_at(&ev, rows, |i| (start + i) as i64);
         scores.extend(classifier.scores(&x));
     }
     scores
 }
 
-/// The feature rows of `rows` windows, the `i`-th centred on evidence frame `centre(i)`.
-fn design_at(evidence: &[Vec<f32>], rows: usize, centre: impl Fn(usize) -> i64) -> DMatrix<f64> {
+/// The feature rows of `rows` windows, the `i`-th centred on evidence frame `centre(i)`, in
+/// f64 to learn from or straight in f32 to predict with.
+fn design_at<T: nalgebra::RealField + Copy + From<f32>>(
+    evidence: &[Vec<f32>],
+    rows: usize,
+    centre: impl Fn(usize) -> i64,
+) -> DMatrix<T> {
     let width = evidence.first().map_or(0, Vec::len);
     let d = taps().count() * width + 1;
     let mut x = DMatrix::zeros(rows, d);
@@ -330,9 +335,9 @@ fn design_at(evidence: &[Vec<f32>], rows: usize, centre: impl Fn(usize) -> i64) 
     for i in 0..rows {
         window_into(evidence, centre(i), &mut row);
         for (j, &v) in row.iter().enumerate() {
-            x[(i, j)] = f64::from(v);
+            x[(i, j)] = T::from(v);
         }
-        x[(i, d - 1)] = 1.0;
+        x[(i, d - 1)] = T::one();
     }
     x
 }
@@ -572,7 +577,7 @@ impl SoundToFace {
         if evidence.is_empty() {
             return vec![mean.to_vec(); centres.len()];
         }
-        let x = design_at(evidence, centres.len(), |i| centres[i]).map(|v| v as f32);
+        let x: DMatrix<f32> = design_at(evidence, centres.len(), |i| centres[i]);
         let face = self.face_of(&x);
         face.row_iter()
             .map(|row| {
