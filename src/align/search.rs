@@ -586,24 +586,26 @@ fn best_of(values: &[f32], at_least: impl Fn(&[f32; 8], f32) -> u32) -> [(u16, f
             }
         }
     }
-    // Eight values at a time: a mask of those at the bound, its set bits ranked in order (no
-    // branch on each value).
+    // A mask of the values at the bound, eight compared at a time, 64 to a word; its set bits
+    // ranked in order — one branch a candidate, none a value.
     let mut top = [(0u16, f32::NEG_INFINITY); TOP_N];
-    let mut rank = |first: usize, eight: &[f32], mut mask: u32| {
+    for (w, word) in values.chunks(64).enumerate() {
+        let groups = word.chunks_exact(8);
+        let rest = groups.remainder();
+        let mut mask = rest
+            .iter()
+            .enumerate()
+            .fold(0u64, |m, (i, &s)| m | (u64::from(s >= bound) << (word.len() - rest.len() + i)));
+        for (c, eight) in groups.enumerate() {
+            let eight: &[f32; 8] = eight.try_into().expect("8 values");
+            mask |= u64::from(at_least(eight, bound)) << (8 * c);
+        }
         while mask != 0 {
             let i = mask.trailing_zeros() as usize;
-            insert(&mut top, first + i, eight[i]);
+            insert(&mut top, 64 * w + i, word[i]);
             mask &= mask - 1;
         }
-    };
-    let groups = values.chunks_exact(8);
-    let rest = groups.remainder();
-    for (c, eight) in groups.enumerate() {
-        let eight: &[f32; 8] = eight.try_into().expect("8 values");
-        rank(8 * c, eight, at_least(eight, bound));
     }
-    let mask = rest.iter().enumerate().fold(0u32, |m, (i, &s)| m | (u32::from(s >= bound) << i));
-    rank(values.len() - rest.len(), rest, mask);
     top
 }
 
