@@ -7,11 +7,12 @@ visemes --labels` gives the clip's phones in `phones/` (forced-aligned to the tr
 That reference maps phones to shapes by *our* rule, which favours our rows; so every track is
 also compared with Rhubarb's own given the true words (`--dialogFile`), which favours his.
 
-    python3 tools/rhubarb_compare.py RHUBARB FACESPACE GRID WAVDIR [N]
+    python3 tools/rhubarb_compare.py RHUBARB FACESPACE GRID WAVDIR [N|all] [SPLIT]
 
 RHUBARB: the `rhubarb` binary; FACESPACE: ours (`target/release/facespace`); GRID: the corpus
-folder (`../shared/data/grid-s1`); WAVDIR: 16 kHz WAVs of its test clips (`ANCHORS=DIR cargo
-run --release --example grid_phones -- GRID test all` writes them to DIR/wav); N clips (all).
+folder (`../shared/data/grid-s1`); WAVDIR: 16 kHz WAVs of the split's clips (`ANCHORS=DIR cargo
+run --release --example grid_phones -- GRID SPLIT all` writes them to DIR/wav); N clips (all)
+of SPLIT (test).
 Each command runs alone on one core (`--threads 1` for Rhubarb), timed from start to exit,
 the loading of its models included.
 """
@@ -64,9 +65,10 @@ def run(cmd):
 
 def main():
     rhubarb, facespace, grid, wavs = sys.argv[1:5]
-    ids = [l.strip() for l in open(os.path.join(grid, "test.txt")) if l.strip()]
+    split = sys.argv[6] if len(sys.argv) > 6 else "test"
+    ids = open(os.path.join(grid, split + ".txt")).read().split()
     ids = [i for i in ids if os.path.exists(os.path.join(wavs, i + ".wav"))]
-    if len(sys.argv) > 5:
+    if len(sys.argv) > 5 and sys.argv[5] != "all":
         ids = ids[: int(sys.argv[5])]
     one_core = ["taskset", "-c", "0"]
     rh = one_core + [rhubarb, "-q", "--threads", "1", "-f", "tsv"]
@@ -118,7 +120,7 @@ def main():
         errors = sum(edits(sequence(x), sequence(y)) for x, y in zip(a, b))
         return errors / sum(len(sequence(y)) for y in b)
 
-    print(f"GRID s1 test split, {len(ids)} clips, {seconds:.1f} s of sound (recorded)\n")
+    print(f"GRID s1 {split} split, {len(ids)} clips, {seconds:.1f} s of sound (recorded)\n")
     print("| track | frames as the phones' shapes (all / speech) | shape sequence error against the phones' | "
           "frames as Rhubarb's given the words (all / speech) | × real time, one core (models loaded each run) |")
     print("|---|---|---|---|---|")
