@@ -80,7 +80,9 @@ def main():
         "facespace visemes, no words (the general acoustic model's loop)": lambda w, d: fs + [w],
         "facespace visemes, no words, the talker's ear (--talker models/grid)":
             lambda w, d: fs + [w, "--talker", "models/grid"],
-        "facespace visemes, the true words (--transcript)": lambda w, d: fs + [w, "--transcript", d],
+        # The corpus's own words, scored as given (a few true transcripts fail the word check).
+        "facespace visemes, the true words (--transcript)":
+            lambda w, d: fs + [w, "--transcript", d, "--accept-mismatch"],
     }
     given_words = "Rhubarb 1.14, given the true words (--dialogFile)"
     tracks = {name: [] for name in systems}
