@@ -212,7 +212,8 @@ fn centiseconds(t: f64) -> u32 {
 /// The cues of `segments` over a recording of `duration` seconds: each phone's shape
 /// ([`Shape::of_phone`]; a diphthong's two, [`Shape::of_diphthong`]; /hh/ takes the next
 /// phone's first), mapped for the rig, joined where equal, X (or A) where no phone is, the
-/// last ending at the duration truncated to 0.01 s.
+/// last ending at the duration truncated to 0.01 s. A track to draw goes through [`hold`]
+/// last (after [`open_by_face`], which chooses on the phones' own cues).
 pub fn cues(
     segments: &[Segment],
     duration: f64,
@@ -262,6 +263,99 @@ pub fn cues(
         });
     }
     Ok(out)
+}
+
+/// Least length of a sounding cue, centiseconds: longer than a frame at 24 fps (4.2 cs, the
+/// lowest rate Rhubarb's Moho export takes), so that every shape is drawn in at least one frame
+/// instead of flashing by between frames.
+pub const LEAST_CUE: u32 = 5;
+
+/// `cues` with no sounding cue shorter than [`LEAST_CUE`], shortest first: a closure (A) — the
+/// shape a viewer misses most — or a sound with no sounding neighbour borrows the time from its
+/// neighbours (a sounding one down to the least, a rest all of it), and a closure that still
+/// falls short takes its shorter sounding neighbour whole; any other short shape gives its time
+/// to its longer sounding neighbour. Equal neighbours are joined again.
+pub fn hold(cues: &[Cue], extended: Extended) -> Vec<Cue> {
+    let rest = extended.map(Shape::X);
+    let mut cues = rejoined(cues);
+    let len = |c: &Cue| c.end - c.start;
+    let short = |c: &Cue| c.shape != rest && len(c) < LEAST_CUE;
+    // Each pass merges, lengthens or gives up on one cue (a borrow that leaves a sound short
+    // empties a pause beside it, so that the next pass merges it).
+    let mut given_up: Vec<(u32, u32)> = Vec::new();
+    for _ in 0..=3 * cues.len() {
+        let Some(k) = (0..cues.len())
+            .filter(|&k| short(&cues[k]) && !given_up.contains(&(cues[k].start, cues[k].end)))
+            .min_by_key(|&k| (len(&cues[k]), k))
+        else {
+            break;
+        };
+        let neighbours: Vec<usize> = [k.checked_sub(1), (k + 1 < cues.len()).then_some(k + 1)].into_iter().flatten().collect();
+        // The longer sounding neighbour (the earlier of equals).
+        let longer = neighbours
+            .iter()
+            .copied()
+            .filter(|&j| cues[j].shape != rest)
+            .max_by_key(|&j| (len(&cues[j]), j < k));
+        if cues[k].shape != Shape::A {
+            if let Some(j) = longer {
+                if j < k {
+                    cues[j].end = cues[k].end;
+                } else {
+                    cues[j].start = cues[k].start;
+                }
+                cues.remove(k);
+                cues = rejoined(&cues);
+                continue;
+            }
+        }
+        // Borrow, the neighbour with the most to spare first.
+        let spare = |c: &Cue| if c.shape == rest { len(c) } else { len(c).saturating_sub(LEAST_CUE) };
+        let mut lenders = neighbours.clone();
+        lenders.sort_by_key(|&j| std::cmp::Reverse((spare(&cues[j]), j < k)));
+        let mut lent = 0;
+        for j in lenders {
+            let take = (LEAST_CUE - len(&cues[k]).min(LEAST_CUE)).min(spare(&cues[j]));
+            lent += take;
+            if j < k {
+                cues[j].end -= take;
+                cues[k].start -= take;
+            } else {
+                cues[j].start += take;
+                cues[k].end += take;
+            }
+        }
+        if len(&cues[k]) < LEAST_CUE && (cues[k].shape == Shape::A || lent == 0) {
+            // A closure still short takes its shorter sounding neighbour whole.
+            let shorter = neighbours
+                .iter()
+                .copied()
+                .filter(|&j| cues[j].shape != rest)
+                .min_by_key(|&j| (len(&cues[j]), j > k));
+            match shorter {
+                Some(j) if cues[k].shape == Shape::A => {
+                    if j < k {
+                        cues[k].start = cues[j].start;
+                    } else {
+                        cues[k].end = cues[j].end;
+                    }
+                    cues[j].end = cues[j].start;
+                }
+                _ => given_up.push((cues[k].start, cues[k].end)),
+            }
+        }
+        cues = rejoined(&cues);
+    }
+    cues
+}
+
+/// `cues` with the empty ones dropped and equal neighbours joined.
+fn rejoined(cues: &[Cue]) -> Vec<Cue> {
+    let mut out = Vec::with_capacity(cues.len());
+    for c in cues {
+        join(&mut out, c.start, c.end, c.shape);
+    }
+    out
 }
 
 /// Appends `shape` from `start` to `end` (centiseconds) to contiguous cues, extending the last

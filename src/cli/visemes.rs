@@ -145,6 +145,7 @@ pub fn run(a: VisemesArgs) -> Result<()> {
             visemes::mean_opening(&opening, fps, s, e)
         });
     }
+    let cues = visemes::hold(&cues, extended);
     let text = match a.format {
         Format::Tsv => visemes::tsv(&cues, extended),
         Format::Json => visemes::json(&cues, &a.audio.to_string_lossy()),
