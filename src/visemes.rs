@@ -297,17 +297,15 @@ pub fn hold(cues: &[Cue], extended: Extended) -> Vec<Cue> {
             .copied()
             .filter(|&j| cues[j].shape != rest)
             .max_by_key(|&j| (len(&cues[j]), j < k));
-        if cues[k].shape != Shape::A {
-            if let Some(j) = longer {
-                if j < k {
-                    cues[j].end = cues[k].end;
-                } else {
-                    cues[j].start = cues[k].start;
-                }
-                cues.remove(k);
-                cues = rejoined(&cues);
-                continue;
+        if let Some(j) = longer.filter(|_| cues[k].shape != Shape::A) {
+            if j < k {
+                cues[j].end = cues[k].end;
+            } else {
+                cues[j].start = cues[k].start;
             }
+            cues.remove(k);
+            cues = rejoined(&cues);
+            continue;
         }
         // Borrow, the neighbour with the most to spare first.
         let spare = |c: &Cue| if c.shape == rest { len(c) } else { len(c).saturating_sub(LEAST_CUE) };
