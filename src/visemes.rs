@@ -277,6 +277,10 @@ pub const LEAST_CUE: u32 = 5;
 /// to its longer sounding neighbour. Equal neighbours are joined again.
 pub fn hold(cues: &[Cue], extended: Extended) -> Vec<Cue> {
     let rest = extended.map(Shape::X);
+    if cues.iter().all(|c| c.end <= c.start) {
+        // A recording shorter than a centisecond: its one empty cue, as it is.
+        return cues.to_vec();
+    }
     let mut cues = rejoined(cues);
     let len = |c: &Cue| c.end - c.start;
     let short = |c: &Cue| c.shape != rest && len(c) < LEAST_CUE;

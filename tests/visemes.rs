@@ -225,6 +225,8 @@ fn short_shapes_last_a_frame() {
     assert_eq!(letters(&cues), vec![(0, 27, 'X'), (27, 32, 'B'), (32, 40, 'X')]);
     let hi = held(&[seg("hh", 0.05, 0.15), seg("ay", 0.15, 0.43)], 0.4749);
     assert_eq!(hi.last().map(|c| (c.start, c.end)), Some((43, 47)), "the short rest at the end stays");
+    let instant = held(&[seg("aa", 0.0, 0.004)], 0.004);
+    assert_eq!(letters(&instant), vec![(0, 0, 'X')], "under a centisecond: the one empty cue");
     let names = ["sil", "p", "m", "aa", "iy", "s", "f", "l", "uw", "ay", "hh", "eh"];
     let mut state = 12345u64;
     let mut next = |n: u64| {
