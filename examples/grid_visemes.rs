@@ -36,7 +36,8 @@ fn main() {
     let glides = [Phone::parse("ay").unwrap(), Phone::parse("ey").unwrap()];
     // [one shape, onset and glide]: frames agreeing with the face's nearest shape, and the sum
     // of |shape's opening − face's opening|; per half of the vowel.
-    let (mut agree, mut error, mut frames) = ([[0usize; 2]; 2], [[0f64; 2]; 2], [0usize; 2]);
+    let (mut agree, mut error) = ([[0usize; 2]; 2], [[0f64; 2]; 2]);
+    // Per vowel (/ay/, /ey/) and half: the face's summed opening and its frames.
     let (mut mean, mut count) = ([[0f64; 2]; 2], [[0usize; 2]; 2]);
     let ids = grid::split(&root, &split, limit);
     for id in &ids {
@@ -55,7 +56,6 @@ fn main() {
             let cs = (t * 100.0).round() as u32;
             let shown = cues.iter().find(|c| c.start <= cs && cs < c.end).map(|c| c.shape);
             let one = Shape::of_phone(seg.phone);
-            frames[half] += 1;
             let p = usize::from(seg.phone == glides[1]);
             mean[p][half] += h;
             count[p][half] += 1;
@@ -67,6 +67,7 @@ fn main() {
         }
     }
     let span = levels[2] - levels[0];
+    let frames = [0, 1].map(|half| count[0][half] + count[1][half]);
     println!("GRID s1 {split} split (recorded), {} clips: video frames inside /ay/ and /ey/", ids.len());
     println!("| track | frames as the face's nearest shape, first half / second half | |opening − face's| / (D − B), first / second half |");
     println!("|---|---|---|");

@@ -294,7 +294,7 @@ pub fn hold(cues: &[Cue], extended: Extended) -> Vec<Cue> {
         else {
             break;
         };
-        let neighbours: Vec<usize> = [k.checked_sub(1), (k + 1 < cues.len()).then_some(k + 1)].into_iter().flatten().collect();
+        let mut neighbours: Vec<usize> = [k.checked_sub(1), (k + 1 < cues.len()).then_some(k + 1)].into_iter().flatten().collect();
         // The longer sounding neighbour (the earlier of equals).
         let longer = neighbours
             .iter()
@@ -307,43 +307,41 @@ pub fn hold(cues: &[Cue], extended: Extended) -> Vec<Cue> {
             } else {
                 cues[j].start = cues[k].start;
             }
-            cues.remove(k);
-            cues = rejoined(&cues);
-            continue;
-        }
-        // Borrow, the neighbour with the most to spare first.
-        let spare = |c: &Cue| if c.shape == rest { len(c) } else { len(c).saturating_sub(LEAST_CUE) };
-        let mut lenders = neighbours.clone();
-        lenders.sort_by_key(|&j| std::cmp::Reverse((spare(&cues[j]), j < k)));
-        let mut lent = 0;
-        for j in lenders {
-            let take = (LEAST_CUE - len(&cues[k]).min(LEAST_CUE)).min(spare(&cues[j]));
-            lent += take;
-            if j < k {
-                cues[j].end -= take;
-                cues[k].start -= take;
-            } else {
-                cues[j].start += take;
-                cues[k].end += take;
-            }
-        }
-        if len(&cues[k]) < LEAST_CUE && (cues[k].shape == Shape::A || lent == 0) {
-            // A closure still short takes its shorter sounding neighbour whole.
-            let shorter = neighbours
-                .iter()
-                .copied()
-                .filter(|&j| cues[j].shape != rest)
-                .min_by_key(|&j| (len(&cues[j]), j > k));
-            match shorter {
-                Some(j) if cues[k].shape == Shape::A => {
-                    if j < k {
-                        cues[k].start = cues[j].start;
-                    } else {
-                        cues[k].end = cues[j].end;
-                    }
-                    cues[j].end = cues[j].start;
+            cues[k].end = cues[k].start;
+        } else {
+            // Borrow, the neighbour with the most to spare first.
+            let spare = |c: &Cue| if c.shape == rest { len(c) } else { len(c).saturating_sub(LEAST_CUE) };
+            neighbours.sort_by_key(|&j| std::cmp::Reverse((spare(&cues[j]), j < k)));
+            let mut lent = 0;
+            for &j in &neighbours {
+                let take = (LEAST_CUE - len(&cues[k]).min(LEAST_CUE)).min(spare(&cues[j]));
+                lent += take;
+                if j < k {
+                    cues[j].end -= take;
+                    cues[k].start -= take;
+                } else {
+                    cues[j].start += take;
+                    cues[k].end += take;
                 }
-                _ => given_up.push((cues[k].start, cues[k].end)),
+            }
+            if len(&cues[k]) < LEAST_CUE && (cues[k].shape == Shape::A || lent == 0) {
+                // A closure still short takes its shorter sounding neighbour whole.
+                let shorter = neighbours
+                    .iter()
+                    .copied()
+                    .filter(|&j| cues[j].shape != rest)
+                    .min_by_key(|&j| (len(&cues[j]), j > k));
+                match shorter {
+                    Some(j) if cues[k].shape == Shape::A => {
+                        if j < k {
+                            cues[k].start = cues[j].start;
+                        } else {
+                            cues[k].end = cues[j].end;
+                        }
+                        cues[j].end = cues[j].start;
+                    }
+                    _ => given_up.push((cues[k].start, cues[k].end)),
+                }
             }
         }
         cues = rejoined(&cues);
