@@ -459,8 +459,12 @@ impl Aligner {
         ear_lm: &PhoneLoop,
     ) -> Result<(Vec<TimedPhone>, Evidence), AlignError> {
         let feats = self.features(samples, rate)?;
-        // One scoring of every phone's states serves the refusal's search and the evidence.
-        let states = search::ci_state_scores(&self.model, &feats);
+        // One scoring of every phone's states serves the refusal's search and the evidence:
+        // at every other frame, the frames between taken midway (pocketsphinx's `-ds 2`).
+        let even: Vec<_> = feats.iter().step_by(2).copied().collect();
+        let states = every_other(search::ci_state_scores(&self.model, &even), feats.len(), |a, b| {
+            a.iter().zip(b).map(|(x, y)| std::array::from_fn(|s| 0.5 * (x[s] + y[s]))).collect()
+        });
         let free = search::Graph::phone_loop(&self.model, &lm.transition);
         let path = search::viterbi_states(&self.model, &free, &states).ok_or(AlignError::NoPath)?;
         self.check_speech(&free, &path, feats.len())?;
@@ -674,6 +678,24 @@ pub struct Evidence {
     pub cepstra: Vec<[f32; frontend::N_CEP]>,
     /// The phones' scores, 0 for the best.
     pub scores: Vec<Vec<f32>>,
+}
+
+/// `rows` of the even frames of `n` spread over all `n`: each odd frame `mid` of its two
+/// neighbours (the last one, without a next, its previous).
+pub fn every_other<R: Clone>(rows: Vec<R>, n: usize, mid: impl Fn(&R, &R) -> R) -> Vec<R> {
+    let mut out = Vec::with_capacity(n);
+    for (k, row) in rows.iter().enumerate() {
+        if k > 0 {
+            out.push(mid(&rows[k - 1], row));
+        }
+        out.push(row.clone());
+    }
+    if let Some(last) = rows.last()
+        && out.len() < n
+    {
+        out.push(last.clone());
+    }
+    out
 }
 
 /// Joins contiguous pieces of the same phone (as a live [`Recogniser`] gives them).

@@ -30,7 +30,7 @@ pub struct AlignArgs {
     acoustic_model: Option<PathBuf>,
     /// The talker speaking, heard by its own ear (a classifier learnt with its sound-to-face
     /// map on its recordings): without words its phones are recognised far more exactly in the
-    /// words its recordings hold (PER 7.5 % on GRID s1's talker against 64 % from the general
+    /// words its recordings hold (PER 8.3 % on GRID s1's talker against 64 % from the general
     /// acoustic model; on words it never heard, worse: 69 % against 54 %), with words their
     /// fit is judged by it.
     #[arg(long, conflicts_with_all = ["acoustic_model", "dicts"])]

@@ -84,8 +84,9 @@ pub fn run(a: VisemesArgs) -> Result<()> {
     // Without words, a talker performs from the sound itself, as `say` does: its own ear
     // hears the phones (its map's classifier, where it has one), and its sound-to-face map
     // opens the mouth as the recording did from the same hearing (B/C/D as the real face
-    // chooses them: 82 % of the time on GRID s1's test split, against 42 % from the
-    // recognised phones; BENCHMARKS "The face from the sound").
+    // chooses them: 75 % of the time on GRID s1's test split, against 71 % when the talker
+    // performs the ear's phones and 42 % the general model's; BENCHMARKS "The talker's own
+    // ear").
     let mut performed = None;
     let segments = match (&words, &a.labels, &talker) {
         (None, Some(l), _) => read_labels(l, None, &PhoneMap::default())

@@ -309,16 +309,22 @@ fn learn_hidden(
     hidden
 }
 
-/// The classifier's scores of every phone in every frame `heard`, a block of frames at a time.
+// The ear's even frames read only even frames' evidence ([`ear_scores`]).
+const _: () = assert!(TAP_STEP % 2 == 0, "the ear's even frames must read only even frames");
+
+/// The classifier's scores of every phone in every frame `heard`, a block of frames at a time:
+/// heard at every other frame (pocketsphinx's frame downsampling, `-ds 2`: the window's taps
+/// are [`TAP_STEP`] apart, so those frames read only each other's evidence), the frames
+/// between taken midway.
 fn ear_scores(classifier: &PhoneClassifier, heard: &crate::align::Evidence) -> Vec<Vec<f32>> {
     let ev = evidence_rows(heard);
-    let mut scores = Vec::with_capacity(ev.len());
-    for start in (0..ev.len()).step_by(PREDICT_BLOCK) {
-        let rows = PREDICT_BLOCK.min(ev.len() - start);
-        let x: DMatrix<f32> = design_at(&ev, rows, |i| (start + i) as i64);
+    let even: Vec<usize> = (0..ev.len()).step_by(2).collect();
+    let mut scores = Vec::with_capacity(even.len());
+    for block in even.chunks(PREDICT_BLOCK) {
+        let x: DMatrix<f32> = design_at(&ev, block.len(), |i| block[i] as i64);
         scores.extend(classifier.scores(&x));
     }
-    scores
+    crate::align::every_other(scores, ev.len(), |a, b| a.iter().zip(b).map(|(x, y)| 0.5 * (x + y)).collect())
 }
 
 /// The feature rows of `rows` windows, the `i`-th centred on evidence frame `centre(i)`, in
