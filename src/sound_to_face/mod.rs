@@ -310,7 +310,7 @@ fn learn_hidden(
 }
 
 // The ear's even frames read only even frames' evidence ([`ear_scores`]).
-const _: () = assert!(TAP_STEP % 2 == 0, "the ear's even frames must read only even frames");
+const _: () = assert!(TAP_STEP.is_multiple_of(2), "the ear's even frames must read only even frames");
 
 /// The classifier's scores of every phone in every frame `heard`, a block of frames at a time:
 /// heard at every other frame (pocketsphinx's frame downsampling, `-ds 2`: the window's taps
