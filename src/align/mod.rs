@@ -606,10 +606,11 @@ impl Recogniser<'_> {
             .iter()
             .map(|&x| f32::from(crate::audio::to_pcm16(x)))
             .collect();
-        for feat in self.stream.push(&pcm) {
-            self.decoder.step(&self.graph, &feat).ok_or(AlignError::NoPath)?;
-            self.features.push(feat);
+        let feats = self.stream.push(&pcm);
+        for states in search::ci_state_scores(self.model, &feats) {
+            self.decoder.step_states(&self.graph, &states).ok_or(AlignError::NoPath)?;
         }
+        self.features.extend(feats);
         let settled = self.decoder.frames.saturating_sub(self.lag) as u32;
         let path = self.decoder.partial();
         Ok(self.commit(&path, settled))
@@ -617,8 +618,8 @@ impl Recogniser<'_> {
 
     /// Ends the stream: the phones not given out yet.
     pub fn finish(mut self) -> Result<Vec<TimedPhone>, AlignError> {
-        for feat in self.stream.finish() {
-            self.decoder.step(&self.graph, &feat).ok_or(AlignError::NoPath)?;
+        for states in search::ci_state_scores(self.model, &self.stream.finish()) {
+            self.decoder.step_states(&self.graph, &states).ok_or(AlignError::NoPath)?;
         }
         if self.decoder.frames == 0 {
             return Err(AlignError::EmptyAudio {

@@ -756,9 +756,10 @@ impl<'m> Decoder<'m> {
         }
     }
 
-    /// Decodes one more frame; `None` when the beam lost every hypothesis.
-    pub(super) fn step(&mut self, g: &Graph, feat: &[f32; FEATURE_DIM]) -> Option<()> {
-        self.advance(g, Emission::Acoustic(feat))
+    /// One frame of a phone loop's search over its phones' state scores ([`ci_state_scores`]);
+    /// `None` when the beam lost every hypothesis.
+    pub(super) fn step_states(&mut self, g: &Graph, states: &[[f32; STATES]]) -> Option<()> {
+        self.advance(g, Emission::States(states))
     }
 
     /// One frame of the search, each state scored as `emission` says.
