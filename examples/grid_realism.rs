@@ -16,7 +16,8 @@
 //! [MOUTHS]` (SPLIT: `test`, the default, or `validation`; MOUTHS: a mouths folder other than
 //! the talker's, e.g. one built with other settings). `FACESPACE_SWITCH_COST` sets the
 //! chooser's switch cost and `FACESPACE_DETAIL_GAIN` the detail's gain (chosen on validation);
-//! `FACESPACE_FEATURES` adds each feature's accuracy alone, `FACESPACE_GEOMETRY` where the lips
+//! `FACESPACE_FEATURES` adds each feature's accuracy alone, `FACESPACE_MEANS` each feature's
+//! mean over the recording's, `FACESPACE_GEOMETRY` where the lips
 //! sit below the nose in each clip and each drawing (the footage's head pitch).
 //! `FACESPACE_ENCODED` scores the drawn frames as a viewer gets them: written to an MP4 by the
 //! writer `say` uses and decoded (the recordings are scored as stored, x264 at CRF 21);
@@ -32,7 +33,7 @@ use std::path::Path;
 use facespace::eval::mouth::{MouthPc, inner_mouth_height, mouth_sharpness};
 use facespace::eval::pearson;
 use facespace::eval::realism::{
-    Cropper, FEATURES, Pair, accuracy, accuracy_on, sharpness, temporal_change,
+    Cropper, FEATURES, Pair, WINDOW, accuracy, accuracy_on, features, sharpness, temporal_change,
 };
 use facespace::facespace::Frames;
 use facespace::mouths::Mouths;
@@ -263,6 +264,40 @@ fn main() {
                 .map(|(f, feature)| format!("{feature} {:.2}", accuracy_on(&pairs, &[f])))
                 .collect();
             println!("{name}, one feature at a time: {}", each.join(", "));
+        }
+    }
+    if std::env::var_os("FACESPACE_MEANS").is_some() {
+        // Each feature's mean over every window, drawn over real, and the difference in units
+        // of the real windows' s.d. (d′); the crops' PCA fitted on the recordings' alone.
+        let sample: Vec<&[f32]> =
+            sentences.iter().flat_map(|s| s[0].crops.iter().step_by(5)).map(Vec::as_slice).collect();
+        let pca = facespace::pca::PcaModel::fit(&sample, facespace::pca::Components::Count(5)).unwrap();
+        let rows = |k: usize| -> Vec<Vec<f64>> {
+            sentences
+                .iter()
+                .flat_map(|s| {
+                    let c = &s[k].crops;
+                    (0..).step_by(WINDOW / 2).take_while(|st| st + WINDOW <= c.len()).map(|st| features(&c[st..st + WINDOW], &pca))
+                })
+                .collect()
+        };
+        let real = rows(0);
+        let mean = |r: &[Vec<f64>], f: usize| r.iter().map(|x| x[f]).sum::<f64>() / r.len() as f64;
+        let sd = |r: &[Vec<f64>], f: usize| {
+            let m = mean(r, f);
+            (r.iter().map(|x| (x[f] - m).powi(2)).sum::<f64>() / r.len() as f64).sqrt()
+        };
+        for (k, name) in systems.iter().enumerate().map(|(k, n)| (k + 1, n)) {
+            let drawn = rows(k);
+            let each: Vec<String> = FEATURES
+                .iter()
+                .enumerate()
+                .map(|(f, n)| {
+                    let (d, r) = (mean(&drawn, f), mean(&real, f));
+                    format!("{n} {:.3} (d′ {:+.2})", d / r, (d - r) / sd(&real, f))
+                })
+                .collect();
+            println!("{name}, each feature's mean over real: {}", each.join(", "));
         }
     }
     println!("\n({:.0} s on this machine)", clock.elapsed().as_secs_f64());
