@@ -6,7 +6,7 @@
 //!
 //! `cargo run --release --example grid_word_check -- ../shared/data/grid-s1 SPLIT [THRESHOLD]`
 //! With `TALKER=DIR`, the fit as the talker's own ear hears it (`SoundToFace::align_checked`),
-//! and how many pass its rule.
+//! and how many pass its rule (the ear's fit and the general model's together, `ear_fit`).
 
 #[path = "common/grid.rs"]
 mod grid;
@@ -32,6 +32,8 @@ fn main() {
     let (mut accepted, mut refused) = (0, 0);
     let mut wrong: Vec<String> = Vec::new();
     let (mut truth, mut lies) = (Vec::new(), Vec::new());
+    // The talker's rule's scores (`sound_to_face::ear_fit`), true and other transcripts'.
+    let (mut true_scores, mut other_scores): (Vec<f64>, Vec<f64>) = (Vec::new(), Vec::new());
     for (k, id) in ids.iter().enumerate() {
         let audio = facespace::audio::read(
             &grid.join(format!("clips/{id}.mp4")),
@@ -47,12 +49,17 @@ fn main() {
             let checked = match map {
                 Some(map) => map
                     .align_checked(&aligner, &audio.samples, audio.rate, &text)
-                    .map(|c| c.expect("the map has a phone classifier")),
-                None => aligner.align_checked(&audio.samples, audio.rate, &text, &lm),
+                    .map(|c| c.expect("the map has a phone classifier"))
+                    .map(|(a, ear, general)| (a, ear, Some(general))),
+                None => aligner.align_checked(&audio.samples, audio.rate, &text, &lm).map(|(a, fit)| (a, fit, None)),
             };
+            if let Ok((_, fit, Some(general))) = &checked {
+                let score = facespace::sound_to_face::ear_fit(fit, general);
+                if true_words { true_scores.push(score) } else { other_scores.push(score) }
+            }
             let matches = match &checked {
-                Ok((_, fit)) if map.is_some() => facespace::sound_to_face::ear_matches(fit),
-                Ok((_, fit)) => fit.matches(),
+                Ok((_, fit, Some(general))) => facespace::sound_to_face::ear_matches(fit, general),
+                Ok((_, fit, None)) => fit.matches(),
                 Err(_) => false,
             };
             match (true_words, matches) {
@@ -62,7 +69,7 @@ fn main() {
                 (false, true) => wrong.push(format!("{id} with {other}'s words accepted")),
             }
             let stats = match checked {
-                Ok((_, fit)) => {
+                Ok((_, fit, _)) => {
                     let mut w = fit.words.clone();
                     w.sort_by(f64::total_cmp);
                     [
@@ -101,6 +108,14 @@ fn main() {
     for k in 0..4 {
         show("true transcripts ", &truth, k);
         show("other sentences' ", &lies, k);
+    }
+    if !true_scores.is_empty() {
+        let least = true_scores.iter().copied().fold(f64::INFINITY, f64::min);
+        let most = other_scores.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        println!(
+            "the talker's rule (ear and general fits, `ear_fit`): true transcripts' least {least:.3}, other sentences' greatest {most:.3} (of those that align), threshold {}",
+            facespace::sound_to_face::LEAST_FIT
+        );
     }
     println!(
         "the rule: {accepted}/{n} true transcripts accepted, {refused}/{n} other sentences' refused{}",

@@ -266,25 +266,33 @@ impl Aligner {
         Ok((words.alignment, fit))
     }
 
-    /// [`Self::align_checked`] with the fit scored by another ear: the words' graph and the
-    /// free loop `ear_lm` are both searched over `ear`'s scores of each phone in each frame of
-    /// the sound's [`Evidence`] (a talker's own classifier). The alignment is the acoustic
-    /// model's.
+    /// [`Self::align_checked`] with the fit scored by another ear as well: the words' graph
+    /// and the free loop `ear_lm` are both searched over `ear`'s scores of each phone in each
+    /// frame of the sound's [`Evidence`] (a talker's own classifier). Gives the ear's fit and
+    /// the acoustic model's (against the free loop `lm`, as [`Self::align_checked`]); the
+    /// alignment is the acoustic model's.
     pub fn align_checked_by(
         &self,
         samples: &[f32],
         rate: u32,
         text: &str,
+        lm: &PhoneLoop,
         ear: impl FnOnce(&Evidence) -> Vec<Vec<f32>>,
         ear_lm: &PhoneLoop,
-    ) -> Result<(Alignment, WordFit), AlignError> {
+    ) -> Result<(Alignment, WordFit, WordFit), AlignError> {
         let words = self.search_words(samples, rate, text)?;
-        let scores = ear(&self.evidence_of(&words.feats));
+        let frames = words.feats.len();
+        // One scoring of every phone's states serves the general loop and the ear's evidence.
+        let states = search::ci_state_scores(&self.model, &words.feats);
+        let general_loop = search::Graph::phone_loop(&self.model, &lm.transition);
+        let free = search::viterbi_states(&self.model, &general_loop, &states).ok_or(AlignError::NoPath)?;
+        let general = word_fit(&words.alignment, &words.path, &free, frames);
+        let scores = ear(&self.evidence_from(&words.feats, &states));
         let forced = search::viterbi_scored(&self.model, &words.graph, &scores).ok_or(AlignError::NoPath)?;
         let loop_graph = search::Graph::phone_loop(&self.model, &ear_lm.transition);
         let free = search::viterbi_scored(&self.model, &loop_graph, &scores).ok_or(AlignError::NoPath)?;
-        let fit = word_fit(&words.alignment, &forced, &free, words.feats.len());
-        Ok((words.alignment, fit))
+        let fit = word_fit(&words.alignment, &forced, &free, frames);
+        Ok((words.alignment, fit, general))
     }
 
     /// The phones of a recording, the way every command takes one: with `words`, aligned to

@@ -32,7 +32,7 @@ pub struct AlignArgs {
     /// map on its recordings): without words its phones are recognised far more exactly in the
     /// words its recordings hold (PER 8.3 % on GRID s1's talker against 64 % from the general
     /// acoustic model; on words it never heard, worse: 69 % against 54 %), with words their
-    /// fit is judged by it.
+    /// fit is judged by it and the general model together.
     #[arg(long, conflicts_with_all = ["acoustic_model", "dicts"])]
     talker: Option<PathBuf>,
 }
@@ -75,9 +75,9 @@ pub fn run(a: AlignArgs) -> Result<()> {
                 None => None,
             };
             let (alignment, checked) = match by_ear {
-                Some((alignment, f)) => {
-                    let score = facespace::sound_to_face::ear_fit(&f);
-                    let matches = facespace::sound_to_face::ear_matches(&f);
+                Some((alignment, f, general)) => {
+                    let score = facespace::sound_to_face::ear_fit(&f, &general);
+                    let matches = facespace::sound_to_face::ear_matches(&f, &general);
                     (alignment, (score, facespace::sound_to_face::LEAST_FIT, matches, f))
                 }
                 None => {
@@ -129,7 +129,7 @@ pub fn run(a: AlignArgs) -> Result<()> {
         let f = fit.as_ref().map_or(String::new(), |f| format!("  fit {:+.2}", f.3.words[k]));
         println!("  {:>7.2} {:>7.2}  {}{f}", w.start, w.end, w.word);
     }
-    let ear = if map.is_some() { ", as the talker's own ear hears it" } else { "" };
+    let ear = if map.is_some() { ", as the talker's own ear and the general model hear it" } else { "" };
     if let Some((score, least, matches, f)) = &fit {
         if *matches {
             println!("the words fit the speech (overall {score:+.2} nats/frame{ear})");

@@ -30,7 +30,8 @@ mod network;
 mod phones;
 
 pub use phones::{
-    LEAST_FIT, LOOP_PENALTY, LOOP_WEIGHT, PhoneClassifier, WORST_WORD_WEIGHT, ear_fit, ear_matches,
+    GENERAL_FIT_WEIGHT, LEAST_FIT, LOOP_PENALTY, LOOP_WEIGHT, PhoneClassifier, WORST_WORD_WEIGHT, ear_fit,
+    ear_matches,
     frame_labels,
 };
 
@@ -652,7 +653,7 @@ impl SoundToFace {
     }
 
     /// The phones of `text` aligned to `samples` at `rate` (16 kHz), refused when the words
-    /// do not fit the sound as the talker's own classifier hears it ([`ear_fit`] under
+    /// do not fit the sound as the talker's own classifier and the general model hear it ([`ear_fit`] under
     /// [`LEAST_FIT`]: [`AlignError::WordsDoNotMatch`] naming the worst words); `None` for a
     /// map without a classifier.
     pub fn hear_words(
@@ -662,12 +663,12 @@ impl SoundToFace {
         rate: u32,
         text: &str,
     ) -> Result<Option<Vec<crate::align::TimedPhone>>, AlignError> {
-        let Some((alignment, fit)) = self.align_checked(aligner, samples, rate, text)? else {
+        let Some((alignment, fit, general)) = self.align_checked(aligner, samples, rate, text)? else {
             return Ok(None);
         };
-        if !ear_matches(&fit) {
+        if !ear_matches(&fit, &general) {
             return Err(AlignError::WordsDoNotMatch {
-                overall: ear_fit(&fit),
+                overall: ear_fit(&fit, &general),
                 least: LEAST_FIT,
                 worst: fit.worst_words(&alignment.words, 3),
             });
@@ -697,22 +698,23 @@ impl SoundToFace {
     }
 
     /// `text` aligned to `samples` at `rate` (16 kHz), and how well its words fit the sound
-    /// as the talker's own classifier hears it ([`Aligner::align_checked_by`]: sharper than
-    /// the general acoustic model's fit; [`ear_fit`]); `None` for a map without a
-    /// classifier.
+    /// as the talker's own classifier hears it (sharper than the general acoustic model's
+    /// fit) and as the general model does ([`Aligner::align_checked_by`]; together
+    /// [`ear_fit`]); `None` for a map without a classifier.
     pub fn align_checked(
         &self,
         aligner: &Aligner,
         samples: &[f32],
         rate: u32,
         text: &str,
-    ) -> Result<Option<(crate::align::Alignment, crate::align::WordFit)>, AlignError> {
+    ) -> Result<Option<(crate::align::Alignment, crate::align::WordFit, crate::align::WordFit)>, AlignError> {
         let Some(classifier) = &self.phones else {
             return Ok(None);
         };
+        let general = aligner.phone_loop(crate::align::PHONE_WEIGHT, crate::align::PHONE_PENALTY);
         let lm = aligner.phone_loop(phones::LOOP_WEIGHT, phones::LOOP_PENALTY);
         let ear = |heard: &crate::align::Evidence| ear_scores(classifier, heard);
-        aligner.align_checked_by(samples, rate, text, ear, &lm).map(Some)
+        aligner.align_checked_by(samples, rate, text, &general, ear, &lm).map(Some)
     }
 
     /// Sentences and frames it was learnt from.

@@ -35,24 +35,28 @@ pub const LOOP_PENALTY: f64 = 0.0;
 
 /// How much of the worst word's fit joins the whole recording's in [`ear_fit`].
 pub const WORST_WORD_WEIGHT: f64 = 0.1;
-/// Least [`ear_fit`] of words that match their sound, nats per frame: with
-/// [`WORST_WORD_WEIGHT`], the rule with the widest margin between GRID s1 validation's true
-/// transcripts and other sentences', its threshold midway between the closest of each
-/// (BENCHMARKS "The talker's own ear").
-pub const LEAST_FIT: f64 = -0.514;
+/// How much of the general acoustic model's whole-recording fit ([`crate::align::WordFit`]
+/// against its own free loop) joins the ear's in [`ear_fit`]: two hearings judge the words.
+/// The weight and [`LEAST_FIT`] are the line with the widest margin between GRID s1
+/// validation's true transcripts and other sentences' (each fit in units of its s.d. over
+/// them), its threshold midway between the closest of each (BENCHMARKS "The talker's own ear").
+pub const GENERAL_FIT_WEIGHT: f64 = 0.75;
+/// Least [`ear_fit`] of words that match their sound, nats per frame.
+pub const LEAST_FIT: f64 = -0.040;
 
-/// How well words fit their sound as the classifier hears it: the whole recording's fit
-/// plus [`WORST_WORD_WEIGHT`] times the worst word's (one wrong word among right ones pulls
-/// the whole little, itself much).
-pub fn ear_fit(fit: &WordFit) -> f64 {
-    let worst = fit.words.iter().copied().fold(f64::INFINITY, f64::min);
-    fit.overall + if worst.is_finite() { WORST_WORD_WEIGHT * worst } else { 0.0 }
+/// How well words fit their sound, heard by the classifier (`ear`) and by the general
+/// acoustic model (`general`): the ear's whole-recording fit plus [`WORST_WORD_WEIGHT`] times
+/// its worst word's (one wrong word among right ones pulls the whole little, itself much),
+/// plus [`GENERAL_FIT_WEIGHT`] times the general model's whole-recording fit.
+pub fn ear_fit(ear: &WordFit, general: &WordFit) -> f64 {
+    let worst = ear.words.iter().copied().fold(f64::INFINITY, f64::min);
+    ear.overall + if worst.is_finite() { WORST_WORD_WEIGHT * worst } else { 0.0 } + GENERAL_FIT_WEIGHT * general.overall
 }
 
-/// Whether words match their sound as the classifier hears it: [`ear_fit`] at least
-/// [`LEAST_FIT`].
-pub fn ear_matches(fit: &WordFit) -> bool {
-    ear_fit(fit) >= LEAST_FIT
+/// Whether words match their sound as the classifier and the general model hear them:
+/// [`ear_fit`] at least [`LEAST_FIT`].
+pub fn ear_matches(ear: &WordFit, general: &WordFit) -> bool {
+    ear_fit(ear, general) >= LEAST_FIT
 }
 
 /// Every `STRIDE`-th 10 ms frame is an example: neighbours say almost the same.
@@ -173,12 +177,16 @@ mod tests {
     use super::*;
     use crate::phonemes::Phone;
 
-    /// Analytic: the whole fit plus a tenth of the worst word's; no words, the whole alone.
+    /// Analytic: the ear's whole fit plus a tenth of its worst word's plus three quarters of
+    /// the general model's whole fit; no words, the wholes alone.
     #[test]
-    fn the_ears_fit_weighs_in_the_worst_word() {
-        let fit = |words: Vec<f64>| WordFit { words, overall: -0.2 };
-        assert!((ear_fit(&fit(vec![-1.0, -3.0, 0.5])) - (-0.2 - 0.3)).abs() < 1e-12);
-        assert_eq!(ear_fit(&fit(Vec::new())), -0.2);
+    fn the_ears_fit_weighs_in_the_worst_word_and_the_general_fit() {
+        let fit = |words: Vec<f64>, overall| WordFit { words, overall };
+        let general = fit(vec![-9.0], 0.4);
+        assert!((ear_fit(&fit(vec![-1.0, -3.0, 0.5], -0.2), &general) - (-0.2 - 0.3 + 0.3)).abs() < 1e-12);
+        assert!((ear_fit(&fit(Vec::new(), -0.2), &general) - 0.1).abs() < 1e-12);
+        assert!(ear_matches(&fit(Vec::new(), -0.2), &general));
+        assert!(!ear_matches(&fit(Vec::new(), -0.2), &fit(Vec::new(), 0.0)));
     }
 
     /// Each 10 ms frame takes the segment holding its middle; frames past the last segment

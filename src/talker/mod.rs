@@ -606,8 +606,9 @@ impl Talker {
 
     /// The phones of the recording `audio` aligned to its `words` by `aligner` (the talker's
     /// own: [`Self::aligner`]), refused — unless `accept_mismatch` — when the words do not
-    /// fit the sound, as the talker's own ear hears it where it has one (far surer than the
-    /// general model's fit, BENCHMARKS "Do the words match the speech?").
+    /// fit the sound, as the talker's own ear and the general model together hear it where it
+    /// has an ear (far surer than the general model's fit alone, BENCHMARKS "The talker's own
+    /// ear").
     pub fn hear_words(
         &self,
         aligner: &crate::align::Aligner,
