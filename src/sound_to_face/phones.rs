@@ -50,7 +50,8 @@ pub const LEAST_FIT: f64 = -0.040;
 /// plus [`GENERAL_FIT_WEIGHT`] times the general model's whole-recording fit.
 pub fn ear_fit(ear: &WordFit, general: &WordFit) -> f64 {
     let worst = ear.words.iter().copied().fold(f64::INFINITY, f64::min);
-    ear.overall + if worst.is_finite() { WORST_WORD_WEIGHT * worst } else { 0.0 } + GENERAL_FIT_WEIGHT * general.overall
+    let worst = if worst.is_finite() { WORST_WORD_WEIGHT * worst } else { 0.0 };
+    ear.overall + worst + GENERAL_FIT_WEIGHT * general.overall
 }
 
 /// Whether words match their sound as the classifier and the general model hear them:
