@@ -284,8 +284,7 @@ impl Aligner {
         let frames = words.feats.len();
         // One scoring of every phone's states serves the general loop and the ear's evidence.
         let states = search::ci_state_scores(&self.model, &words.feats);
-        let general_loop = search::Graph::phone_loop(&self.model, &lm.transition);
-        let free = search::viterbi_states(&self.model, &general_loop, &states).ok_or(AlignError::NoPath)?;
+        let (_, free) = self.loop_path(&states, lm)?;
         let general = word_fit(&words.alignment, &words.path, &free, frames);
         let scores = ear(&self.evidence_from(&words.feats, &states));
         let forced = search::viterbi_scored(&self.model, &words.graph, &scores).ok_or(AlignError::NoPath)?;
@@ -469,8 +468,7 @@ impl Aligner {
         let feats = self.features(samples, rate)?;
         // One scoring of every phone's states serves the refusal's search and the evidence.
         let states = self.every_other_state_scores(&feats);
-        let free = search::Graph::phone_loop(&self.model, &lm.transition);
-        let path = search::viterbi_states(&self.model, &free, &states).ok_or(AlignError::NoPath)?;
+        let (free, path) = self.loop_path(&states, lm)?;
         self.check_speech(&free, &path, feats.len())?;
         let heard = self.evidence_from(&feats, &states);
         let scores = ear(&heard);
@@ -496,9 +494,18 @@ impl Aligner {
         feats: &[[f32; frontend::FEATURE_DIM]],
         lm: &PhoneLoop,
     ) -> Result<(search::Graph, search::Path), AlignError> {
+        self.loop_path(&search::ci_state_scores(&self.model, feats), lm)
+    }
+
+    /// The best path of the phone loop `lm` over every phone's state scores in each frame
+    /// (`states`, [`search::ci_state_scores`]), and the loop's graph.
+    fn loop_path(
+        &self,
+        states: &[Vec<[f32; model::STATES]>],
+        lm: &PhoneLoop,
+    ) -> Result<(search::Graph, search::Path), AlignError> {
         let graph = search::Graph::phone_loop(&self.model, &lm.transition);
-        let states = search::ci_state_scores(&self.model, feats);
-        let path = search::viterbi_states(&self.model, &graph, &states).ok_or(AlignError::NoPath)?;
+        let path = search::viterbi_states(&self.model, &graph, states).ok_or(AlignError::NoPath)?;
         Ok((graph, path))
     }
 

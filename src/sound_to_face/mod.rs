@@ -31,8 +31,7 @@ mod phones;
 
 pub use phones::{
     GENERAL_FIT_WEIGHT, LEAST_FIT, LOOP_PENALTY, LOOP_WEIGHT, PhoneClassifier, WORST_WORD_WEIGHT, ear_fit,
-    ear_matches,
-    frame_labels,
+    ear_matches, frame_labels,
 };
 
 use std::path::Path;
@@ -653,9 +652,9 @@ impl SoundToFace {
     }
 
     /// The phones of `text` aligned to `samples` at `rate` (16 kHz), refused when the words
-    /// do not fit the sound as the talker's own classifier and the general model hear it ([`ear_fit`] under
-    /// [`LEAST_FIT`]: [`AlignError::WordsDoNotMatch`] naming the worst words); `None` for a
-    /// map without a classifier.
+    /// do not fit the sound as the talker's own classifier and the general model hear it
+    /// ([`ear_fit`] under [`LEAST_FIT`]: [`AlignError::WordsDoNotMatch`] naming the worst
+    /// words); `None` for a map without a classifier.
     pub fn hear_words(
         &self,
         aligner: &Aligner,
