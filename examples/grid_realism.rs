@@ -22,6 +22,9 @@
 //! `FACESPACE_ENCODED` scores the drawn frames as a viewer gets them: written to an MP4 by the
 //! writer `say` uses and decoded (the recordings are scored as stored, x264 at CRF 21);
 //! `FACESPACE_ENCODED=QP` at that quantiser instead.
+//! `FACESPACE_TRACKED` adds the recording's own tracked trajectory drawn over its video (its
+//! motion and appearance as tracked, only the drawing ours): which cues are the drawing's.
+//! Each accuracy comes with its standard error over sentences.
 //! `FACESPACE_TALKER=T` scores another talker than the committed GRID one, e.g. the 720×576
 //! one built from `examples/grid_upscale`'s folder (given as GRID).
 
@@ -33,7 +36,7 @@ use std::path::Path;
 use facespace::eval::mouth::{MouthPc, inner_mouth_height, mouth_sharpness};
 use facespace::eval::pearson;
 use facespace::eval::realism::{
-    Cropper, FEATURES, Pair, WINDOW, accuracy, accuracy_on, features, sharpness, temporal_change,
+    Accuracy, Cropper, FEATURES, Pair, WINDOW, accuracy, accuracy_on, features, sharpness, temporal_change,
 };
 use facespace::facespace::Frames;
 use facespace::mouths::Mouths;
@@ -82,7 +85,14 @@ fn main() {
         .collect();
     // The systems scored against the recording, in the order they are drawn.
     let mut systems = Vec::new();
-    for place in ["synthesis over the clip's own video", "say over the idle footage"] {
+    // `FACESPACE_TRACKED`: also the recording's own tracked trajectory drawn over its video —
+    // which cues are the drawing's and which the synthesised motion's.
+    let tracked = std::env::var_os("FACESPACE_TRACKED").is_some();
+    let mut places = vec!["synthesis over the clip's own video", "say over the idle footage"];
+    if tracked {
+        places.push("the recording's own tracked trajectory over its video");
+    }
+    for place in places {
         systems.push(format!("{place}, the model's mouth (PCA)"));
         for g in &gains {
             systems.push(format!("{place}, recorded mouths, detail gain {g}"));
@@ -159,8 +169,14 @@ fn main() {
         let mut drawn = vec![draw(&real_images[..n], &real_marks[..n])];
         // Rows of the README's strip: the recording, then each system over its own video.
         let mut strip_rows = vec![real_images[..n].to_vec()];
-        for (utterance, backdrop) in [(&over_own, &own), (&p.utterance, &p.backdrop)] {
-            let frames = utterance.variants()[0].1.slice(0..n);
+        let mut drawings = vec![
+            (over_own.variants()[0].1.slice(0..n), &own),
+            (p.utterance.variants()[0].1.slice(0..n), &p.backdrop),
+        ];
+        if tracked {
+            drawings.push((own.tracked.slice(0..n), &own));
+        }
+        for (frames, backdrop) in drawings {
             let marks = facespace::eval::landmarks(model, &frames);
             let mut renderers: Vec<Box<dyn Renderer + '_>> = vec![Box::new(pca.clone())];
             for store in &stores {
@@ -180,7 +196,7 @@ fn main() {
                     images = as_written(&images, qp);
                 }
                 drawn.push(draw(&images, &marks));
-                if std::ptr::eq(backdrop, &own) {
+                if std::ptr::eq(backdrop, &own) && strip_rows.len() < 1 + renderers.len() {
                     strip_rows.push(images);
                 }
             }
@@ -216,8 +232,10 @@ fn main() {
         mouths.len(),
         100.0 * switches as f64 / frames_total.max(1) as f64
     );
+    // An accuracy with its standard error over sentences.
+    let shown = |a: Accuracy| format!("{:.3} ± {:.3}", a.value, a.standard_error);
     println!(
-        "| system | discriminator accuracy | crop sharpness × real | full-size mouth sharpness × real | temporal change × real | r_pca eq. 16 (pixels) | r_h inner |"
+        "| system | discriminator accuracy (± s.e.) | crop sharpness × real | full-size mouth sharpness × real | temporal change × real | r_pca eq. 16 (pixels) | r_h inner |"
     );
     println!("|---|---|---|---|---|---|---|");
     let halves: Vec<Pair> = sentences
@@ -228,8 +246,8 @@ fn main() {
         })
         .collect();
     println!(
-        "| the recording, its even sentences against its odd ones (sanity) | {:.3} | 1 | 1 | 1 | 1 | 1 |",
-        accuracy(&halves)
+        "| the recording, its even sentences against its odd ones (sanity) | {} | 1 | 1 | 1 | 1 | 1 |",
+        shown(accuracy(&halves))
     );
     let mean = |f: &dyn Fn(&[Drawn]) -> f64| {
         sentences.iter().map(|s| f(s)).sum::<f64>() / sentences.len() as f64
@@ -246,8 +264,8 @@ fn main() {
     for (k, name) in systems.iter().enumerate().map(|(k, n)| (k + 1, n)) {
         let sharp = |d: &Drawn| d.crops.iter().map(|c| sharpness(c)).sum::<f64>() / d.crops.len() as f64;
         println!(
-            "| {name} | {:.3} | {:.2} | {:.2} | {:.2} | {:.3} | {:.3} |",
-            accuracy(&pairs_of(k)),
+            "| {name} | {} | {:.2} | {:.2} | {:.2} | {:.3} | {:.3} |",
+            shown(accuracy(&pairs_of(k))),
             mean(&|s| sharp(&s[k]) / sharp(&s[0])),
             mean(&|s| s[k].sharpness / s[0].sharpness),
             mean(&|s| temporal_change(&s[k].crops) / temporal_change(&s[0].crops)),
@@ -261,7 +279,7 @@ fn main() {
             let each: Vec<String> = FEATURES
                 .iter()
                 .enumerate()
-                .map(|(f, feature)| format!("{feature} {:.2}", accuracy_on(&pairs, &[f])))
+                .map(|(f, feature)| format!("{feature} {:.2}", accuracy_on(&pairs, &[f]).value))
                 .collect();
             println!("{name}, one feature at a time: {}", each.join(", "));
         }

@@ -272,19 +272,50 @@ pub const FEATURES: [&str; 11] = [
     "PC5 s.d.",
 ];
 
+/// A cross-validated accuracy and how far it would move with other sentences.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Accuracy {
+    /// Windows told right over windows tested.
+    pub value: f64,
+    /// Its standard error with sentences as the sampled unit ([`clustered_standard_error`]):
+    /// a sentence's windows overlap and share its words, so they are not independent.
+    pub standard_error: f64,
+}
+
+/// The standard error of the ratio `Σ right / Σ total` over clusters (here sentences, each
+/// `right[i]` of `total[i]` windows told right), the cluster-robust (sandwich) estimator with
+/// the small-sample factor n / (n − 1): `√(n / (n − 1) · Σ (right_i − p · total_i)²) / Σ total`.
+/// With one window per cluster it is the sample standard error of a proportion.
+pub fn clustered_standard_error(right: &[usize], total: &[usize]) -> f64 {
+    let n = right.len().min(total.len());
+    let all: usize = total[..n].iter().sum();
+    if n < 2 || all == 0 {
+        return f64::NAN;
+    }
+    let p = right[..n].iter().sum::<usize>() as f64 / all as f64;
+    let spread: f64 = right[..n]
+        .iter()
+        .zip(&total[..n])
+        .map(|(&r, &t)| (r as f64 - p * t as f64).powi(2))
+        .sum();
+    (n as f64 / (n - 1) as f64 * spread).sqrt() / all as f64
+}
+
 /// The classifier's accuracy at telling `a` from `b` windows, cross-validated over
 /// [`FOLDS`] folds of sentences (sentence `i` in fold `i mod FOLDS`); the PCA and the
 /// features' standardisation are fitted on the training folds only.
-pub fn accuracy(pairs: &[Pair]) -> f64 {
+pub fn accuracy(pairs: &[Pair]) -> Accuracy {
     accuracy_on(pairs, &(0..FEATURES.len()).collect::<Vec<_>>())
 }
 
 /// [`accuracy`] of a classifier given only the features numbered `only` (of [`FEATURES`]).
-pub fn accuracy_on(pairs: &[Pair], only: &[usize]) -> f64 {
-    let (mut right, mut total) = (0usize, 0usize);
+pub fn accuracy_on(pairs: &[Pair], only: &[usize]) -> Accuracy {
+    // Per sentence: windows told right, windows tested.
+    let (mut right, mut total) = (vec![0usize; pairs.len()], vec![0usize; pairs.len()]);
     for fold in 0..FOLDS.min(pairs.len()) {
         let train: Vec<&Pair> = pairs.iter().enumerate().filter(|(i, _)| i % FOLDS != fold).map(|(_, p)| p).collect();
-        let test: Vec<&Pair> = pairs.iter().enumerate().filter(|(i, _)| i % FOLDS == fold).map(|(_, p)| p).collect();
+        let tested: Vec<usize> = (0..pairs.len()).filter(|i| i % FOLDS == fold).collect();
+        let test: Vec<&Pair> = tested.iter().map(|&i| &pairs[i]).collect();
         if train.is_empty() || test.is_empty() {
             continue;
         }
@@ -297,13 +328,14 @@ pub fn accuracy_on(pairs: &[Pair], only: &[usize]) -> f64 {
         let Ok(pca) = PcaModel::fit(&sample, Components::Count(PCS)) else {
             continue;
         };
+        // Rows of (features, label, the set's sentence).
         let labelled = |set: &[&Pair]| {
             let mut rows = Vec::new();
-            for p in set {
+            for (s, p) in set.iter().enumerate() {
                 for (crops, label) in [(&p.a, false), (&p.b, true)] {
                     rows.extend(windows(crops).map(|w| {
                         let f = features(w, &pca);
-                        (only.iter().filter_map(|&k| f.get(k).copied()).collect::<Vec<_>>(), label)
+                        (only.iter().filter_map(|&k| f.get(k).copied()).collect::<Vec<_>>(), label, s)
                     }));
                 }
             }
@@ -320,12 +352,15 @@ pub fn accuracy_on(pairs: &[Pair], only: &[usize]) -> f64 {
         let x: Vec<Vec<f64>> = train_rows.iter().map(|r| standard(&r.0)).collect();
         let y: Vec<bool> = train_rows.iter().map(|r| r.1).collect();
         let model = Logistic::fit(&x, &y, RIDGE);
-        for (f, label) in &test_rows {
-            right += usize::from((model.probability(&standard(f)) > 0.5) == *label);
-            total += 1;
+        for (f, label, s) in &test_rows {
+            right[tested[*s]] += usize::from((model.probability(&standard(f)) > 0.5) == *label);
+            total[tested[*s]] += 1;
         }
     }
-    right as f64 / total.max(1) as f64
+    Accuracy {
+        value: right.iter().sum::<usize>() as f64 / total.iter().sum::<usize>().max(1) as f64,
+        standard_error: clustered_standard_error(&right, &total),
+    }
 }
 
 #[cfg(test)]
@@ -413,7 +448,24 @@ mod tests {
         };
         let alike = accuracy(&pairs(false));
         let blurred = accuracy(&pairs(true));
-        assert!((alike - 0.5).abs() < 0.15, "{alike}");
-        assert!(blurred > 0.95, "{blurred}");
+        assert!((alike.value - 0.5).abs() < 0.15, "{alike:?}");
+        assert!(blurred.value > 0.95, "{blurred:?}");
+        // 20 sentences of 3 windows a side: chance's spread is about √(¼ / 120) ≈ 0.046.
+        assert!((0.02..0.1).contains(&alike.standard_error), "{alike:?}");
+    }
+
+    /// Analytic cases: one window per sentence is the sample standard error of a proportion;
+    /// two sentences of 4 windows, 3 and 1 right: p = ½, residuals ±1, √(2 · 2) / 8.
+    #[test]
+    fn clustered_standard_error_matches_hand_values() {
+        let right = [1, 0, 1, 1, 0, 1, 1, 1];
+        let p: f64 = 6.0 / 8.0;
+        let sample = (p * (1.0 - p) / 7.0).sqrt();
+        let se = clustered_standard_error(&right, &[1; 8]);
+        assert!((se - sample).abs() < 1e-12, "{se} against {sample}");
+        assert!((clustered_standard_error(&[3, 1], &[4, 4]) - 0.25).abs() < 1e-12);
+        // Every sentence at the same rate: no spread between sentences.
+        assert_eq!(clustered_standard_error(&[2, 4, 6], &[4, 8, 12]), 0.0);
+        assert!(clustered_standard_error(&[1], &[2]).is_nan());
     }
 }
