@@ -261,17 +261,30 @@ fn main() {
             })
             .collect()
     };
+    let accuracies: Vec<Accuracy> = (1..=systems.len()).map(|k| accuracy(&pairs_of(k))).collect();
     for (k, name) in systems.iter().enumerate().map(|(k, n)| (k + 1, n)) {
         let sharp = |d: &Drawn| d.crops.iter().map(|c| sharpness(c)).sum::<f64>() / d.crops.len() as f64;
         println!(
             "| {name} | {} | {:.2} | {:.2} | {:.2} | {:.3} | {:.3} |",
-            shown(accuracy(&pairs_of(k))),
+            shown(accuracies[k - 1].clone()),
             mean(&|s| sharp(&s[k]) / sharp(&s[0])),
             mean(&|s| s[k].sharpness / s[0].sharpness),
             mean(&|s| temporal_change(&s[k].crops) / temporal_change(&s[0].crops)),
             mean(&|s| pearson(&pc.series(&s[k].projected), &pc.series(&s[0].projected))),
             mean(&|s| pearson(&s[k].heights, &s[0].heights)),
         );
+    }
+    // With several gains, each against the talker's own on the same sentences (paired).
+    let default_gain = gains.iter().position(|&g| g == mouths.gain);
+    if let (Some(d), true) = (default_gain, gains.len() > 1) {
+        let per_place = 1 + gains.len();
+        for (k, name) in systems.iter().enumerate() {
+            let base = k - k % per_place + 1 + d;
+            if k % per_place != 0 && k != base {
+                let (diff, se) = accuracies[k].minus(&accuracies[base]);
+                println!("{name}: {diff:+.3} ± {se:.3} against gain {} (paired over sentences)", mouths.gain);
+            }
+        }
     }
     if std::env::var_os("FACESPACE_FEATURES").is_some() {
         for (k, name) in systems.iter().enumerate().map(|(k, n)| (k + 1, n)) {

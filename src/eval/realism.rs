@@ -273,13 +273,35 @@ pub const FEATURES: [&str; 11] = [
 ];
 
 /// A cross-validated accuracy and how far it would move with other sentences.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Accuracy {
     /// Windows told right over windows tested.
     pub value: f64,
     /// Its standard error with sentences as the sampled unit ([`clustered_standard_error`]):
     /// a sentence's windows overlap and share its words, so they are not independent.
     pub standard_error: f64,
+    /// Per sentence, in the pairs' order: windows told right, windows tested.
+    pub right: Vec<usize>,
+    /// See `right`.
+    pub total: Vec<usize>,
+}
+
+impl Accuracy {
+    /// `self.value − other.value` and its standard error when both were measured on the same
+    /// sentences (two systems against one recording): each sentence's contribution to the two
+    /// ratios (`(right_i − p · total_i) / Σ total`, the ratio's linearisation) differenced,
+    /// so what the sentences share — how hard each is — cancels. Sentences only: the
+    /// classifiers' own training is not resampled.
+    pub fn minus(&self, other: &Accuracy) -> (f64, f64) {
+        let n = self.right.len().min(other.right.len());
+        let part = |a: &Accuracy, i: usize| {
+            let all = a.total.iter().sum::<usize>().max(1) as f64;
+            (a.right[i] as f64 - a.value * a.total[i] as f64) / all
+        };
+        let spread: f64 = (0..n).map(|i| (part(self, i) - part(other, i)).powi(2)).sum();
+        let se = if n < 2 { f64::NAN } else { (n as f64 / (n - 1) as f64 * spread).sqrt() };
+        (self.value - other.value, se)
+    }
 }
 
 /// The standard error of the ratio `Σ right / Σ total` over clusters (here sentences, each
@@ -360,6 +382,8 @@ pub fn accuracy_on(pairs: &[Pair], only: &[usize]) -> Accuracy {
     Accuracy {
         value: right.iter().sum::<usize>() as f64 / total.iter().sum::<usize>().max(1) as f64,
         standard_error: clustered_standard_error(&right, &total),
+        right,
+        total,
     }
 }
 
@@ -467,5 +491,27 @@ mod tests {
         // Every sentence at the same rate: no spread between sentences.
         assert_eq!(clustered_standard_error(&[2, 4, 6], &[4, 8, 12]), 0.0);
         assert!(clustered_standard_error(&[1], &[2]).is_nan());
+    }
+
+    /// A difference against itself is zero with no spread; against a system whose every
+    /// sentence sits at its own mean rate, the difference's error is the other's own.
+    #[test]
+    fn paired_difference_of_accuracies() {
+        let of = |right: Vec<usize>, total: Vec<usize>| Accuracy {
+            value: right.iter().sum::<usize>() as f64 / total.iter().sum::<usize>() as f64,
+            standard_error: clustered_standard_error(&right, &total),
+            right,
+            total,
+        };
+        let a = of(vec![3, 1, 4, 2], vec![4, 4, 4, 4]);
+        assert_eq!(a.minus(&a), (0.0, 0.0));
+        let steady = of(vec![2, 2, 2, 2], vec![4, 4, 4, 4]);
+        let (d, se) = a.minus(&steady);
+        assert!((d - (10.0 / 16.0 - 0.5)).abs() < 1e-12);
+        assert!((se - a.standard_error).abs() < 1e-12, "{se} against {}", a.standard_error);
+        // Two systems that rise and fall together on the same sentences: their difference
+        // varies less than either.
+        let b = of(vec![4, 2, 4, 3], vec![4, 4, 4, 4]);
+        assert!(a.minus(&b).1 < a.standard_error.min(b.standard_error));
     }
 }
