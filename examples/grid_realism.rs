@@ -196,6 +196,7 @@ fn main() {
                     images = as_written(&images, qp);
                 }
                 drawn.push(draw(&images, &marks));
+                // (The strip shows the synthesis only, not the tracked trajectory's drawing.)
                 if std::ptr::eq(backdrop, &own) && strip_rows.len() < 1 + renderers.len() {
                     strip_rows.push(images);
                 }
@@ -233,7 +234,7 @@ fn main() {
         100.0 * switches as f64 / frames_total.max(1) as f64
     );
     // An accuracy with its standard error over sentences.
-    let shown = |a: Accuracy| format!("{:.3} ± {:.3}", a.value, a.standard_error);
+    let shown = |a: &Accuracy| format!("{:.3} ± {:.3}", a.value, a.standard_error);
     println!(
         "| system | discriminator accuracy (± s.e.) | crop sharpness × real | full-size mouth sharpness × real | temporal change × real | r_pca eq. 16 (pixels) | r_h inner |"
     );
@@ -247,7 +248,7 @@ fn main() {
         .collect();
     println!(
         "| the recording, its even sentences against its odd ones (sanity) | {} | 1 | 1 | 1 | 1 | 1 |",
-        shown(accuracy(&halves))
+        shown(&accuracy(&halves))
     );
     let mean = |f: &dyn Fn(&[Drawn]) -> f64| {
         sentences.iter().map(|s| f(s)).sum::<f64>() / sentences.len() as f64
@@ -266,7 +267,7 @@ fn main() {
         let sharp = |d: &Drawn| d.crops.iter().map(|c| sharpness(c)).sum::<f64>() / d.crops.len() as f64;
         println!(
             "| {name} | {} | {:.2} | {:.2} | {:.2} | {:.3} | {:.3} |",
-            shown(accuracies[k - 1].clone()),
+            shown(&accuracies[k - 1]),
             mean(&|s| sharp(&s[k]) / sharp(&s[0])),
             mean(&|s| s[k].sharpness / s[0].sharpness),
             mean(&|s| temporal_change(&s[k].crops) / temporal_change(&s[0].crops)),
