@@ -53,12 +53,13 @@ fn main() {
             visemes::hold(&chosen, Extended::default())
         };
         let tracks = [track(&p), track(&q)];
+        let shape_at = |cues: &[visemes::Cue], t: u32| cues.iter().find(|c| c.start <= t && t < c.end).map(|c| c.shape);
         for t in 0..(speech.seconds() * 100.0) as u32 {
-            let Some(want) = truth.iter().find(|c| c.start <= t && t < c.end).map(|c| c.shape) else { continue };
+            let Some(want) = shape_at(&truth, t) else { continue };
             if !matches!(want, Shape::B | Shape::C | Shape::D) { continue; }
             total += 1;
             for (k, tr) in tracks.iter().enumerate() {
-                agree[k] += usize::from(tr.iter().find(|c| c.start <= t && t < c.end).map(|c| c.shape) == Some(want));
+                agree[k] += usize::from(shape_at(tr, t) == Some(want));
             }
         }
         eprint!(".");

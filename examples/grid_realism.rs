@@ -169,14 +169,16 @@ fn main() {
         let mut drawn = vec![draw(&real_images[..n], &real_marks[..n])];
         // Rows of the README's strip: the recording, then each system over its own video.
         let mut strip_rows = vec![real_images[..n].to_vec()];
+        // (frames, backdrop, whether the README's strip shows them: the synthesis over its own
+        // video only).
         let mut drawings = vec![
-            (over_own.variants()[0].1.slice(0..n), &own),
-            (p.utterance.variants()[0].1.slice(0..n), &p.backdrop),
+            (over_own.variants()[0].1.slice(0..n), &own, true),
+            (p.utterance.variants()[0].1.slice(0..n), &p.backdrop, false),
         ];
         if tracked {
-            drawings.push((own.tracked.slice(0..n), &own));
+            drawings.push((own.tracked.slice(0..n), &own, false));
         }
-        for (frames, backdrop) in drawings {
+        for (frames, backdrop, in_strip) in drawings {
             let marks = facespace::eval::landmarks(model, &frames);
             let mut renderers: Vec<Box<dyn Renderer + '_>> = vec![Box::new(pca.clone())];
             for store in &stores {
@@ -196,8 +198,7 @@ fn main() {
                     images = as_written(&images, qp);
                 }
                 drawn.push(draw(&images, &marks));
-                // (The strip shows the synthesis only, not the tracked trajectory's drawing.)
-                if std::ptr::eq(backdrop, &own) && strip_rows.len() < 1 + renderers.len() {
+                if in_strip {
                     strip_rows.push(images);
                 }
             }
@@ -234,7 +235,7 @@ fn main() {
         100.0 * switches as f64 / frames_total.max(1) as f64
     );
     // An accuracy with its standard error over sentences.
-    let shown = |a: &Accuracy| format!("{:.3} ± {:.3}", a.value, a.standard_error);
+    let shown = |a: &Accuracy| format!("{:.3} ± {:.3}", a.value(), a.standard_error());
     println!(
         "| system | discriminator accuracy (± s.e.) | crop sharpness × real | full-size mouth sharpness × real | temporal change × real | r_pca eq. 16 (pixels) | r_h inner |"
     );
@@ -293,7 +294,7 @@ fn main() {
             let each: Vec<String> = FEATURES
                 .iter()
                 .enumerate()
-                .map(|(f, feature)| format!("{feature} {:.2}", accuracy_on(&pairs, &[f]).value))
+                .map(|(f, feature)| format!("{feature} {:.2}", accuracy_on(&pairs, &[f]).value()))
                 .collect();
             println!("{name}, one feature at a time: {}", each.join(", "));
         }

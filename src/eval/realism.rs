@@ -272,55 +272,63 @@ pub const FEATURES: [&str; 11] = [
     "PC5 s.d.",
 ];
 
-/// A cross-validated accuracy and how far it would move with other sentences.
+/// A cross-validated accuracy, sentence by sentence: how many of each sentence's windows were
+/// told right, so its standard error and differences can treat sentences as the sampled unit
+/// (a sentence's windows overlap and share its words, so they are not independent).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Accuracy {
-    /// Windows told right over windows tested.
-    pub value: f64,
-    /// Its standard error with sentences as the sampled unit ([`clustered_standard_error`]):
-    /// a sentence's windows overlap and share its words, so they are not independent.
-    pub standard_error: f64,
-    /// Per sentence, in the pairs' order: windows told right, windows tested.
+    /// Per sentence, in the pairs' order: windows told right.
     pub right: Vec<usize>,
-    /// See `right`.
+    /// Per sentence: windows tested.
     pub total: Vec<usize>,
 }
 
 impl Accuracy {
-    /// `self.value − other.value` and its standard error when both were measured on the same
-    /// sentences (two systems against one recording): each sentence's contribution to the two
-    /// ratios (`(right_i − p · total_i) / Σ total`, the ratio's linearisation) differenced,
-    /// so what the sentences share — how hard each is — cancels. Sentences only: the
-    /// classifiers' own training is not resampled.
+    /// Windows told right over windows tested (0 when none was tested).
+    pub fn value(&self) -> f64 {
+        self.right.iter().sum::<usize>() as f64 / self.total.iter().sum::<usize>().max(1) as f64
+    }
+
+    /// The standard error of [`Self::value`] over sentences: the cluster-robust (sandwich)
+    /// estimator of a ratio with the small-sample factor n / (n − 1),
+    /// `√(n / (n − 1) · Σ (right_i − p · total_i)²) / Σ total`. With one window per sentence
+    /// it is the sample standard error of a proportion; NaN under two sentences or no window.
+    pub fn standard_error(&self) -> f64 {
+        if self.total.iter().sum::<usize>() == 0 {
+            return f64::NAN;
+        }
+        spread(&self.parts())
+    }
+
+    /// `self.value() − other.value()` and its standard error when both were measured on the
+    /// same sentences (two systems against one recording): each sentence's part in the two
+    /// ratios differenced, so what the sentences share — how hard each is — cancels.
+    /// Sentences only: the classifiers' own training is not resampled.
     pub fn minus(&self, other: &Accuracy) -> (f64, f64) {
-        let n = self.right.len().min(other.right.len());
-        let part = |a: &Accuracy, i: usize| {
-            let all = a.total.iter().sum::<usize>().max(1) as f64;
-            (a.right[i] as f64 - a.value * a.total[i] as f64) / all
-        };
-        let spread: f64 = (0..n).map(|i| (part(self, i) - part(other, i)).powi(2)).sum();
-        let se = if n < 2 { f64::NAN } else { (n as f64 / (n - 1) as f64 * spread).sqrt() };
-        (self.value - other.value, se)
+        let differences: Vec<f64> =
+            self.parts().iter().zip(other.parts()).map(|(a, b)| a - b).collect();
+        (self.value() - other.value(), spread(&differences))
+    }
+
+    /// Each sentence's part in the ratio's deviation (its linearisation):
+    /// `(right_i − p · total_i) / Σ total`.
+    fn parts(&self) -> Vec<f64> {
+        let (p, all) = (self.value(), self.total.iter().sum::<usize>().max(1) as f64);
+        self.right
+            .iter()
+            .zip(&self.total)
+            .map(|(&r, &t)| (r as f64 - p * t as f64) / all)
+            .collect()
     }
 }
 
-/// The standard error of the ratio `Σ right / Σ total` over clusters (here sentences, each
-/// `right[i]` of `total[i]` windows told right), the cluster-robust (sandwich) estimator with
-/// the small-sample factor n / (n − 1): `√(n / (n − 1) · Σ (right_i − p · total_i)²) / Σ total`.
-/// With one window per cluster it is the sample standard error of a proportion.
-pub fn clustered_standard_error(right: &[usize], total: &[usize]) -> f64 {
-    let n = right.len().min(total.len());
-    let all: usize = total[..n].iter().sum();
-    if n < 2 || all == 0 {
+/// `√(n / (n − 1) · Σ xᵢ²)` of `n` sentences' parts: a sum's standard error over sentences.
+fn spread(parts: &[f64]) -> f64 {
+    let n = parts.len();
+    if n < 2 {
         return f64::NAN;
     }
-    let p = right[..n].iter().sum::<usize>() as f64 / all as f64;
-    let spread: f64 = right[..n]
-        .iter()
-        .zip(&total[..n])
-        .map(|(&r, &t)| (r as f64 - p * t as f64).powi(2))
-        .sum();
-    (n as f64 / (n - 1) as f64 * spread).sqrt() / all as f64
+    (n as f64 / (n - 1) as f64 * parts.iter().map(|x| x * x).sum::<f64>()).sqrt()
 }
 
 /// The classifier's accuracy at telling `a` from `b` windows, cross-validated over
@@ -379,12 +387,7 @@ pub fn accuracy_on(pairs: &[Pair], only: &[usize]) -> Accuracy {
             total[tested[*s]] += 1;
         }
     }
-    Accuracy {
-        value: right.iter().sum::<usize>() as f64 / total.iter().sum::<usize>().max(1) as f64,
-        standard_error: clustered_standard_error(&right, &total),
-        right,
-        total,
-    }
+    Accuracy { right, total }
 }
 
 #[cfg(test)]
@@ -472,46 +475,41 @@ mod tests {
         };
         let alike = accuracy(&pairs(false));
         let blurred = accuracy(&pairs(true));
-        assert!((alike.value - 0.5).abs() < 0.15, "{alike:?}");
-        assert!(blurred.value > 0.95, "{blurred:?}");
+        assert!((alike.value() - 0.5).abs() < 0.15, "{alike:?}");
+        assert!(blurred.value() > 0.95, "{blurred:?}");
         // 20 sentences of 3 windows a side: chance's spread is about √(¼ / 120) ≈ 0.046.
-        assert!((0.02..0.1).contains(&alike.standard_error), "{alike:?}");
+        assert!((0.02..0.1).contains(&alike.standard_error()), "{alike:?}");
     }
 
     /// Analytic cases: one window per sentence is the sample standard error of a proportion;
     /// two sentences of 4 windows, 3 and 1 right: p = ½, residuals ±1, √(2 · 2) / 8.
     #[test]
     fn clustered_standard_error_matches_hand_values() {
-        let right = [1, 0, 1, 1, 0, 1, 1, 1];
+        let of = |right: Vec<usize>, total: Vec<usize>| Accuracy { right, total };
         let p: f64 = 6.0 / 8.0;
         let sample = (p * (1.0 - p) / 7.0).sqrt();
-        let se = clustered_standard_error(&right, &[1; 8]);
+        let se = of(vec![1, 0, 1, 1, 0, 1, 1, 1], vec![1; 8]).standard_error();
         assert!((se - sample).abs() < 1e-12, "{se} against {sample}");
-        assert!((clustered_standard_error(&[3, 1], &[4, 4]) - 0.25).abs() < 1e-12);
+        assert!((of(vec![3, 1], vec![4, 4]).standard_error() - 0.25).abs() < 1e-12);
         // Every sentence at the same rate: no spread between sentences.
-        assert_eq!(clustered_standard_error(&[2, 4, 6], &[4, 8, 12]), 0.0);
-        assert!(clustered_standard_error(&[1], &[2]).is_nan());
+        assert_eq!(of(vec![2, 4, 6], vec![4, 8, 12]).standard_error(), 0.0);
+        assert!(of(vec![1], vec![2]).standard_error().is_nan());
     }
 
     /// A difference against itself is zero with no spread; against a system whose every
     /// sentence sits at its own mean rate, the difference's error is the other's own.
     #[test]
     fn paired_difference_of_accuracies() {
-        let of = |right: Vec<usize>, total: Vec<usize>| Accuracy {
-            value: right.iter().sum::<usize>() as f64 / total.iter().sum::<usize>() as f64,
-            standard_error: clustered_standard_error(&right, &total),
-            right,
-            total,
-        };
+        let of = |right: Vec<usize>, total: Vec<usize>| Accuracy { right, total };
         let a = of(vec![3, 1, 4, 2], vec![4, 4, 4, 4]);
         assert_eq!(a.minus(&a), (0.0, 0.0));
         let steady = of(vec![2, 2, 2, 2], vec![4, 4, 4, 4]);
         let (d, se) = a.minus(&steady);
         assert!((d - (10.0 / 16.0 - 0.5)).abs() < 1e-12);
-        assert!((se - a.standard_error).abs() < 1e-12, "{se} against {}", a.standard_error);
+        assert!((se - a.standard_error()).abs() < 1e-12, "{se} against {}", a.standard_error());
         // Two systems that rise and fall together on the same sentences: their difference
         // varies less than either.
         let b = of(vec![4, 2, 4, 3], vec![4, 4, 4, 4]);
-        assert!(a.minus(&b).1 < a.standard_error.min(b.standard_error));
+        assert!(a.minus(&b).1 < a.standard_error().min(b.standard_error()));
     }
 }
