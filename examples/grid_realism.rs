@@ -24,6 +24,8 @@
 //! `FACESPACE_ENCODED=QP` at that quantiser instead.
 //! `FACESPACE_TRACKED` adds the recording's own tracked trajectory drawn over its video (its
 //! motion and appearance as tracked, only the drawing ours): which cues are the drawing's.
+//! `FACESPACE_APPEARANCE_GAIN=1,1.3` adds the synthesis over its own video with these appearance
+//! gains (`Blend::appearance_gain`) in place of the talker's, each paired against it.
 //! Each accuracy comes with its standard error over sentences.
 //! `FACESPACE_TALKER=T` scores another talker than the committed GRID one, e.g. the 720×576
 //! one built from `examples/grid_upscale`'s folder (given as GRID).
@@ -92,6 +94,17 @@ fn main() {
     if tracked {
         places.push("the recording's own tracked trajectory over its video");
     }
+    // `FACESPACE_APPEARANCE_GAIN=1.15,1.3`: also the synthesis over its own video with these
+    // appearance gains (`synth::blend::Blend::appearance_gain`) in place of the talker's.
+    let appearance_gains: Vec<f64> = std::env::var("FACESPACE_APPEARANCE_GAIN")
+        .map(|g| g.split(',').map(|v| v.parse().unwrap()).collect())
+        .unwrap_or_default();
+    let lively: Vec<String> = appearance_gains
+        .iter()
+        .map(|g| format!("synthesis over the clip's own video, appearance gain {g}"))
+        .collect();
+    let places_before_lively = places.len();
+    places.extend(lively.iter().map(String::as_str));
     for place in places {
         systems.push(format!("{place}, the model's mouth (PCA)"));
         for g in &gains {
@@ -177,6 +190,17 @@ fn main() {
         ];
         if tracked {
             drawings.push((own.tracked.slice(0..n), &own, false));
+        }
+        for &appearance_gain in &appearance_gains {
+            let request = Request {
+                pose: own.pose.clone(),
+                ..Request::new(p.target.clone(), 25.0, Smoothing::On(settings.smoothing))
+            };
+            let blend = facespace::talker::Settings { appearance_gain, ..settings.clone() };
+            let mut lively = synthesise(blend.synthesiser().as_ref(), &talker.codebook, request).unwrap();
+            own.anchor_region(model, &mut lively).unwrap();
+            own.match_lighting(model, &talker.codebook, &mut lively);
+            drawings.push((lively.variants()[0].1.slice(0..n), &own, false));
         }
         for (frames, backdrop, in_strip) in drawings {
             let marks = facespace::eval::landmarks(model, &frames);
@@ -286,6 +310,17 @@ fn main() {
                 let (diff, se) = accuracies[k].minus(&accuracies[base]);
                 println!("{name}: {diff:+.3} ± {se:.3} against gain {} (paired over sentences)", mouths.gain);
             }
+        }
+    }
+    // Each appearance gain's recorded mouths against the talker's, on the same sentences.
+    let per_place = 1 + gains.len();
+    for (k, name) in systems.iter().enumerate().skip((places_before_lively) * per_place) {
+        if k % per_place != 0 {
+            let (diff, se) = accuracies[k].minus(&accuracies[k % per_place]);
+            println!(
+                "{name}: {diff:+.3} ± {se:.3} against the talker's {} (paired over sentences)",
+                settings.appearance_gain
+            );
         }
     }
     if std::env::var_os("FACESPACE_FEATURES").is_some() {

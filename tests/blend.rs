@@ -415,6 +415,7 @@ fn variance_preservation_scales_the_motion_by_one_gain() {
                     context: 1,
                     top_n: n,
                     preserve_variance,
+                    appearance_gain: 1.0,
                 },
             )
             .unwrap()
@@ -451,5 +452,39 @@ fn variance_preservation_scales_the_motion_by_one_gain() {
                 assert!((want - f64::from(*b)).abs() < 1e-4, "{b} is not {want}");
             }
         }
+    }
+}
+
+/// The appearance gain scales the appearance's deviations from the utterance's mean by
+/// exactly that factor, keeps its mean, and leaves the shape alone.
+#[test]
+fn appearance_gain_scales_only_the_appearance_about_its_mean() {
+    let sentences = vec![
+        wiggly("A", &["sil", "aa", "m", "iy", "sil"], 0.0, 1.0),
+        wiggly("B", &["sil", "aa", "m", "iy", "sil"], 0.1, -0.6),
+        wiggly("C", &["sil", "aa", "m", "iy", "sil"], 0.2, 0.3),
+    ];
+    let cb = like_codebook(sentences);
+    let t = target(&["sil", "aa", "m", "iy", "sil"], 0.2);
+    let run = |appearance_gain| {
+        let options = Blend {
+            context: 1,
+            top_n: 1,
+            preserve_variance: true,
+            appearance_gain,
+        };
+        blend(&cb, &t, options).unwrap().frames
+    };
+    let (one, lively) = (run(1.0), run(1.5));
+    assert_eq!(one.column(4).to_vec(), lively.column(4).to_vec(), "the shape changed");
+    let (a, b) = (one.column(5).to_vec(), lively.column(5).to_vec());
+    let mean = |v: &[f32]| v.iter().map(|&x| f64::from(x)).sum::<f64>() / v.len() as f64;
+    let m = mean(&a);
+    assert!((m - mean(&b)).abs() < 1e-5, "the mean moved");
+    let spread: f64 = a.iter().map(|&x| (f64::from(x) - m).abs()).sum();
+    assert!(spread > 1e-3, "the appearance does not move: nothing to test");
+    for (x, y) in a.iter().zip(&b) {
+        let want = m + 1.5 * (f64::from(*x) - m);
+        assert!((want - f64::from(*y)).abs() < 1e-4, "{y} is not {want}");
     }
 }

@@ -918,8 +918,8 @@ fn synth_takes_a_talkers_settings() {
             serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
         report["method"].as_str().unwrap().to_owned()
     };
-    assert_eq!(method(&[], "own"), "blend C=1 N=2");
-    assert_eq!(method(&["--top-n", "4"], "flag"), "blend C=1 N=4");
+    assert_eq!(method(&[], "own"), "blend C=1 N=2, appearance ×1.15");
+    assert_eq!(method(&["--top-n", "4"], "flag"), "blend C=1 N=4, appearance ×1.15");
     // Neither --talker nor --codebook: the default talker (models/grid) and its settings.
     let out = dir.path().join("default");
     let o = facespace(&[
@@ -934,7 +934,7 @@ fn synth_takes_a_talkers_settings() {
     assert!(o.status.success(), "{}", text(&o));
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
-    assert_eq!(report["method"], "blend C=1 N=12");
+    assert_eq!(report["method"], "blend C=1 N=12, appearance ×1.15");
 }
 
 /// `study create --talker T` takes the talker's model, codebook and λ, and its blend N joins

@@ -343,6 +343,7 @@ pub fn run(mut a: SynthArgs) -> Result<()> {
             context,
             top_n,
             preserve_variance: !a.plain_average,
+            appearance_gain: settings.map_or(1.0, |s| s.appearance_gain),
         }),
         Mode::Unit => Box::new(match &a.weights {
             Some(p) => WeightsFile::read(p)?.unit_selection(),

@@ -114,6 +114,9 @@ pub struct BuildArgs {
     /// Smoothing weight λ, when no validation sentences choose it.
     #[arg(long, default_value_t = facespace::synth::DEFAULT_SMOOTHING)]
     smoothing: f64,
+    /// What the blend's appearance deviations are scaled by (1: as the examples spread).
+    #[arg(long, default_value_t = facespace::talker::APPEARANCE_GAIN)]
+    appearance_gain: f64,
     /// Where the settings were chosen, in words.
     #[arg(long, default_value = "facespace's defaults (GRID s1's validation split)")]
     chosen_on: String,
@@ -191,6 +194,7 @@ fn build(a: BuildArgs) -> Result<()> {
             top_n: a.top_n,
             context: a.context,
             smoothing: a.smoothing,
+            appearance_gain: a.appearance_gain,
             chosen_on: a.chosen_on.clone(),
         },
         voice,

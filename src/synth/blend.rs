@@ -15,7 +15,9 @@
 //! `√N_eff` (`N_eff = 1 / mean_t Σ_j w_j²`, the gain that restores fully independent
 //! examples). One gain per group for the whole utterance scales every landmark's motion alike,
 //! so the mouth moves as far without its timing changing, and keeps the trajectory as
-//! continuous as the plain blend.
+//! continuous as the plain blend. `appearance_gain` then scales the appearance's deviations
+//! once more (a talker's setting, chosen by how often a discriminator tells its recorded-mouth
+//! drawing from the recording).
 
 use crate::codebook::{Codebook, Occurrence};
 use crate::facespace::Frames;
@@ -42,6 +44,12 @@ pub struct Blend {
     /// about their sentences' means (module docs); off: the plain weighted average of
     /// \[blend\] §5.
     pub preserve_variance: bool,
+    /// The appearance's deviations from the utterance's mean are then scaled by this (1: as
+    /// restored). The restored spread matches the recordings' over a sentence, yet drawn with
+    /// recorded mouths a livelier appearance is told from the recording less often (GRID s1's
+    /// validation split, [`crate::eval::realism`]): a talker carries its own
+    /// ([`crate::talker::Settings::appearance_gain`]).
+    pub appearance_gain: f64,
 }
 
 impl Default for Blend {
@@ -51,6 +59,7 @@ impl Default for Blend {
             context: 1,
             top_n: 3,
             preserve_variance: true,
+            appearance_gain: 1.0,
         }
     }
 }
@@ -61,6 +70,7 @@ impl Blend {
         context: 0,
         top_n: usize::MAX,
         preserve_variance: false,
+        appearance_gain: 1.0,
     };
 }
 
@@ -145,12 +155,17 @@ pub fn select(
 
 impl Synthesiser for Blend {
     fn name(&self) -> String {
+        let lively = if self.appearance_gain == 1.0 {
+            String::new()
+        } else {
+            format!(", appearance ×{}", self.appearance_gain)
+        };
         if *self == Blend::PHONE_MEAN {
             "per-phoneme mean".into()
         } else if self.preserve_variance {
-            format!("blend C={} N={}", self.context, self.top_n)
+            format!("blend C={} N={}{lively}", self.context, self.top_n)
         } else {
-            format!("blend C={} N={} plain average", self.context, self.top_n)
+            format!("blend C={} N={} plain average{lively}", self.context, self.top_n)
         }
     }
 
@@ -266,6 +281,9 @@ impl Synthesiser for Blend {
             spread.restore(&mut rows, codebook.layout.shape_range());
             spread.restore(&mut rows, codebook.layout.appearance_range());
         }
+        if self.appearance_gain != 1.0 {
+            scale_about_mean(&mut rows, dims, codebook.layout.appearance_range(), self.appearance_gain);
+        }
         Ok(Synthesis {
             frames: Frames::from_rows(codebook.layout, fps, rows)?,
             phones,
@@ -308,19 +326,10 @@ impl Spread {
     /// most `√N_eff`.
     fn restore(&self, rows: &mut [f32], group: std::ops::Range<usize>) {
         let dims = self.examples.len();
-        let n = (rows.len() / dims) as f64;
         let cap = (self.frames as f64 / self.weight_squares.max(f64::MIN_POSITIVE))
             .sqrt()
             .max(1.0);
-        let means: Vec<f64> = group
-            .clone()
-            .map(|k| {
-                rows.chunks_exact(dims)
-                    .map(|r| f64::from(r[k]))
-                    .sum::<f64>()
-                    / n
-            })
-            .collect();
+        let means = group_means(rows, dims, group.clone());
         let blend: f64 = rows
             .chunks_exact(dims)
             .map(|r| {
@@ -337,10 +346,29 @@ impl Spread {
         } else {
             1.0
         };
-        for r in rows.chunks_exact_mut(dims) {
-            for (k, m) in group.clone().zip(&means) {
-                r[k] = (m + gain * (f64::from(r[k]) - m)) as f32;
-            }
+        scale_about(rows, dims, group, &means, gain);
+    }
+}
+
+/// The mean of each `group` column of `rows` (frames × `dims` values).
+fn group_means(rows: &[f32], dims: usize, group: std::ops::Range<usize>) -> Vec<f64> {
+    let n = (rows.len() / dims).max(1) as f64;
+    group
+        .map(|k| rows.chunks_exact(dims).map(|r| f64::from(r[k])).sum::<f64>() / n)
+        .collect()
+}
+
+/// Scales the `group` columns of `rows` about `means` by `gain`.
+fn scale_about(rows: &mut [f32], dims: usize, group: std::ops::Range<usize>, means: &[f64], gain: f64) {
+    for r in rows.chunks_exact_mut(dims) {
+        for (k, m) in group.clone().zip(means) {
+            r[k] = (m + gain * (f64::from(r[k]) - m)) as f32;
         }
     }
+}
+
+/// Scales the `group` columns of `rows` about their own means by `gain`.
+fn scale_about_mean(rows: &mut [f32], dims: usize, group: std::ops::Range<usize>, gain: f64) {
+    let means = group_means(rows, dims, group.clone());
+    scale_about(rows, dims, group, &means, gain);
 }

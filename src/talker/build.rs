@@ -421,7 +421,7 @@ pub fn build(
             &crate::eval::systems::SETTINGS_LAMBDA_GRID,
         )?;
         if let Some(choice) = choice {
-            settings = Settings::chosen(&choice, &v.about);
+            settings = Settings::chosen(&choice, &v.about, settings.appearance_gain);
         }
     }
     let manifest = TalkerManifest {

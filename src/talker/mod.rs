@@ -65,18 +65,36 @@ pub struct Settings {
     pub context: usize,
     /// Smoothing weight λ of the cubic smoothing spline.
     pub smoothing: f64,
+    /// Blend's appearance gain ([`Blend::appearance_gain`]); 1 in talkers made before it.
+    #[serde(default = "unit_gain")]
+    pub appearance_gain: f64,
     /// Where they were chosen, in words.
     pub chosen_on: String,
 }
 
+fn unit_gain() -> f64 {
+    1.0
+}
+
+/// The appearance gain a new talker's blend takes: chosen on GRID s1's validation split by
+/// the discriminator of [`crate::eval::realism`], drawn with recorded mouths over each clip's
+/// own video (BENCHMARKS.md "Recorded mouths").
+pub const APPEARANCE_GAIN: f64 = 1.15;
+
 impl Settings {
-    /// The blend settings chosen on validation sentences (`split`: which, in words).
-    pub fn chosen(choice: &crate::eval::systems::SettingsChoice, split: &str) -> Self {
+    /// The blend settings chosen on validation sentences (`split`: which, in words), with
+    /// the appearance gain given.
+    pub fn chosen(
+        choice: &crate::eval::systems::SettingsChoice,
+        split: &str,
+        appearance_gain: f64,
+    ) -> Self {
         Settings {
             mode: Mode::Blend,
             top_n: choice.chosen.top_n,
             context: 1,
             smoothing: choice.chosen.smoothing,
+            appearance_gain,
             chosen_on: choice.describe(split),
         }
     }
@@ -88,6 +106,7 @@ impl Settings {
                 context: self.context,
                 top_n: self.top_n,
                 preserve_variance: true,
+                appearance_gain: self.appearance_gain,
             }),
             Mode::Unit => Box::new(UnitSelection::default()),
             Mode::Graph => Box::new(Graph::default()),
