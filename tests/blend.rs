@@ -394,18 +394,22 @@ fn fallbacks_and_bad_input() {
     ));
 }
 
-/// Variance-preserving blending scales each group's deviations from the utterance mean by one
-/// gain, between 1 and √N, keeps the mean, and leaves a single example (N = 1) as it is.
-#[test]
-fn variance_preservation_scales_the_motion_by_one_gain() {
-    // Three takes of /m/ between /aa/ and /iy/ whose motion disagrees.
+/// Three takes of /m/ between /aa/ and /iy/ whose motion disagrees, and a target of the same
+/// phones.
+fn three_takes_of_m() -> (Codebook, Vec<Segment>) {
     let sentences = vec![
         wiggly("A", &["sil", "aa", "m", "iy", "sil"], 0.0, 1.0),
         wiggly("B", &["sil", "aa", "m", "iy", "sil"], 0.1, -0.6),
         wiggly("C", &["sil", "aa", "m", "iy", "sil"], 0.2, 0.3),
     ];
-    let cb = like_codebook(sentences);
-    let t = target(&["sil", "aa", "m", "iy", "sil"], 0.2);
+    (like_codebook(sentences), target(&["sil", "aa", "m", "iy", "sil"], 0.2))
+}
+
+/// Variance-preserving blending scales each group's deviations from the utterance mean by one
+/// gain, between 1 and √N, keeps the mean, and leaves a single example (N = 1) as it is.
+#[test]
+fn variance_preservation_scales_the_motion_by_one_gain() {
+    let (cb, t) = three_takes_of_m();
     for n in [1, 3] {
         let run = |preserve_variance| {
             blend(
@@ -459,13 +463,7 @@ fn variance_preservation_scales_the_motion_by_one_gain() {
 /// exactly that factor, keeps its mean, and leaves the shape alone.
 #[test]
 fn appearance_gain_scales_only_the_appearance_about_its_mean() {
-    let sentences = vec![
-        wiggly("A", &["sil", "aa", "m", "iy", "sil"], 0.0, 1.0),
-        wiggly("B", &["sil", "aa", "m", "iy", "sil"], 0.1, -0.6),
-        wiggly("C", &["sil", "aa", "m", "iy", "sil"], 0.2, 0.3),
-    ];
-    let cb = like_codebook(sentences);
-    let t = target(&["sil", "aa", "m", "iy", "sil"], 0.2);
+    let (cb, t) = three_takes_of_m();
     let run = |appearance_gain| {
         let options = Blend {
             context: 1,
