@@ -746,3 +746,20 @@ fn a_damaged_sound_to_face_map_is_refused() {
     assert!(common::text(&o).contains("no recording of the codebook's sentences"), "{}", common::text(&o));
     assert_eq!(manifest(), before, "nothing written");
 }
+
+/// A talker made before the appearance gain (its `talker.json` without it) loads with a gain
+/// of 1 — it synthesises as it did — and the committed one carries its own.
+#[test]
+fn a_talker_without_an_appearance_gain_blends_as_before() {
+    assert_eq!(talker().manifest.settings.appearance_gain, facespace::talker::APPEARANCE_GAIN);
+    let dir = damaged_copy(|t| {
+        let path = t.join("talker.json");
+        let text = std::fs::read_to_string(&path).unwrap();
+        let older = text.replace("\"appearance_gain\": 1.15,", "");
+        assert_ne!(older, text, "the committed talker names its appearance gain");
+        std::fs::write(&path, older).unwrap();
+    });
+    let older = Talker::load(dir.path()).unwrap();
+    assert_eq!(older.manifest.settings.appearance_gain, 1.0);
+    assert_eq!(older.manifest.settings.synthesiser().name(), "blend C=1 N=12");
+}
