@@ -63,7 +63,7 @@ pub struct SynthArgs {
     /// model, models/demo/model).
     #[arg(long)]
     model: Option<PathBuf>,
-    /// A talker folder (`talker build`): its model, codebook and settings (N, C, λ) and its
+    /// A talker folder (`talker build`): its model, codebook and settings (N, C, λ, appearance gain) and its
     /// voice for --say are the defaults; the flags override them. Without it and without
     /// --codebook, the default talker (`models/grid`, as `say`).
     #[arg(long)]
