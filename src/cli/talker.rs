@@ -114,8 +114,9 @@ pub struct BuildArgs {
     /// Smoothing weight λ, when no validation sentences choose it.
     #[arg(long, default_value_t = facespace::synth::DEFAULT_SMOOTHING)]
     smoothing: f64,
-    /// What the blend's appearance deviations are scaled by (1: as the examples spread).
-    #[arg(long, default_value_t = facespace::talker::APPEARANCE_GAIN)]
+    /// What the blend's appearance deviations are scaled by (1: as the examples spread);
+    /// chosen per talker on its validation sentences (GRID s1's: 1.15, README).
+    #[arg(long, default_value_t = 1.0)]
     appearance_gain: f64,
     /// Where the settings were chosen, in words.
     #[arg(long, default_value = "facespace's defaults (GRID s1's validation split)")]

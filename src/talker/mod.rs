@@ -76,11 +76,6 @@ fn unit_gain() -> f64 {
     1.0
 }
 
-/// The appearance gain a new talker's blend takes: chosen on GRID s1's validation split by
-/// the discriminator of [`crate::eval::realism`], drawn with recorded mouths over each clip's
-/// own video (BENCHMARKS.md "Recorded mouths").
-pub const APPEARANCE_GAIN: f64 = 1.15;
-
 impl Settings {
     /// The blend settings chosen on validation sentences (`split`: which, in words), with
     /// the appearance gain given.
