@@ -70,6 +70,25 @@ fn errors_are_reported_not_panicked() {
     );
     assert!(!out.exists(), "no model folder after a failed build");
 
+    // A talker's appearance gain that is no gain, refused before anything is built.
+    let talker_out = tmp.path().join("t");
+    let o = facespace(&[
+        "talker",
+        "build",
+        "--model",
+        "/no/such/model",
+        "--recordings",
+        "/no/such/dir",
+        "--name",
+        "x",
+        "--appearance-gain=0",
+        "-o",
+        talker_out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(text(&o).contains("--appearance-gain 0") && !text(&o).contains("panicked"), "{}", text(&o));
+    assert!(!talker_out.exists());
+
     let o = facespace(&["model", "info", "/no/such/model"]);
     assert_eq!(o.status.code(), Some(1));
     assert!(

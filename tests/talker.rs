@@ -763,4 +763,15 @@ fn a_talker_without_an_appearance_gain_blends_as_before() {
     let older = Talker::load(dir.path()).unwrap();
     assert_eq!(older.manifest.settings.appearance_gain, 1.0);
     assert_eq!(older.manifest.settings.synthesiser().name(), "blend C=1 N=12");
+    // A gain that is no gain is refused, naming it.
+    for bad in ["0", "-1.5", "1e9"] {
+        let dir = damaged_copy(|t| {
+            let path = t.join("talker.json");
+            let text = std::fs::read_to_string(&path).unwrap();
+            let edited = text.replace("\"appearance_gain\": 1.15", &format!("\"appearance_gain\": {bad}"));
+            std::fs::write(&path, edited).unwrap();
+        });
+        let e = Talker::load(dir.path()).err().expect("a bad gain is refused").to_string();
+        assert!(e.contains("appearance_gain"), "{bad}: {e}");
+    }
 }

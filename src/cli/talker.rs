@@ -188,6 +188,13 @@ fn build(a: BuildArgs) -> Result<()> {
         }
         None => None,
     };
+    let gain = a.appearance_gain;
+    if !(gain > 0.0 && gain <= facespace::talker::MAX_APPEARANCE_GAIN) {
+        anyhow::bail!(
+            "--appearance-gain {gain}: give a gain in (0, {}] (1: the blend's own spread)",
+            facespace::talker::MAX_APPEARANCE_GAIN
+        );
+    }
     let identity = Identity {
         name: a.name.clone(),
         settings: Settings {

@@ -76,6 +76,10 @@ fn unit_gain() -> f64 {
     1.0
 }
 
+/// The largest appearance gain a talker may carry: beyond it the texture swings far outside
+/// anything recorded (GRID s1's is 1.15).
+pub const MAX_APPEARANCE_GAIN: f64 = 4.0;
+
 impl Settings {
     /// The blend settings chosen on validation sentences (`split`: which, in words), with
     /// the appearance gain given.
@@ -465,6 +469,15 @@ impl Talker {
             manifest::read(&dir.join(MANIFEST), FORMAT, TALKER_VERSION).map_err(manifest_error)?;
         if !mouths {
             m.mouths = None;
+        }
+        let gain = m.settings.appearance_gain;
+        if !(gain > 0.0 && gain <= MAX_APPEARANCE_GAIN) {
+            return Err(manifest_error(ManifestError::Invalid {
+                path: dir.join(MANIFEST),
+                reason: format!(
+                    "settings.appearance_gain {gain} is outside (0, {MAX_APPEARANCE_GAIN}] (1: the blend's own spread)"
+                ),
+            }));
         }
         let part = |name: &str| manifest::member(dir, name).map_err(manifest_error);
         let (model_dir, codebook_dir, footage_dir) =
