@@ -170,14 +170,19 @@ fn main() {
             facespace::no_progress,
         )
         .unwrap();
-        let request = Request {
-            pose: own.pose.clone(),
-            ..Request::new(p.target.clone(), 25.0, Smoothing::On(settings.smoothing))
+        // The phones synthesised with `settings` over the clip's own video.
+        let over_own_with = |settings: &facespace::talker::Settings| {
+            let request = Request {
+                pose: own.pose.clone(),
+                ..Request::new(p.target.clone(), 25.0, Smoothing::On(settings.smoothing))
+            };
+            let mut utterance =
+                synthesise(settings.synthesiser().as_ref(), &talker.codebook, request).unwrap();
+            own.anchor_region(model, &mut utterance).unwrap();
+            own.match_lighting(model, &talker.codebook, &mut utterance);
+            utterance
         };
-        let mut over_own =
-            synthesise(settings.synthesiser().as_ref(), &talker.codebook, request).unwrap();
-        own.anchor_region(model, &mut over_own).unwrap();
-        own.match_lighting(model, &talker.codebook, &mut over_own);
+        let over_own = over_own_with(settings);
         let real_marks: Vec<Vec<[f64; 2]>> = own.landmarks.iter().map(|l| l.points.clone()).collect();
         let mut drawn = vec![draw(&real_images[..n], &real_marks[..n])];
         // Rows of the README's strip: the recording, then each system over its own video.
@@ -192,14 +197,7 @@ fn main() {
             drawings.push((own.tracked.slice(0..n), &own, false));
         }
         for &appearance_gain in &appearance_gains {
-            let request = Request {
-                pose: own.pose.clone(),
-                ..Request::new(p.target.clone(), 25.0, Smoothing::On(settings.smoothing))
-            };
-            let blend = facespace::talker::Settings { appearance_gain, ..settings.clone() };
-            let mut lively = synthesise(blend.synthesiser().as_ref(), &talker.codebook, request).unwrap();
-            own.anchor_region(model, &mut lively).unwrap();
-            own.match_lighting(model, &talker.codebook, &mut lively);
+            let lively = over_own_with(&facespace::talker::Settings { appearance_gain, ..settings.clone() });
             drawings.push((lively.variants()[0].1.slice(0..n), &own, false));
         }
         for (frames, backdrop, in_strip) in drawings {
@@ -300,10 +298,11 @@ fn main() {
             mean(&|s| pearson(&s[k].heights, &s[0].heights)),
         );
     }
+    // Systems per place: the model's mouth, then one per detail gain.
+    let per_place = 1 + gains.len();
     // With several gains, each against the talker's own on the same sentences (paired).
     let default_gain = gains.iter().position(|&g| g == mouths.gain);
     if let (Some(d), true) = (default_gain, gains.len() > 1) {
-        let per_place = 1 + gains.len();
         for (k, name) in systems.iter().enumerate() {
             let base = k - k % per_place + 1 + d;
             if k % per_place != 0 && k != base {
@@ -313,8 +312,7 @@ fn main() {
         }
     }
     // Each appearance gain's recorded mouths against the talker's, on the same sentences.
-    let per_place = 1 + gains.len();
-    for (k, name) in systems.iter().enumerate().skip((places_before_lively) * per_place) {
+    for (k, name) in systems.iter().enumerate().skip(places_before_lively * per_place) {
         if k % per_place != 0 {
             let (diff, se) = accuracies[k].minus(&accuracies[k % per_place]);
             println!(

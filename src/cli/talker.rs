@@ -189,11 +189,8 @@ fn build(a: BuildArgs) -> Result<()> {
         None => None,
     };
     let gain = a.appearance_gain;
-    if !(gain > 0.0 && gain <= facespace::talker::MAX_APPEARANCE_GAIN) {
-        anyhow::bail!(
-            "--appearance-gain {gain}: give a gain in (0, {}] (1: the blend's own spread)",
-            facespace::talker::MAX_APPEARANCE_GAIN
-        );
+    if let Err(why) = facespace::talker::check_appearance_gain(gain) {
+        anyhow::bail!("--appearance-gain {gain} {why}");
     }
     let identity = Identity {
         name: a.name.clone(),

@@ -80,6 +80,15 @@ fn unit_gain() -> f64 {
 /// anything recorded (GRID s1's is 1.15).
 pub const MAX_APPEARANCE_GAIN: f64 = 4.0;
 
+/// Whether `gain` may be a talker's appearance gain; if not, why (to follow the value).
+pub fn check_appearance_gain(gain: f64) -> Result<(), String> {
+    if gain > 0.0 && gain <= MAX_APPEARANCE_GAIN {
+        Ok(())
+    } else {
+        Err(format!("is outside (0, {MAX_APPEARANCE_GAIN}] (1: the blend's own spread)"))
+    }
+}
+
 impl Settings {
     /// The blend settings chosen on validation sentences (`split`: which, in words), with
     /// the appearance gain given.
@@ -471,12 +480,10 @@ impl Talker {
             m.mouths = None;
         }
         let gain = m.settings.appearance_gain;
-        if !(gain > 0.0 && gain <= MAX_APPEARANCE_GAIN) {
+        if let Err(why) = check_appearance_gain(gain) {
             return Err(manifest_error(ManifestError::Invalid {
                 path: dir.join(MANIFEST),
-                reason: format!(
-                    "settings.appearance_gain {gain} is outside (0, {MAX_APPEARANCE_GAIN}] (1: the blend's own spread)"
-                ),
+                reason: format!("settings.appearance_gain {gain} {why}"),
             }));
         }
         let part = |name: &str| manifest::member(dir, name).map_err(manifest_error);
