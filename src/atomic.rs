@@ -57,6 +57,17 @@ pub enum DestinationError {
         /// The input it is.
         input: PathBuf,
     },
+    /// The destination lies inside a folder the command reads (a talker, a model, a
+    /// recordings folder): writing there would change or break that input.
+    #[error(
+        "refusing to write {path}: it lies inside the input folder {input}, which would then hold it; give an output outside it"
+    )]
+    InsideInput {
+        /// The destination.
+        path: PathBuf,
+        /// The input folder holding it.
+        input: PathBuf,
+    },
     /// An input lies inside the destination folder, which the result replaces whole.
     #[error(
         "refusing to replace {path}: the input {input} lies inside that folder; give another output"
@@ -74,6 +85,20 @@ pub enum DestinationError {
 /// them. Checked before any work, so a command never runs long to then write over its own
 /// input or a device (issue 39).
 pub fn check_destination(path: &Path, inputs: &[&Path]) -> Result<(), DestinationError> {
+    // Inside an input folder (after links, whether or not the destination exists yet).
+    let resolved = resolve_destination(path);
+    for input in inputs {
+        if std::fs::metadata(input).is_ok_and(|m| m.is_dir())
+            && let (Some(resolved), Ok(folder)) = (&resolved, input.canonicalize())
+            && resolved != &folder
+            && resolved.starts_with(&folder)
+        {
+            return Err(DestinationError::InsideInput {
+                path: path.into(),
+                input: input.to_path_buf(),
+            });
+        }
+    }
     let Ok(meta) = std::fs::metadata(path) else {
         // Nothing there (or a dangling link, which the rename replaces): no input is it.
         return Ok(());
@@ -103,6 +128,21 @@ pub fn check_destination(path: &Path, inputs: &[&Path]) -> Result<(), Destinatio
         }
     }
     Ok(())
+}
+
+/// Where `path` would be written, links resolved: the path itself when it exists, else its
+/// nearest existing ancestor resolved with the rest appended (`None` if nothing resolves).
+fn resolve_destination(path: &Path) -> Option<PathBuf> {
+    let absolute = std::path::absolute(path).ok()?;
+    let mut tail = Vec::new();
+    let mut at = absolute.as_path();
+    loop {
+        if let Ok(real) = at.canonicalize() {
+            return Some(tail.iter().rev().fold(real, |p, name| p.join(name)));
+        }
+        tail.push(at.file_name()?.to_owned());
+        at = at.parent()?;
+    }
 }
 
 /// Whether two metadata are of one file (device and inode on Unix).
@@ -225,6 +265,58 @@ impl StagingDir {
 impl Drop for StagingDir {
     fn drop(&mut self) {
         let _ = std::fs::remove_dir_all(&self.path);
+    }
+}
+
+/// A file that lives in memory only (Linux `memfd_create`), opened by this process through
+/// its path `/proc/self/fd/N`: for an intermediate file that must leave nothing on disk when
+/// the process is killed (`serve`'s typed sentences, issue 69 R5-9). Elsewhere a temporary
+/// file, removed when dropped.
+pub struct MemoryFile {
+    file: File,
+    path: PathBuf,
+    _temp: Option<tempfile::TempPath>,
+}
+
+impl MemoryFile {
+    /// An empty one; `name` is shown in `/proc` listings only.
+    pub fn new(name: &str) -> io::Result<Self> {
+        #[cfg(target_os = "linux")]
+        {
+            use std::os::fd::{AsRawFd, FromRawFd};
+            let c = std::ffi::CString::new(name).map_err(io::Error::other)?;
+            // SAFETY: memfd_create takes a NUL-terminated name and returns a new descriptor
+            // (or -1), which the File then owns.
+            let fd = unsafe { libc::memfd_create(c.as_ptr(), libc::MFD_CLOEXEC) };
+            if fd >= 0 {
+                let file = unsafe { File::from_raw_fd(fd) };
+                let path = PathBuf::from(format!("/proc/self/fd/{}", file.as_raw_fd()));
+                return Ok(MemoryFile {
+                    file,
+                    path,
+                    _temp: None,
+                });
+            }
+        }
+        let (file, temp) = tempfile::Builder::new()
+            .prefix(name)
+            .tempfile()?
+            .into_parts();
+        Ok(MemoryFile {
+            path: temp.to_path_buf(),
+            file,
+            _temp: Some(temp),
+        })
+    }
+
+    /// The open file.
+    pub fn file(&self) -> &File {
+        &self.file
+    }
+
+    /// A path this process opens it by.
+    pub fn path(&self) -> &Path {
+        &self.path
     }
 }
 

@@ -122,6 +122,7 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
     let mut inputs = vec![a.clip.as_path(), a.model.as_path()];
     inputs.extend(a.background.as_deref());
     super::check_output(&a.output, &inputs)?;
+    facespace::video::check_destination(&a.output)?;
     let model = load_model(&a.model)?;
     let clip = Clip::load(&a.clip, &model)
         .with_context(|| format!("loading clip {}", a.clip.display()))?;

@@ -61,6 +61,13 @@ pub struct VisemesArgs {
 
 pub fn run(a: VisemesArgs) -> Result<()> {
     let extended = Extended::parse(&a.extended_shapes)?;
+    if let Some(out) = &a.output {
+        let mut inputs = vec![a.audio.as_path()];
+        for p in [&a.transcript, &a.labels, &a.talker] {
+            inputs.extend(p.as_deref());
+        }
+        super::check_output(out, &inputs)?;
+    }
     let speech = audio::read(&a.audio, align::frontend::SAMPLE_RATE, align::MAX_SECONDS)
         .with_context(|| format!("reading {}", a.audio.display()))?;
     let words = match (&a.text, &a.transcript) {
@@ -76,10 +83,10 @@ pub fn run(a: VisemesArgs) -> Result<()> {
         .as_deref()
         .map(facespace::talker::Talker::load)
         .transpose()?;
-    let staging = tempfile::tempdir()?;
+    // The speech is a recording or phones, never text: nothing is staged (no folder made).
     let perform = |talker: &facespace::talker::Talker, speech| {
         let request = facespace::talker::SayRequest::new(speech);
-        anyhow::Ok(talker.perform(&request, staging.path())?)
+        anyhow::Ok(talker.perform(&request, std::path::Path::new("."))?)
     };
     // Without words, a talker performs from the sound itself, as `say` does: its own ear
     // hears the phones (its map's classifier, where it has one), and its sound-to-face map
@@ -125,19 +132,13 @@ pub fn run(a: VisemesArgs) -> Result<()> {
         // With words or labels the talker performs from the same phones, written as labels.
         let p = match performed {
             Some(p) => p,
-            None => {
-                let labels = staging.path().join("phones.lab");
-                facespace::phonemes::write_labels(&labels, &segments)?;
-                perform(
-                    talker,
-                    facespace::talker::Speech::Labels {
-                        labels,
-                        tier: None,
-                        map: PhoneMap::default(),
-                        audio: None,
-                    },
-                )?
-            }
+            None => perform(
+                talker,
+                facespace::talker::Speech::Phones {
+                    phones: segments.clone(),
+                    audio: None,
+                },
+            )?,
         };
         let frames = p.utterance.variants()[0].1.clone();
         let opening = visemes::openings(&talker.model, &frames);

@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 use image::RgbImage;
 
 pub use export::{MAX_EXPORT, export_frames, spread};
-pub use sink::Sink;
+pub use sink::{FFMPEG_CONTAINERS, Sink, check_destination};
 pub use source::{DEFAULT_FPS, Source, VideoInfo};
 
 use crate::atomic;
@@ -67,6 +67,16 @@ pub enum VideoError {
         "{0}: this format needs a system ffmpeg (not found on PATH); MP4 (H.264), Y4M and frame folders work without one"
     )]
     NeedsFfmpeg(PathBuf),
+    /// A destination whose extension names no video container.
+    #[error(
+        "{path}: .{extension} is not a video format; give .mp4 (or .y4m, a folder for PNG frames, or with a system ffmpeg .mkv, .webm, .avi, …)"
+    )]
+    NotVideo {
+        /// The destination.
+        path: PathBuf,
+        /// Its extension.
+        extension: String,
+    },
     /// ffmpeg failed.
     #[error("{path}: ffmpeg failed ({status})")]
     Ffmpeg {

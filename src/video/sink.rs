@@ -26,11 +26,76 @@ enum SinkKind {
     Frames(atomic::StagingDir),
     Y4m(y4m::Writer<BufWriter<tempfile::NamedTempFile>>),
     Mp4(Box<mp4::Writer>, Option<mp4::AudioTrack>),
-    Ffmpeg(
-        Child,
-        y4m::Writer<BufWriter<ChildStdin>>,
-        tempfile::NamedTempFile,
-    ),
+    Ffmpeg(Child, y4m::Writer<BufWriter<Pipe>>, tempfile::NamedTempFile),
+}
+
+/// Containers a system ffmpeg writes for [`Sink`], beyond the built-in MP4, Y4M and frame
+/// folders: anything else (`out.txt`, `dec.md`) is refused before any work.
+pub const FFMPEG_CONTAINERS: [&str; 12] = [
+    "mkv", "webm", "avi", "mpg", "mpeg", "ts", "m2ts", "flv", "ogv", "wmv", "3gp", "nut",
+];
+
+/// Refuses `path` as a video destination unless its extension names a container written here
+/// (none: a folder of PNGs; `y4m`; `mp4`, `m4v`, `mov`) or, with a system ffmpeg on PATH, one
+/// of [`FFMPEG_CONTAINERS`]. Checked by [`Sink::create`], and by commands before their work.
+pub fn check_destination(path: &Path) -> Result<(), VideoError> {
+    match extension(path).as_str() {
+        "" | "y4m" | "mp4" | "m4v" | "mov" => Ok(()),
+        e if FFMPEG_CONTAINERS.contains(&e) => match system_ffmpeg() {
+            Some(_) => Ok(()),
+            None => Err(VideoError::NeedsFfmpeg(path.into())),
+        },
+        e => Err(VideoError::NotVideo {
+            path: path.into(),
+            extension: crate::options::clipped(e, 40),
+        }),
+    }
+}
+
+/// ffmpeg's standard input. The binary keeps the default SIGPIPE disposition (it ends quietly
+/// under `| head`), so a write after ffmpeg has exited would kill the whole process with no
+/// message and its staging left behind (issue 69, R5-6): each write blocks SIGPIPE on its
+/// thread, and a broken pipe is an error instead, its pending signal taken back.
+pub(crate) struct Pipe(ChildStdin);
+
+impl std::io::Write for Pipe {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        without_sigpipe(|| self.0.write(buf))
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        without_sigpipe(|| self.0.flush())
+    }
+}
+
+/// Runs `write` with SIGPIPE blocked on this thread; a SIGPIPE it raised is consumed.
+fn without_sigpipe<T>(write: impl FnOnce() -> std::io::Result<T>) -> std::io::Result<T> {
+    #[cfg(unix)]
+    {
+        // SAFETY: plain signal-mask calls on this thread's own mask with initialised sets;
+        // sigtimedwait with a zero timeout only takes a SIGPIPE already pending here.
+        unsafe {
+            let mut pipe: libc::sigset_t = std::mem::zeroed();
+            libc::sigemptyset(&mut pipe);
+            libc::sigaddset(&mut pipe, libc::SIGPIPE);
+            let mut old: libc::sigset_t = std::mem::zeroed();
+            libc::pthread_sigmask(libc::SIG_BLOCK, &pipe, &mut old);
+            let result = write();
+            if libc::sigismember(&old, libc::SIGPIPE) == 0 {
+                if matches!(&result, Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe) {
+                    let now = libc::timespec {
+                        tv_sec: 0,
+                        tv_nsec: 0,
+                    };
+                    libc::sigtimedwait(&pipe, std::ptr::null_mut(), &now);
+                }
+                libc::pthread_sigmask(libc::SIG_SETMASK, &old, std::ptr::null_mut());
+            }
+            result
+        }
+    }
+    #[cfg(not(unix))]
+    write()
 }
 
 impl Sink {
@@ -53,6 +118,7 @@ impl Sink {
         for (name, v) in [("frame width", width), ("frame height", height)] {
             crate::options::count_in(name, v as usize, 1, y4m::MAX_SIDE).map_err(option)?;
         }
+        check_destination(path)?;
         let parent = atomic::parent_of(path);
         std::fs::create_dir_all(parent).map_err(io_error(parent))?;
         let y4m_error = |source| VideoError::Y4m {
@@ -103,7 +169,7 @@ impl Sink {
                     .stderr(Stdio::null())
                     .spawn()
                     .map_err(io_error(path))?;
-                let stdin = BufWriter::new(child.stdin.take().expect("stdin is piped"));
+                let stdin = BufWriter::new(Pipe(child.stdin.take().expect("stdin is piped")));
                 let writer = y4m::Writer::new(stdin, width, height, fps).map_err(y4m_error)?;
                 SinkKind::Ffmpeg(child, writer, tmp)
             }
@@ -154,7 +220,18 @@ impl Sink {
                 path: self.path.clone(),
                 source,
             })?,
-            SinkKind::Ffmpeg(_, w, _) => w.write(frame).map_err(y4m_error)?,
+            SinkKind::Ffmpeg(child, w, _) => {
+                if let Err(e) = w.write(frame) {
+                    // ffmpeg gone: say so, with how it ended, rather than "broken pipe".
+                    if let Ok(Some(status)) = child.try_wait() {
+                        return Err(VideoError::Ffmpeg {
+                            path: self.path.clone(),
+                            status: format!("{status}, before all frames were written"),
+                        });
+                    }
+                    return Err(y4m_error(e));
+                }
+            }
         }
         self.frames += 1;
         Ok(())
