@@ -31,6 +31,11 @@ const MAX_BODY: usize = 1 << 20;
 /// Largest request head (request line and headers).
 const MAX_HEAD: usize = 16 << 10;
 
+/// Bytes of replies made for one client (not shared with others) that may wait to be sent,
+/// over all connections: past it a new reply is a short 503. Shared bodies (a model, a page)
+/// cost nothing per client.
+pub const MAX_QUEUED: usize = 256 << 20;
+
 /// Threads running [`Answer::Later`] jobs.
 pub const WORKERS: usize = 2;
 /// [`Answer::Later`] jobs waiting for a worker; one more is refused (503).
@@ -108,23 +113,27 @@ impl Request {
     }
 }
 
-/// A reply: a status, a body and its type.
+/// A reply: a status, a body and its type. The body is shared, not copied: a big answer made
+/// once (a model's 19 MB of appearance) is sent to any number of clients from one buffer.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Reply {
     /// HTTP status.
     pub status: u16,
     /// The body.
-    pub body: Vec<u8>,
+    pub body: Body,
     /// Its MIME type.
     pub mime: &'static str,
 }
 
+/// A reply's bytes, shared between the replies that send them.
+pub type Body = std::sync::Arc<[u8]>;
+
 impl Reply {
     /// 200 with `body` of type `mime`.
-    pub fn ok(body: Vec<u8>, mime: &'static str) -> Self {
+    pub fn ok(body: impl Into<Body>, mime: &'static str) -> Self {
         Reply {
             status: 200,
-            body,
+            body: body.into(),
             mime,
         }
     }
@@ -138,7 +147,7 @@ impl Reply {
     pub fn error(status: u16, why: impl Into<String>) -> Self {
         Reply {
             status,
-            body: why.into().into_bytes(),
+            body: why.into().into_bytes().into(),
             mime: "text/plain; charset=utf-8",
         }
     }
@@ -264,7 +273,7 @@ enum Stage {
     /// Waiting for a worker's reply ([`Answer::Later`]).
     Waiting,
     /// Sending the reply; `usize` bytes sent.
-    Writing(Vec<u8>, usize),
+    Writing(Outgoing, usize),
     /// Reply sent and the write side shut: reading what the peer still sends (a body
     /// refused before it was read), so that closing does not reset the reply away.
     Draining,
@@ -278,6 +287,8 @@ struct Connection {
     deadline: Instant,
     /// Whether the head has been read (the deadline then covers the body).
     head_done: bool,
+    /// Bytes of its reply counted in [`EventLoop::queued`].
+    owned: usize,
 }
 
 struct EventLoop {
@@ -291,6 +302,23 @@ struct EventLoop {
     port: u16,
     /// A resource notice was given and not yet cleared.
     noticed: bool,
+    /// Bytes of unshared replies waiting to be sent ([`MAX_QUEUED`]).
+    queued: usize,
+}
+
+/// `reply` ready to send, counted in `queued` — or a 503 instead when it would take the
+/// replies waiting past [`MAX_QUEUED`]; gives the bytes counted.
+fn admit(queued: &mut usize, reply: Reply) -> (Outgoing, usize) {
+    let own = |out: &Outgoing| {
+        out.head.len() + if std::sync::Arc::strong_count(&out.body) == 1 { out.body.len() } else { 0 }
+    };
+    let mut out = response(reply);
+    if *queued + own(&out) > MAX_QUEUED {
+        out = response(Reply::error(503, "busy: too many replies are waiting to be read; try again shortly"));
+    }
+    let owned = own(&out);
+    *queued += owned;
+    (out, owned)
 }
 
 /// Connections the kernel completes and queues before the server accepts them. The standard
@@ -349,6 +377,7 @@ impl EventLoop {
             capacity: server.limits.connections.min(descriptor_room()),
             port,
             noticed: false,
+            queued: 0,
         })
     }
 
@@ -382,7 +411,9 @@ impl EventLoop {
             if let Some(c) = self.connections.get_mut(&token)
                 && matches!(c.stage, Stage::Waiting)
             {
-                c.stage = Stage::Writing(response(reply), 0);
+                let (out, owned) = admit(&mut self.queued, reply);
+                c.stage = Stage::Writing(out, 0);
+                c.owned = owned;
                 c.deadline = Instant::now() + self.limits.write;
                 self.progress(token, handle, jobs);
             }
@@ -433,6 +464,7 @@ impl EventLoop {
                             stage: Stage::Reading,
                             deadline: Instant::now() + self.limits.head,
                             head_done: false,
+                            owned: 0,
                         },
                     );
                 }
@@ -463,6 +495,7 @@ impl EventLoop {
 
     fn close(&mut self, token: Token) {
         if let Some(mut c) = self.connections.remove(&token) {
+            self.queued -= c.owned;
             let _ = self.poll.registry().deregister(&mut c.stream);
         }
     }
@@ -538,12 +571,14 @@ impl EventLoop {
                 },
             };
             let Some(reply) = reply else { return };
-            c.stage = Stage::Writing(response(reply), 0);
+            let (out, owned) = admit(&mut self.queued, reply);
+            c.stage = Stage::Writing(out, 0);
+            c.owned = owned;
             c.deadline = Instant::now() + self.limits.write;
         }
-        if let Stage::Writing(bytes, sent) = &mut c.stage {
-            while *sent < bytes.len() {
-                match c.stream.write(&bytes[*sent..]) {
+        if let Stage::Writing(out, sent) = &mut c.stage {
+            while *sent < out.len() {
+                match c.stream.write(out.from(*sent)) {
                     Ok(0) => break,
                     Ok(n) => *sent += n,
                     Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => return,
@@ -554,6 +589,7 @@ impl EventLoop {
             let _ = c.stream.flush();
             let _ = c.stream.shutdown(std::net::Shutdown::Write);
             c.stage = Stage::Draining;
+            self.queued -= std::mem::take(&mut c.owned);
             c.deadline = Instant::now() + Duration::from_secs(2);
         }
         if matches!(c.stage, Stage::Draining) {
@@ -681,8 +717,28 @@ fn parse(input: &[u8], port: u16) -> Parsed {
     })
 }
 
-/// The bytes of an HTTP/1.1 reply that closes its connection.
-fn response(reply: Reply) -> Vec<u8> {
+/// A reply being sent: its head, then its shared body (never copied per client).
+struct Outgoing {
+    head: Vec<u8>,
+    body: Body,
+}
+
+impl Outgoing {
+    fn len(&self) -> usize {
+        self.head.len() + self.body.len()
+    }
+
+    /// The bytes from `at` on, up to the end of the part `at` is in.
+    fn from(&self, at: usize) -> &[u8] {
+        match at.checked_sub(self.head.len()) {
+            None => &self.head[at..],
+            Some(b) => &self.body[b..],
+        }
+    }
+}
+
+/// An HTTP/1.1 reply that closes its connection.
+fn response(reply: Reply) -> Outgoing {
     let reason = match reply.status {
         200 => "OK",
         400 => "Bad Request",
@@ -699,15 +755,17 @@ fn response(reply: Reply) -> Vec<u8> {
         _ if reply.status < 500 => "Refused",
         _ => "Server Error",
     };
-    let mut out = format!(
+    let head = format!(
         "HTTP/1.1 {} {reason}\r\nContent-Type: {}\r\nContent-Length: {}\r\nCache-Control: no-store\r\nX-Content-Type-Options: nosniff\r\nConnection: close\r\n\r\n",
         reply.status,
         reply.mime,
         reply.body.len()
     )
     .into_bytes();
-    out.extend_from_slice(&reply.body);
-    out
+    Outgoing {
+        head,
+        body: reply.body,
+    }
 }
 
 fn parse_query(query: &str) -> Option<Vec<(String, String)>> {

@@ -72,6 +72,14 @@ pub enum LiveError {
     /// A sample rate the session does not take.
     #[error("audio at {0} Hz: a live session takes 8 000, 16 000, 22 050, 24 000 or 48 000 Hz")]
     SampleRate(u32),
+    /// More sound in one chunk than live audio comes in.
+    #[error(
+        "{seconds:.1} s of sound in one chunk: a live session takes at most {MAX_CHUNK_SECONDS} s at a time (push it in smaller chunks as it plays)"
+    )]
+    ChunkTooLong {
+        /// The chunk's length, seconds.
+        seconds: f64,
+    },
     /// A chunk of sound could not be used (NaN samples, say).
     #[error(transparent)]
     Speech(#[from] AlignError),
@@ -183,6 +191,11 @@ impl Reading {
 /// A gap shorter than this between a word's phones and the next word's start is the
 /// timestamps' rounding, not a pause (seconds).
 const SLIVER: f64 = 0.05;
+
+/// The most sound one [`Session::push_audio`] takes, seconds: live sound arrives in chunks
+/// of milliseconds, a TTS's sentence in seconds; one hour in one call cost 1.5 GB and 34 s
+/// (issue 69, R5-11), a minute costs a few seconds of work.
+pub const MAX_CHUNK_SECONDS: f64 = 60.0;
 
 /// Seconds of sound a session of given words keeps while no word comes for it.
 pub const MAX_UNREAD: f64 = 30.0;
@@ -313,6 +326,10 @@ impl<'t> Session<'t> {
     pub fn push_audio(&mut self, samples: &[f32], rate: u32) -> Result<(), LiveError> {
         if !RATES.contains(&rate) || self.resampler.as_ref().is_some_and(|(r, _)| *r != rate) {
             return Err(LiveError::SampleRate(rate));
+        }
+        let seconds = samples.len() as f64 / f64::from(rate);
+        if seconds > MAX_CHUNK_SECONDS {
+            return Err(LiveError::ChunkTooLong { seconds });
         }
         if let Some(index) = samples.iter().position(|x| !x.is_finite()) {
             return Err(AlignError::NotFinite { index }.into());

@@ -43,8 +43,9 @@ pub enum ManifestError {
         /// The version this build reads.
         supported: u32,
     },
-    /// A file name in the manifest that would leave the folder or is not a regular file.
-    #[error("{dir}: the manifest names {name:?}, which is not a plain file name inside the folder")]
+    /// A file name in the manifest that would leave the folder, or a file of the folder that
+    /// is a symbolic link or not a regular file.
+    #[error("{dir}: {name:?} is not a plain file inside the folder (a name that leaves it, a symbolic link, or not a regular file)")]
     Escapes {
         /// The folder.
         dir: PathBuf,
@@ -129,6 +130,57 @@ pub fn member(dir: &Path, name: &str) -> Result<PathBuf, ManifestError> {
             name: name.into(),
         })
     }
+}
+
+/// Most entries [`check_confined`] looks at: a codebook of 100 000 sentences.
+const MAX_CONFINED_ENTRIES: usize = 100_000;
+
+/// Refuses a folder whose parts `names` (files, or folders of files one level deep) are not
+/// wholly inside it: any of them, or any file in them, that is a symbolic link (to
+/// `/etc/passwd`, to another talker's model) or not a regular file or folder. A folder that a
+/// manifest describes reads only what lies inside itself (issue 69, R5-13). Parts that do not
+/// exist are left to their loaders, which name them.
+pub fn check_confined(dir: &Path, names: &[&str]) -> Result<(), ManifestError> {
+    let escapes = |path: &Path| ManifestError::Escapes {
+        dir: dir.into(),
+        name: path
+            .strip_prefix(dir)
+            .unwrap_or(path)
+            .display()
+            .to_string(),
+    };
+    let mut seen = 0usize;
+    for name in names {
+        let path = member(dir, name)?;
+        let Ok(meta) = std::fs::symlink_metadata(&path) else {
+            continue;
+        };
+        if meta.is_dir() {
+            let entries = std::fs::read_dir(&path).map_err(|source| ManifestError::Io {
+                path: path.clone(),
+                source,
+            })?;
+            for entry in entries.flatten() {
+                seen += 1;
+                if seen > MAX_CONFINED_ENTRIES {
+                    return Err(ManifestError::Invalid {
+                        path: path.clone(),
+                        reason: format!("more than {MAX_CONFINED_ENTRIES} files"),
+                    });
+                }
+                let inner = entry.file_type().map_err(|source| ManifestError::Io {
+                    path: entry.path(),
+                    source,
+                })?;
+                if !(inner.is_file() || inner.is_dir()) {
+                    return Err(escapes(&entry.path()));
+                }
+            }
+        } else if !meta.is_file() {
+            return Err(escapes(&path));
+        }
+    }
+    Ok(())
 }
 
 /// Opens `path` for reading only if it is a regular file (symbolic links followed): a FIFO

@@ -27,6 +27,14 @@ pub fn words(text: &str) -> Vec<String> {
         .collect()
 }
 
+/// How many words [`words`] finds in `text`, without making them (a 20 MB transcript is
+/// judged against its audio before millions of strings are built).
+pub fn word_count(text: &str) -> usize {
+    text.split(|c: char| !(c.is_alphanumeric() || c == '\''))
+        .filter(|w| !w.trim_matches('\'').is_empty())
+        .count()
+}
+
 /// A line's headword without its `(n)` alternative marker, and its phones.
 fn split_entry(line: &str) -> Option<(&str, std::str::SplitWhitespace<'_>)> {
     let line = line.split('#').next().unwrap_or("").trim();

@@ -53,10 +53,7 @@ pub enum AlignError {
         why: String,
     },
     /// Words without a pronunciation.
-    #[error(
-        "words not in the pronouncing dictionary: {}; add them with --dict FILE (lines like `WORD  W ER D`)",
-        crate::options::clipped_list(.0)
-    )]
+    #[error("{}", out_of_dictionary(.0))]
     OutOfDictionary(Vec<String>),
     /// The transcript has no words.
     #[error("the transcript has no words")]
@@ -81,7 +78,7 @@ pub enum AlignError {
     },
     /// Fewer frames than the words' phones need (three each).
     #[error(
-        "the transcript is too long for the audio: its {phones} phones need at least {needed} frames ({:.2} s) but the audio has {frames} ({:.2} s)",
+        "the transcript is too long for the audio: its {phones} or more phones need at least {needed} frames ({:.2} s) but the audio has {frames} ({:.2} s)",
         *.needed as f64 * FRAME_SECONDS, *.frames as f64 * FRAME_SECONDS
     )]
     TranscriptTooLong {
@@ -212,6 +209,28 @@ pub fn default_model_dir() -> PathBuf {
     }
 }
 
+/// [`AlignError::OutOfDictionary`]'s message: numbers need words, other words a `--dict`.
+fn out_of_dictionary(missing: &[String]) -> String {
+    let (numbers, words): (Vec<String>, Vec<String>) = missing
+        .iter()
+        .cloned()
+        .partition(|w| w.chars().any(|c| c.is_ascii_digit()));
+    let mut parts = Vec::new();
+    if !words.is_empty() {
+        parts.push(format!(
+            "words not in the pronouncing dictionary: {}; add them with --dict FILE (lines like `WORD  W ER D`)",
+            crate::options::clipped_list(&words)
+        ));
+    }
+    if !numbers.is_empty() {
+        parts.push(format!(
+            "numbers are not read yet: {}; write them in words (\"2\" as \"two\")",
+            crate::options::clipped_list(&numbers)
+        ));
+    }
+    parts.join("; ")
+}
+
 impl Aligner {
     /// Loads the model of `dir` and its dictionary (`cmudict-en-us.dict.gz` beside it, with
     /// the pronunciations of [`VARIANTS`] there when it exists), plus the pronunciations of
@@ -237,6 +256,21 @@ impl Aligner {
     /// The committed model with `extra` dictionaries.
     pub fn load_default(extra: &[PathBuf]) -> Result<Self, AlignError> {
         Self::load(&default_model_dir(), extra)
+    }
+
+    /// The phones `text` takes at the least (each word's shortest pronunciation), or why its
+    /// words cannot be aligned (none, or some not in the dictionary): checked before a
+    /// text-to-speech engine runs, so text that cannot be aligned never costs its speech.
+    pub fn phone_count(&self, text: &str) -> Result<usize, AlignError> {
+        let words = dict::words(text);
+        if words.is_empty() {
+            return Err(AlignError::NoWords);
+        }
+        let prons = self.dict.pronunciations(&words, &self.model)?;
+        Ok(prons
+            .iter()
+            .map(|p| p.iter().map(Vec::len).min().unwrap_or(0))
+            .sum())
     }
 
     /// Reads the sound of `path` (WAV, MP4/M4A, or through ffmpeg anything it reads) and
@@ -333,6 +367,21 @@ impl Aligner {
         if rate != frontend::SAMPLE_RATE {
             return Err(AlignError::SampleRate(rate));
         }
+        let count = dict::word_count(text);
+        if count == 0 {
+            return Err(AlignError::NoWords);
+        }
+        self.check_sound(samples, rate)?;
+        // Every word is at least one phone of three states, a frame each: judged from the
+        // count before any word or pronunciation is made (issue 69, R5-12).
+        let frames = samples.len() / frontend::FRAME_SHIFT;
+        if count * model::STATES > frames.max(1) {
+            return Err(AlignError::TranscriptTooLong {
+                phones: count,
+                needed: count * model::STATES,
+                frames,
+            });
+        }
         let words = dict::words(text);
         if words.is_empty() {
             return Err(AlignError::NoWords);
@@ -363,13 +412,9 @@ impl Aligner {
         })
     }
 
-    /// The front end's features of `samples`, after the checks every search needs: 16 kHz,
-    /// at most [`MAX_SECONDS`], finite, long enough, not silent.
-    fn features(
-        &self,
-        samples: &[f32],
-        rate: u32,
-    ) -> Result<Vec<[f32; frontend::FEATURE_DIM]>, AlignError> {
+    /// The checks every search needs: 16 kHz, at most [`MAX_SECONDS`], finite, long enough,
+    /// not silent; gives the peak in dB below full scale.
+    fn check_sound(&self, samples: &[f32], rate: u32) -> Result<f64, AlignError> {
         if rate != frontend::SAMPLE_RATE {
             return Err(AlignError::SampleRate(rate));
         }
@@ -393,6 +438,16 @@ impl Aligner {
         if peak_dbfs < -60.0 {
             return Err(AlignError::Silent { peak_dbfs });
         }
+        Ok(peak_dbfs)
+    }
+
+    /// The front end's features of `samples`, after [`Self::check_sound`].
+    fn features(
+        &self,
+        samples: &[f32],
+        rate: u32,
+    ) -> Result<Vec<[f32; frontend::FEATURE_DIM]>, AlignError> {
+        let peak_dbfs = self.check_sound(samples, rate)?;
         // The front end works in int16 units, as pocketsphinx receives them.
         let pcm: Vec<f32> = samples
             .iter()

@@ -263,6 +263,11 @@ pub fn run(mut a: SynthArgs) -> Result<()> {
     let speech = match (&a.say, &spoken) {
         (Some(text), Some(spoken)) => {
             let wav = spoken.path().join("speech.wav");
+            // Words the aligner cannot time are refused before any engine runs.
+            facespace::tts::check_text(text).context("--say")?;
+            facespace::align::Aligner::load_default(&a.dicts)?
+                .phone_count(text)
+                .context("--say")?;
             let voice = lent.as_ref().and_then(|l| l.voice.as_deref());
             let spoken = facespace::tts::speak_as(text, &wav, voice).context("--say")?;
             if let Some(note) = &spoken.note {

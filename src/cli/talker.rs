@@ -188,10 +188,6 @@ fn build(a: BuildArgs) -> Result<()> {
         }
         None => None,
     };
-    let gain = a.appearance_gain;
-    if let Err(why) = facespace::talker::check_appearance_gain(gain) {
-        anyhow::bail!("--appearance-gain {gain} {why}");
-    }
     let identity = Identity {
         name: a.name.clone(),
         settings: Settings {
@@ -205,6 +201,8 @@ fn build(a: BuildArgs) -> Result<()> {
         voice,
         recordings: a.about.clone(),
     };
+    // Before any work: settings no synthesis can use are refused here, not after minutes.
+    identity.settings.check("--", '-')?;
     let clock = std::time::Instant::now();
     let (bar, mut progress) = progress_bar();
     let parts = match (&a.recordings, &a.codebook) {

@@ -115,10 +115,10 @@ pub struct LiveServer<'t> {
     stage: Stage<'t>,
     clients: Clients<'t>,
     /// The model as the page takes it (`/api/model`, `/api/appearance`), made once.
-    model: Vec<u8>,
-    appearance: Vec<u8>,
+    model: crate::http::Body,
+    appearance: crate::http::Body,
     /// Every footage frame as JPEG, in footage order.
-    footage: Vec<Vec<u8>>,
+    footage: Vec<crate::http::Body>,
     ids: Mutex<crate::rng::Rng>,
     call: Option<Call>,
 }
@@ -134,7 +134,7 @@ struct Call {
     frames: usize,
     dims: usize,
     /// The recording's sound as M4A (AAC copied from the MP4), if it has one.
-    audio: Option<Vec<u8>>,
+    audio: Option<crate::http::Body>,
 }
 
 /// How far ahead of its frames a call's sound is placed on the page's clock, and how long
@@ -168,11 +168,11 @@ impl<'t> LiveServer<'t> {
         Ok(LiveServer {
             server,
             talker,
-            model: model_json(talker, &stage, None).to_string().into_bytes(),
-            appearance: appearance_layers(talker),
+            model: model_json(talker, &stage, None).to_string().into_bytes().into(),
+            appearance: appearance_layers(talker).into(),
             stage,
             clients: Mutex::new(HashMap::new()),
-            footage: footage_jpegs(&talker.footage)?,
+            footage: footage_jpegs(&talker.footage)?.into_iter().map(Into::into).collect(),
             ids: Mutex::new(crate::rng::Rng::new(seed)),
             call: None,
         })
@@ -206,7 +206,7 @@ impl<'t> LiveServer<'t> {
         let staging = tempfile::tempdir().map_err(|e| ServeError::Prepare(e.to_string()))?;
         let m4a = staging.path().join("call.m4a");
         let audio = if crate::video::extract_audio(video, &m4a)? {
-            Some(std::fs::read(&m4a).map_err(|e| ServeError::Prepare(e.to_string()))?)
+            Some(std::fs::read(&m4a).map_err(|e| ServeError::Prepare(e.to_string()))?.into())
         } else {
             None
         };
@@ -218,7 +218,7 @@ impl<'t> LiveServer<'t> {
             audio,
         };
         Ok(LiveServer {
-            model: model_json(self.talker, &self.stage, Some(&call)).to_string().into_bytes(),
+            model: model_json(self.talker, &self.stage, Some(&call)).to_string().into_bytes().into(),
             call: Some(call),
             ..self
         })
@@ -269,7 +269,7 @@ impl<'t> LiveServer<'t> {
     ) -> Result<Answer<'a>, Refusal> {
         let ok = |r: Reply| Ok(Answer::Now(r));
         match (request.post, request.path.as_str()) {
-            (false, "/") => ok(Reply::ok(PAGE.as_bytes().to_vec(), "text/html; charset=utf-8")),
+            (false, "/") => ok(Reply::ok(PAGE.as_bytes(), "text/html; charset=utf-8")),
             (false, "/api/model") => ok(Reply::ok(self.model.clone(), "application/json")),
             (false, "/api/appearance") => {
                 ok(Reply::ok(self.appearance.clone(), "application/octet-stream"))
@@ -340,7 +340,7 @@ impl<'t> LiveServer<'t> {
                     "min": q.min,
                     "max": q.max,
                     "sound": call.audio.is_some(),
-                    "sound_bytes": call.audio.as_ref().map_or(0, Vec::len),
+                    "sound_bytes": call.audio.as_ref().map_or(0, |a| a.len()),
                 })))
             }
             (true, "/api/call/frames") => {
@@ -412,14 +412,18 @@ impl<'t> LiveServer<'t> {
         body: &SayBody,
         started: Instant,
     ) -> Result<(Reply, usize), Refusal> {
-        let staging = tempfile::tempdir().map_err(|e| (500, format!("a temporary folder: {e}")))?;
-        let (phones, wav, _) = self
+        // The speech lives in memory only: a server killed mid-sentence leaves neither the
+        // words nor their sound on disk (issue 69, R5-9).
+        let wav = crate::atomic::MemoryFile::new("facespace-speech.wav")
+            .map_err(|e| (500, format!("a file in memory: {e}")))?;
+        let aligner = self.talker.aligner().map_err(|e| (500, e.to_string()))?;
+        let (phones, _) = self
             .talker
-            .speak(&body.text, staging.path())
+            .speak(&body.text, None, aligner, wav.path())
             .map_err(|e| (422, e.to_string()))?;
-        let sound = crate::audio::read(&wav, crate::align::frontend::SAMPLE_RATE, crate::align::MAX_SECONDS)
+        let sound = crate::audio::read(wav.path(), crate::align::frontend::SAMPLE_RATE, crate::align::MAX_SECONDS)
             .map_err(|e| (500, e.to_string()))?;
-        let bytes = std::fs::read(&wav).map_err(|e| (500, e.to_string()))?;
+        let bytes = std::fs::read(wav.path()).map_err(|e| (500, e.to_string()))?;
         let fps = self.talker.footage.fps;
         let lead = (started.elapsed() + SAY_LEAD).as_secs_f64();
         let mut c = lock(client);
@@ -540,11 +544,18 @@ struct ListenBody {
 }
 
 /// A page's frame clock (`now`, `at`): finite and ≥ 0.
+/// The latest frame a page's clock may name: a week of frames at 60 fps (times stay exact to
+/// well under a microsecond). `now` = 1e308 once left a session at a frame no phone could
+/// reach, 0 frames an answer (issue 69, R5-15).
+pub const MAX_FRAME_CLOCK: f64 = 7.0 * 86_400.0 * 60.0;
+
 fn frame_clock(name: &str, value: f64) -> Result<(), Refusal> {
-    if value.is_finite() && value >= 0.0 {
+    if value.is_finite() && (0.0..=MAX_FRAME_CLOCK).contains(&value) {
         Ok(())
     } else {
-        Err(bad(format!("`{name}` must be the page's frame clock, ≥ 0")))
+        Err(bad(format!(
+            "`{name}` must be the page's frame clock, from 0 to {MAX_FRAME_CLOCK}"
+        )))
     }
 }
 

@@ -21,6 +21,165 @@ use crate::{Progress, atomic};
 /// The sound-to-face map's folder in a talker.
 const SOUND_TO_FACE: &str = "sound-to-face";
 
+/// The record `talker build` keeps in a folder it makes: that it made it, and what each part
+/// it may keep on a later run was made from. A non-empty folder without it is never built
+/// into (it is someone else's), and a part is kept only when its inputs' fingerprint is the
+/// one recorded (issue 69, R5-4 and R5-5).
+pub const BUILD_RECORD: &str = "build.json";
+
+const BUILD_FORMAT: &str = "facespace-talker-build";
+const BUILD_VERSION: u32 = 1;
+
+#[derive(Default, serde::Serialize, serde::Deserialize)]
+struct BuildRecord {
+    format: String,
+    version: u32,
+    /// Part name (`corpus`, `codebook`, `footage`, `mouths`) → its inputs' fingerprint.
+    parts: std::collections::BTreeMap<String, String>,
+}
+
+impl BuildRecord {
+    /// Takes `out` for a build: makes it (with an empty record) when it is missing or empty,
+    /// reads the record when `talker build` made it, and refuses any other folder, naming a
+    /// few of the files that show it is not ours.
+    fn claim(out: &Path) -> Result<Self, TalkerError> {
+        let io = |source| TalkerError::Io {
+            path: out.to_path_buf(),
+            source,
+        };
+        let record = out.join(BUILD_RECORD);
+        if std::fs::symlink_metadata(&record).is_ok() {
+            return crate::manifest::read(&record, BUILD_FORMAT, BUILD_VERSION).map_err(|source| {
+                TalkerError::Manifest {
+                    dir: out.to_path_buf(),
+                    source: Box::new(source),
+                }
+            });
+        }
+        if std::fs::symlink_metadata(out).is_ok() {
+            let found: Vec<String> = std::fs::read_dir(out)
+                .map_err(io)?
+                .flatten()
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .take(4)
+                .collect();
+            if !found.is_empty() {
+                return Err(TalkerError::NotOurs {
+                    dir: out.to_path_buf(),
+                    found: found.join(", "),
+                });
+            }
+        }
+        std::fs::create_dir_all(out).map_err(io)?;
+        let fresh = BuildRecord {
+            format: BUILD_FORMAT.into(),
+            version: BUILD_VERSION,
+            parts: Default::default(),
+        };
+        fresh.save(out)?;
+        Ok(fresh)
+    }
+
+    /// Whether `part` was made from inputs of fingerprint `inputs`.
+    fn made_from(&self, part: &str, inputs: &str) -> bool {
+        self.parts.get(part).is_some_and(|f| f == inputs)
+    }
+
+    /// Records that `part` was made from `inputs` (before it is made, the record forgets it,
+    /// so an interrupted making is never taken for a finished one).
+    fn set(&mut self, out: &Path, part: &str, inputs: Option<&str>) -> Result<(), TalkerError> {
+        match inputs {
+            Some(f) => self.parts.insert(part.into(), f.into()),
+            None => self.parts.remove(part),
+        };
+        self.save(out)
+    }
+
+    fn save(&self, out: &Path) -> Result<(), TalkerError> {
+        let path = out.join(BUILD_RECORD);
+        let json = serde_json::to_vec_pretty(self).expect("build record serialises");
+        atomic::write_file(&path, &json).map_err(|source| TalkerError::Io { path, source })
+    }
+}
+
+/// A fingerprint of files' names and contents (FNV-1a 64 over 64-bit little-endian words, in
+/// hex) with `also` (a model's hash, a count) mixed in first: what decides whether a part made
+/// from them can be kept.
+fn fingerprint(files: &[PathBuf], also: &[&str]) -> Result<String, TalkerError> {
+    use std::io::Read;
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut eat = |bytes: &[u8]| {
+        for chunk in bytes.chunks(8) {
+            let mut word = [0u8; 8];
+            word[..chunk.len()].copy_from_slice(chunk);
+            h = (h ^ u64::from_le_bytes(word)).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+        h = (h ^ bytes.len() as u64).wrapping_mul(0x0000_0100_0000_01b3);
+    };
+    for a in also {
+        eat(a.as_bytes());
+    }
+    let mut buffer = vec![0u8; 1 << 20];
+    for path in files {
+        let io = |source| TalkerError::Io {
+            path: path.clone(),
+            source,
+        };
+        let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        eat(name.as_bytes());
+        let mut file = crate::manifest::open_regular(path).map_err(io)?;
+        loop {
+            // Whole reads of the buffer, so the words fall alike however the file is read.
+            let mut filled = 0;
+            while filled < buffer.len() {
+                match file.read(&mut buffer[filled..]).map_err(io)? {
+                    0 => break,
+                    n => filled += n,
+                }
+            }
+            if filled == 0 {
+                break;
+            }
+            eat(&buffer[..filled]);
+            if filled < buffer.len() {
+                break;
+            }
+        }
+    }
+    Ok(format!("{h:016x}"))
+}
+
+/// The regular files directly in `dir`, by name.
+fn files_in(dir: &Path) -> Result<Vec<PathBuf>, TalkerError> {
+    let io = |source| TalkerError::Io {
+        path: dir.to_path_buf(),
+        source,
+    };
+    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map_err(io)?
+        .flatten()
+        .filter(|e| e.file_type().is_ok_and(|t| t.is_file()))
+        .map(|e| e.path())
+        .collect();
+    files.sort();
+    Ok(files)
+}
+
+/// Refuses an output folder that is one of `inputs`, lies inside one, or holds one that is
+/// not a part this build made (those inside `out` when `out` is ours).
+fn check_output(out: &Path, inputs: &[&Path]) -> Result<(), TalkerError> {
+    let real_out = out.canonicalize().ok();
+    let outside: Vec<&Path> = inputs
+        .iter()
+        .copied()
+        .filter(|i| {
+            !matches!((&real_out, i.canonicalize()), (Some(o), Ok(i)) if i != *o && i.starts_with(o))
+        })
+        .collect();
+    atomic::check_destination(out, &outside)?;
+    Ok(())
+}
+
 /// What a talker is made of.
 #[derive(Clone, Debug)]
 pub struct Parts {
@@ -134,6 +293,8 @@ pub fn parts_from_recordings(
     mut progress: impl FnMut(Progress) + Send,
 ) -> Result<Parts, TalkerError> {
     let dir = out.to_path_buf();
+    check_output(out, &[&recordings.model, &recordings.dir])?;
+    let mut record = BuildRecord::claim(out)?;
     let corpus_error = |e: crate::corpus::CorpusError| TalkerError::Corpus {
         dir: recordings.dir.clone(),
         source: Box::new(e),
@@ -142,11 +303,20 @@ pub fn parts_from_recordings(
         dir: dir.clone(),
         source: Box::new(source),
     })?;
+    let hash = model.hash();
+    // The corpus (and the codebook made from it) are kept only when made from these very
+    // recordings with this model: the same names with other contents are other recordings.
+    let inputs = fingerprint(&files_in(&recordings.dir)?, &[&hash])?;
     let corpus = out.join("corpus");
-    let done = crate::corpus::recorded_fps(&corpus).ok().flatten();
+    let done = crate::corpus::recorded_fps(&corpus)
+        .ok()
+        .flatten()
+        .filter(|_| record.made_from("corpus", &inputs));
     let fps = match done {
         Some(fps) => fps,
         None => {
+            record.set(out, "corpus", None)?;
+            record.set(out, "codebook", None)?;
             let made = crate::corpus::from_recordings(
                 &model,
                 &recordings.dir,
@@ -156,6 +326,7 @@ pub fn parts_from_recordings(
                 &mut progress,
             )
             .map_err(corpus_error)?;
+            record.set(out, "corpus", Some(&inputs))?;
             made.fps
         }
     };
@@ -176,9 +347,10 @@ pub fn parts_from_recordings(
     .map_err(corpus_error)?;
     let (train, validation) = hold_out(sentences);
     let codebook_dir = out.join("codebook");
-    let hash = model.hash();
+    let made_from_corpus = record.made_from("codebook", &inputs);
     let kept = Codebook::load(&codebook_dir).ok().filter(|cb| {
-        cb.model_hash.as_deref() == Some(hash.as_str())
+        made_from_corpus
+            && cb.model_hash.as_deref() == Some(hash.as_str())
             && cb.sentences.len() == train.len()
             && cb.sentences.iter().zip(&train).all(|(c, t)| c.name == t.name)
     });
@@ -195,6 +367,7 @@ pub fn parts_from_recordings(
             )
             .map_err(codebook_error)?;
             cb.save(&codebook_dir).map_err(codebook_error)?;
+            record.set(out, "codebook", Some(&inputs))?;
             cb
         }
     };
@@ -234,22 +407,42 @@ fn keep_mouths(
     from: &Path,
     frames: usize,
     out: &Path,
-    reuse: bool,
+    reuse: Option<&mut BuildRecord>,
     progress: impl FnMut(Progress),
 ) -> Result<Option<String>, TalkerError> {
     let dir = out.join("mouths");
-    // Kept when within a sentence of the number asked for.
-    let kept = Mouths::load(&dir, model)
-        .ok()
-        .filter(|m| reuse && m.len().abs_diff(frames) <= m.len() / m.stretches.len().max(1));
+    // Kept when made from the same recordings, model and codebook, and within a sentence of
+    // the number asked for.
+    let recordings: Vec<PathBuf> = codebook
+        .sentences
+        .iter()
+        .map(|s| from.join(format!("{}.mp4", s.name)))
+        .filter(|p| p.is_file())
+        .collect();
+    let (kept, mut record) = match reuse {
+        Some(record) => {
+            let inputs = fingerprint(&recordings, &[&model.hash(), &codebook.content_hash()])?;
+            let kept = record.made_from("mouths", &inputs).then(|| Mouths::load(&dir, model).ok()).flatten().filter(|m| {
+                m.len().abs_diff(frames) <= m.len() / m.stretches.len().max(1)
+            });
+            (kept, Some((record, inputs)))
+        }
+        None => (None, None),
+    };
     if kept.is_none() {
         let recording = |name: &str| Some(from.join(format!("{name}.mp4"))).filter(|p| p.is_file());
+        if let Some((record, _)) = &mut record {
+            record.set(out, "mouths", None)?;
+        }
         Mouths::build(model, codebook, recording, frames, &dir, progress).map_err(|source| {
             TalkerError::Mouths {
                 dir: out.to_path_buf(),
                 source: Box::new(source),
             }
         })?;
+        if let Some((record, inputs)) = record {
+            record.set(out, "mouths", Some(&inputs))?;
+        }
     }
     Ok(Some("mouths".into()))
 }
@@ -268,7 +461,7 @@ pub fn set_mouths(
     let mut manifest = talker.manifest.clone();
     manifest.mouths = match frames {
         0 => None,
-        _ => keep_mouths(&talker.model, &talker.codebook, from, frames, dir, false, progress)?,
+        _ => keep_mouths(&talker.model, &talker.codebook, from, frames, dir, None, progress)?,
     };
     write_manifest(dir, &manifest)?;
     Talker::load(dir)
@@ -341,11 +534,11 @@ pub fn build(
     mut progress: impl FnMut(Progress),
 ) -> Result<Talker, TalkerError> {
     let dir = out.to_path_buf();
-    let io = |path: &Path| {
-        let path = path.to_path_buf();
-        move |source| TalkerError::Io { path, source }
-    };
-    std::fs::create_dir_all(out).map_err(io(out))?;
+    let mut inputs: Vec<&Path> = vec![&parts.model, &parts.codebook];
+    inputs.extend(parts.footage.iter().map(PathBuf::as_path));
+    inputs.extend(parts.mouths_from.as_deref());
+    check_output(out, &inputs)?;
+    let mut record = BuildRecord::claim(out)?;
     let model_error = |source| TalkerError::Model {
         dir: dir.clone(),
         source: Box::new(source),
@@ -364,25 +557,25 @@ pub fn build(
         codebook.save(&out.join("codebook")).map_err(codebook_error)?;
     }
     let footage_dir = out.join("footage");
+    let footage_inputs = fingerprint(&parts.footage, &[&model.hash()])?;
     let done = Footage::load(&footage_dir).ok().filter(|f| {
-        f.model_hash == model.hash()
+        record.made_from("footage", &footage_inputs)
+            && f.model_hash == model.hash()
             && f.clips.len() == parts.footage.len()
-            && f.clips.iter().zip(&parts.footage).all(|(c, p)| {
-                p.file_name()
-                    .is_some_and(|n| c.file.ends_with(&*n.to_string_lossy()))
-            })
     });
     if done.is_none() {
+        record.set(out, "footage", None)?;
         Footage::build(&model, &parts.footage, &footage_dir, &mut progress).map_err(
             |source: FootageError| TalkerError::Footage {
                 dir: dir.clone(),
                 source: Box::new(source),
             },
         )?;
+        record.set(out, "footage", Some(&footage_inputs))?;
     }
     let mouths = match &parts.mouths_from {
         Some(from) if parts.mouth_frames > 0 => {
-            keep_mouths(&model, &codebook, from, parts.mouth_frames, out, true, &mut progress)?
+            keep_mouths(&model, &codebook, from, parts.mouth_frames, out, Some(&mut record), &mut progress)?
         }
         _ => None,
     };

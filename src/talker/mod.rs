@@ -80,16 +80,32 @@ fn unit_gain() -> f64 {
 /// anything recorded (GRID s1's is 1.15).
 pub const MAX_APPEARANCE_GAIN: f64 = 4.0;
 
-/// Whether `gain` may be a talker's appearance gain; if not, why (to follow the value).
-pub fn check_appearance_gain(gain: f64) -> Result<(), String> {
-    if gain > 0.0 && gain <= MAX_APPEARANCE_GAIN {
-        Ok(())
-    } else {
-        Err(format!("is outside (0, {MAX_APPEARANCE_GAIN}] (1: the blend's own spread)"))
-    }
-}
+/// The most examples a talker blends per phone: far more than any choice made on validation
+/// sentences (3–12), few enough that a blend stays quick.
+pub const MAX_TOP_N: usize = 1000;
 
 impl Settings {
+    /// Refuses settings no synthesis can use, naming the field (`prefix` before its name:
+    /// `settings.` in a manifest, `--` on the command line): N from 1 to
+    /// [`MAX_TOP_N`], C up to [`crate::synth::blend::MAX_CONTEXT`], λ
+    /// from 0 to [`crate::synth::MAX_SMOOTHING`], the appearance gain in (0,
+    /// [`MAX_APPEARANCE_GAIN`]]. Checked when a talker loads and before `talker build` does
+    /// any work (issue 69, R5-14: `--smoothing NaN` built for minutes).
+    pub fn check(&self, prefix: &str, separator: char) -> Result<(), crate::options::InvalidOption> {
+        use crate::options::{count_in, in_range};
+        let name = |field: &str| format!("{prefix}{}", field.replace('_', &separator.to_string()));
+        count_in(&name("top_n"), self.top_n, 1, MAX_TOP_N)?;
+        count_in(&name("context"), self.context, 0, crate::synth::blend::MAX_CONTEXT)?;
+        in_range(&name("smoothing"), self.smoothing, 0.0, crate::synth::MAX_SMOOTHING)?;
+        in_range(
+            &name("appearance_gain"),
+            self.appearance_gain,
+            f64::MIN_POSITIVE,
+            MAX_APPEARANCE_GAIN,
+        )?;
+        Ok(())
+    }
+
     /// The blend settings chosen on validation sentences (`split`: which, in words), with
     /// the appearance gain given.
     pub fn chosen(
@@ -293,6 +309,36 @@ pub enum TalkerError {
         /// The cause.
         source: std::io::Error,
     },
+    /// A folder `talker build` did not make, which it never builds into.
+    #[error(
+        "{dir} holds files talker build did not make ({found}, …): give a new or empty folder (a folder it made keeps its {record})",
+        record = build::BUILD_RECORD
+    )]
+    NotOurs {
+        /// The folder.
+        dir: PathBuf,
+        /// A few of its files.
+        found: String,
+    },
+    /// Words that cannot be aligned (none, or not in the dictionary), found before any
+    /// speech is made.
+    #[error("the words: {source}")]
+    Words {
+        /// Why.
+        source: Box<crate::align::AlignError>,
+    },
+    /// The speech a text-to-speech engine made from the text could not be aligned.
+    #[error("the speech {engine} made from the text: {source}")]
+    Spoken {
+        /// The engine.
+        engine: &'static str,
+        /// Why.
+        source: Box<crate::align::AlignError>,
+    },
+    /// An output that would replace an input, lie inside the talker or an input folder, or
+    /// replace a device (checked before any work).
+    #[error(transparent)]
+    Destination(#[from] atomic::DestinationError),
 }
 
 /// The phones of a request's speech, its words when there were words, the sound to put
@@ -366,6 +412,13 @@ pub enum Speech {
         /// The sound, if any.
         audio: Option<PathBuf>,
     },
+    /// Phone timings already in hand (ARPAbet, seconds); with a recording, or silent.
+    Phones {
+        /// The phones.
+        phones: Vec<Segment>,
+        /// The sound, if any.
+        audio: Option<PathBuf>,
+    },
 }
 
 /// What to say and how.
@@ -392,6 +445,20 @@ pub struct SayRequest {
 }
 
 impl SayRequest {
+    /// The files and folders the request reads (its recording, labels, dictionaries).
+    pub fn inputs(&self) -> Vec<&Path> {
+        let mut inputs: Vec<&Path> = match &self.speech {
+            Speech::Text(_) => Vec::new(),
+            Speech::Recording { audio, .. } | Speech::Sound(audio) => vec![audio],
+            Speech::Labels { labels, audio, .. } => {
+                std::iter::once(labels.as_path()).chain(audio.as_deref()).collect()
+            }
+            Speech::Phones { audio, .. } => audio.iter().map(PathBuf::as_path).collect(),
+        };
+        inputs.extend(self.dicts.iter().map(PathBuf::as_path));
+        inputs
+    }
+
     /// `speech`, with everything else as the talker has it.
     pub fn new(speech: Speech) -> Self {
         SayRequest {
@@ -474,16 +541,20 @@ impl Talker {
             dir: dir.into(),
             source: Box::new(source),
         };
+        // Only what lies inside the folder is read: talker.json first, then its parts.
+        manifest::check_confined(dir, &[MANIFEST]).map_err(manifest_error)?;
         let mut m: TalkerManifest =
             manifest::read(&dir.join(MANIFEST), FORMAT, TALKER_VERSION).map_err(manifest_error)?;
+        let parts = [Some(&m.model), Some(&m.codebook), Some(&m.footage), m.mouths.as_ref(), m.sound_to_face.as_ref()];
+        let parts: Vec<&str> = parts.into_iter().flatten().map(String::as_str).collect();
+        manifest::check_confined(dir, &parts).map_err(manifest_error)?;
         if !mouths {
             m.mouths = None;
         }
-        let gain = m.settings.appearance_gain;
-        if let Err(why) = check_appearance_gain(gain) {
+        if let Err(why) = m.settings.check("settings.", '_') {
             return Err(manifest_error(ManifestError::Invalid {
                 path: dir.join(MANIFEST),
-                reason: format!("settings.appearance_gain {gain} {why}"),
+                reason: why.to_string(),
             }));
         }
         let part = |name: &str| manifest::member(dir, name).map_err(manifest_error);
@@ -691,18 +762,40 @@ impl Talker {
         aligner.recogniser(crate::align::frontend::SAMPLE_RATE, &lm)
     }
 
-    /// `text` spoken in the talker's voice into `staging/speech.wav`, and its phones aligned
-    /// to that sound; with notes for the user (a voice that was missing).
+    /// `text` spoken in the talker's voice (or `voice`) into the WAV `wav`, and its phones
+    /// aligned to that sound; with notes for the user (a voice that was missing). The text is
+    /// checked first — its length ([`crate::tts::check_text`]) and that the aligner knows
+    /// every word — so text that cannot be timed never runs an engine.
     pub fn speak(
         &self,
         text: &str,
-        staging: &Path,
-    ) -> Result<(Vec<Segment>, PathBuf, Vec<String>), TalkerError> {
+        voice: Option<&str>,
+        aligner: &crate::align::Aligner,
+        wav: &Path,
+    ) -> Result<(Vec<Segment>, Vec<String>), TalkerError> {
+        let words = |source| TalkerError::Words {
+            source: Box::new(source),
+        };
+        crate::tts::check_text(text)?;
+        aligner.phone_count(text).map_err(words)?;
+        let voice = voice.or(self.manifest.voice.as_ref().map(|v| v.festival.as_str()));
+        let spoken = crate::tts::speak_as(text, wav, voice)?;
         let mut notes = Vec::new();
-        let request = SayRequest::new(Speech::Text(text.into()));
-        let (phones, _, sound, _) = self.phones(&request, staging, &mut notes)?;
-        let sound = sound.unwrap_or_else(|| staging.join("speech.wav"));
-        Ok((phones, sound, notes))
+        if let Some(note) = spoken.note {
+            let hint = self
+                .manifest
+                .voice
+                .as_ref()
+                .filter(|v| Some(v.festival.as_str()) == voice)
+                .map(|v| format!(" (`apt-get install {}`)", v.package))
+                .unwrap_or_default();
+            notes.push(format!("{note}{hint}"));
+        }
+        let phones = aligner.align_file(wav, text).map_err(|source| TalkerError::Spoken {
+            engine: spoken.engine.name(),
+            source: Box::new(source),
+        })?;
+        Ok((phones.segments(), notes))
     }
 
     /// The phones of `speech` and the sound to put under them, made in `staging` when the
@@ -725,15 +818,6 @@ impl Talker {
             let loaded = crate::align::Aligner::load_default(&request.dicts)?;
             Ok(extra.get_or_init(|| loaded))
         };
-        let align = |sound: &Path, words: &str| {
-            aligner()
-                .and_then(|a| a.align_file(sound, words))
-                .map(|a| a.segments())
-                .map_err(|e| TalkerError::Align {
-                    path: sound.to_path_buf(),
-                    source: Box::new(e),
-                })
-        };
         let hear = |audio: &Path, words: &str| {
             let aligner = aligner().map_err(|e| TalkerError::Align {
                 path: audio.to_path_buf(),
@@ -745,22 +829,13 @@ impl Talker {
         Ok(match &request.speech {
             Speech::Text(text) => {
                 let wav = staging.join("speech.wav");
-                let voice = request
-                    .voice
-                    .as_deref()
-                    .or(self.manifest.voice.as_ref().map(|v| v.festival.as_str()));
-                let spoken = crate::tts::speak_as(text, &wav, voice)?;
-                if let Some(note) = spoken.note {
-                    let hint = self
-                        .manifest
-                        .voice
-                        .as_ref()
-                        .filter(|v| Some(v.festival.as_str()) == voice)
-                        .map(|v| format!(" (`apt-get install {}`)", v.package))
-                        .unwrap_or_default();
-                    notes.push(format!("{note}{hint}"));
-                }
-                (align(&wav, text)?, Some(text.clone()), Some(wav), None)
+                let aligner = aligner().map_err(|e| TalkerError::Align {
+                    path: self.dir.clone(),
+                    source: Box::new(e),
+                })?;
+                let (phones, said) = self.speak(text, request.voice.as_deref(), aligner, &wav)?;
+                notes.extend(said);
+                (phones, Some(text.clone()), Some(wav), None)
             }
             Speech::Recording { audio, words } => {
                 (hear(audio, words)?, Some(words.clone()), Some(audio.clone()), None)
@@ -781,6 +856,7 @@ impl Talker {
                 audio.clone(),
                 None,
             ),
+            Speech::Phones { phones, audio } => (phones.clone(), None, audio.clone(), None),
         })
     }
 
@@ -898,6 +974,14 @@ impl Talker {
             let path = path.to_path_buf();
             move |source| TalkerError::Io { path, source }
         };
+        // Never over the request's own inputs or into the talker's folder (issue 69, R5-2/3).
+        let mut inputs = request.inputs();
+        inputs.push(&self.dir);
+        atomic::check_destination(out, &inputs)?;
+        crate::video::check_destination(out)?;
+        if let Some(parts) = &request.parts {
+            atomic::check_destination(parts, &inputs)?;
+        }
         let staging = atomic::StagingDir::new(atomic::parent_of(out)).map_err(io(out))?;
         // The recorded mouths decode (about a second) while the speech is heard and synthesised.
         let (performance, mouths) = std::thread::scope(|scope| {
