@@ -29,7 +29,31 @@ struct Loaded {
     stage: &'static Stage<'static>,
 }
 
+/// The process in which a talker was first loaded, and so the library's worker threads (the
+/// rayon pool, locks they may hold) started: 0 before. A child forked from it (`os.fork`,
+/// `multiprocessing`'s fork start method) has none of those threads, and work handed to them
+/// would wait forever (issue 69, R5-10): it is refused instead, saying what to do.
+static STARTED_IN: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+
+/// Refuses a call in a child forked after a talker was loaded (see [`STARTED_IN`]).
+fn not_forked() -> PyResult<()> {
+    let started = STARTED_IN.load(std::sync::atomic::Ordering::Relaxed);
+    if started == 0 || started == std::process::id() {
+        Ok(())
+    } else {
+        Err(error(format!(
+            "facespace cannot work in a process forked from one that had loaded a talker (process {started}): its worker threads are not copied by fork; use multiprocessing's \"spawn\" or \"forkserver\" start method, or load talkers only in the child"
+        )))
+    }
+}
+
 fn load(path: &std::path::Path) -> Result<&'static Loaded, String> {
+    let _ = STARTED_IN.compare_exchange(
+        0,
+        std::process::id(),
+        std::sync::atomic::Ordering::Relaxed,
+        std::sync::atomic::Ordering::Relaxed,
+    );
     static LOADED: OnceLock<Mutex<HashMap<PathBuf, &'static Loaded>>> = OnceLock::new();
     let key = std::fs::canonicalize(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let mut loaded = LOADED
@@ -59,6 +83,7 @@ struct Talker {
 impl Talker {
     #[new]
     fn new(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
+        not_forked()?;
         let loaded = py.allow_threads(|| load(&path)).map_err(error)?;
         Ok(Talker { loaded })
     }
@@ -93,6 +118,7 @@ impl Talker {
         audio: Option<PathBuf>,
         words: Option<String>,
     ) -> PyResult<String> {
+        not_forked()?;
         let speech = match (text, audio, words) {
             (Some(t), None, None) => Speech::Text(t),
             (None, Some(a), Some(w)) => Speech::Recording { audio: a, words: w },
@@ -111,6 +137,7 @@ impl Talker {
     /// by `fit` ("contain" or "cover"), the footage's own size by default.
     #[pyo3(signature = (given="sound", size=None, fit="contain"))]
     fn session(&self, given: &str, size: Option<(u32, u32)>, fit: &str) -> PyResult<LiveSession> {
+        not_forked()?;
         let talker = self.loaded.talker;
         let session = match given {
             "sound" => Session::new(talker),
@@ -148,6 +175,7 @@ type PictureTuple = (usize, f64, Py<PyBytes>, Py<PyBytes>, bool, bool);
 
 impl LiveSession {
     fn screen(&mut self) -> PyResult<&mut Screen<'static, 'static>> {
+        not_forked()?;
         self.screen
             .as_mut()
             .ok_or_else(|| error("this session is closed"))
@@ -202,6 +230,11 @@ impl LiveSession {
     fn push_f32(&mut self, py: Python<'_>, samples: &[u8], rate: u32) -> PyResult<()> {
         if !samples.len().is_multiple_of(4) {
             return Err(error("float32 samples: the byte count must be a multiple of 4"));
+        }
+        // Judged before the samples are copied (the session judges it again).
+        let seconds = samples.len() as f64 / 4.0 / f64::from(rate.max(1));
+        if seconds > facespace::live::MAX_CHUNK_SECONDS {
+            return Err(error(facespace::live::LiveError::ChunkTooLong { seconds }));
         }
         let x: Vec<f32> = samples
             .chunks_exact(4)
