@@ -86,7 +86,7 @@ fn errors_are_reported_not_panicked() {
         talker_out.to_str().unwrap(),
     ]);
     assert_eq!(o.status.code(), Some(1));
-    assert!(text(&o).contains("--appearance-gain 0") && !text(&o).contains("panicked"), "{}", text(&o));
+    assert!(text(&o).contains("--appearance-gain = 0") && !text(&o).contains("panicked"), "{}", text(&o));
     assert!(!talker_out.exists());
 
     let o = facespace(&["model", "info", "/no/such/model"]);

@@ -17,14 +17,20 @@ const MEMORY_LIMIT: u64 = 3 << 30;
 /// Runs the binary with the limits; returns the exit code (None: killed by a signal or the
 /// time limit) and stdout + stderr.
 fn run(args: &[&str]) -> (Option<i32>, String) {
+    run_with(args, &[], MEMORY_LIMIT)
+}
+
+/// [`run`] with variables `env` set and `memory` bytes of address space.
+fn run_with(args: &[&str], env: &[(&str, &str)], memory: u64) -> (Option<i32>, String) {
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_facespace"));
     cmd.args(args).stdout(Stdio::piped()).stderr(Stdio::piped());
+    cmd.envs(env.iter().copied());
     // SAFETY: setrlimit is async-signal-safe; nothing else runs between fork and exec.
     unsafe {
-        cmd.pre_exec(|| {
+        cmd.pre_exec(move || {
             let limit = libc::rlimit {
-                rlim_cur: MEMORY_LIMIT,
-                rlim_max: MEMORY_LIMIT,
+                rlim_cur: memory,
+                rlim_max: memory,
             };
             libc::setrlimit(libc::RLIMIT_AS, &limit);
             Ok(())
@@ -157,7 +163,7 @@ fn clip_folders_and_decoding() {
         edited(&f.clip, &c, "meta.json", |m| m["audio"] = (*audio).into());
         refused(
             &["decode", s(&c), "-o", s(&out)],
-            &["not a plain file name"],
+            &["not a plain file inside the folder"],
         );
         assert!(!out.exists());
     }
@@ -991,7 +997,7 @@ fn absurd_inputs_are_refused_quickly() {
     );
     // 10 000 words to speak: refused from the text, whether or not an engine is installed.
     let words = vec!["hello"; 10_000].join(" ");
-    synth(&["--say", &words], &["10000 words", "at most 2000"]);
+    synth(&["--say", &words], &["10000 words", "at most 1200"]);
 }
 
 /// Finding 8: an unknown 1 MB "word" and a codebook whose `photometric` record is 100 KB are
@@ -1018,4 +1024,262 @@ fn errors_do_not_echo_megabytes() {
         v["photometric"] = serde_json::Value::String("x".repeat(100_000));
     });
     refused(&["codebook", "info", s(&cb)], &["codebook.json", "bytes)"]);
+}
+
+// Issue 69, round four: the commands and surfaces added since round three.
+
+/// A copy of the committed GRID talker in `dir/name` (a talker reads only what is inside
+/// itself, never through a link).
+fn grid_talker_copy(dir: &Path, name: &str) -> PathBuf {
+    let talker = dir.join(name);
+    let grid = common::root().join("models/grid");
+    for part in ["model", "codebook", "footage", "mouths", "sound-to-face"] {
+        common::copy_tree(&grid.join(part), &talker.join(part));
+    }
+    std::fs::copy(grid.join("talker.json"), talker.join("talker.json")).unwrap();
+    talker
+}
+
+/// R5-1, R5-2, R5-3: `visemes -o` over its own recording or transcript, `say -o` into the
+/// talker it reads, and the library's `Talker::say` (what the Python package calls) over its
+/// recording or into its talker are refused before any work, the files as they were.
+#[test]
+fn outputs_never_land_on_what_the_new_commands_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let wav = d.join("mine.wav");
+    std::fs::copy(grid("bbbf9a.wav"), &wav).unwrap();
+    let transcript = d.join("mine.txt");
+    std::fs::write(&transcript, GRID_WORDS).unwrap();
+    let same = |p: &Path, bytes: &[u8]| assert!(std::fs::read(p).unwrap() == bytes, "{p:?} changed");
+    let recording = std::fs::read(&wav).unwrap();
+    refused(
+        &["visemes", s(&wav), "--text", GRID_WORDS, "-o", s(&wav)],
+        &["also an input"],
+    );
+    same(&wav, &recording);
+    refused(
+        &["visemes", s(&wav), "--transcript", s(&transcript), "-f", "json", "-o", s(&transcript)],
+        &["also an input"],
+    );
+    same(&transcript, GRID_WORDS.as_bytes());
+    let talker = grid_talker_copy(d, "talker");
+    let labels = common::root().join("tests/data/grid/bbbs7a.lab");
+    let mouths = talker.join("mouths/mouths.mp4");
+    let kept_mouths = std::fs::read(&mouths).unwrap();
+    refused(
+        &["say", "--talker", s(&talker), "--labels", s(&labels), "-o", s(&mouths)],
+        &["inside the input folder"],
+    );
+    same(&mouths, &kept_mouths);
+    let t = facespace::talker::Talker::load(&talker).unwrap();
+    let sound = facespace::talker::SayRequest::new(facespace::talker::Speech::Sound(wav.clone()));
+    let e = t.say(&sound, &wav, |_| {}).err().expect("refused").to_string();
+    assert!(e.contains("also an input"), "{e}");
+    same(&wav, &recording);
+    let e = t.say(&sound, &mouths, |_| {}).err().expect("refused").to_string();
+    assert!(e.contains("inside the input folder"), "{e}");
+    same(&mouths, &kept_mouths);
+    facespace::talker::Talker::load(&talker).unwrap().mouths().unwrap().expect("its mouths whole");
+}
+
+/// R5-6: an output that names no video format is refused before any work, with or without a
+/// system ffmpeg; and an ffmpeg that dies while frames are still coming (here one that exits
+/// at once) is an error naming it — never a death by SIGPIPE (exit 141, no message) — with no
+/// staging left beside the output.
+#[test]
+fn video_outputs_that_ffmpeg_cannot_take_are_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let labels = common::root().join("tests/data/grid/bbbs7a.lab");
+    let start = Instant::now();
+    for name in ["out.txt", "dec.md"] {
+        refused(
+            &["say", "--labels", s(&labels), "-o", s(&d.join(name))],
+            &["not a video format", "give .mp4"],
+        );
+    }
+    assert!(start.elapsed() < Duration::from_secs(10), "refused before any work");
+    let fake = d.join("bin");
+    std::fs::create_dir(&fake).unwrap();
+    let ffmpeg = fake.join("ffmpeg");
+    std::fs::write(&ffmpeg, "#!/bin/sh\nexit 1\n").unwrap();
+    std::fs::set_permissions(&ffmpeg, std::os::unix::fs::PermissionsExt::from_mode(0o755)).unwrap();
+    let path = format!("{}:{}", fake.display(), std::env::var("PATH").unwrap_or_default());
+    let out = d.join("out").join("say.mkv");
+    let (code, text) = run_with(
+        &["say", "--labels", s(&labels), "--renderer", "cpu", "-o", s(&out)],
+        &[("PATH", &path)],
+        MEMORY_LIMIT,
+    );
+    assert_eq!(code, Some(1), "{text}");
+    assert!(text.contains("ffmpeg failed"), "{text}");
+    let left: Vec<_> = std::fs::read_dir(d.join("out")).unwrap().flatten().map(|e| e.file_name()).collect();
+    assert!(left.is_empty(), "left behind: {left:?}");
+}
+
+/// R5-7, R5-16, R5-17: text that no engine should be given is refused from the text, before
+/// any engine runs (a stand-in `text2wave` that marks being called shows it): digits and
+/// words the dictionary lacks, one 5 000-letter word, 2 000 long words, 1 996 words (more
+/// speech than is aligned at once) — each quickly, naming the cause and never a staging path.
+#[test]
+fn text_to_speech_is_refused_before_the_engine() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let fake = d.join("bin");
+    std::fs::create_dir(&fake).unwrap();
+    let mark = d.join("engine-ran");
+    let engine = fake.join("text2wave");
+    std::fs::write(&engine, format!("#!/bin/sh\ntouch '{}'\nexit 1\n", mark.display())).unwrap();
+    std::fs::set_permissions(&engine, std::os::unix::fs::PermissionsExt::from_mode(0o755)).unwrap();
+    let path = format!("{}:{}", fake.display(), std::env::var("PATH").unwrap_or_default());
+    let long_words = vec!["internationalization"; 2000].join(" ");
+    let many = vec!["hello"; 1996].join(" ");
+    let cases: [(&str, String, &[&str]); 5] = [
+        ("digits", "I have 2 cats.".into(), &["numbers are not read yet: 2", "in words"]),
+        ("an unknown word", "Hello zorblax.".into(), &["not in the pronouncing dictionary: zorblax"]),
+        ("one long word", "a".repeat(5000), &["a word of 5000 letters"]),
+        ("long words", long_words, &["2000 words"]),
+        ("many words", many, &["1996 words", "at most 1200"]),
+    ];
+    for (what, text, words) in cases {
+        let out = d.join("say.mp4");
+        let start = Instant::now();
+        let (code, said) = run_with(&["say", &text, "-o", s(&out)], &[("PATH", &path)], MEMORY_LIMIT);
+        assert_eq!(code, Some(1), "{what}: {said}");
+        for w in words {
+            assert!(said.contains(w), "{what}: no {w:?} in {said}");
+        }
+        assert!(!said.contains("facespace-tmp") && said.len() < 4000, "{what}: {said}");
+        assert!(start.elapsed() < Duration::from_secs(10), "{what}: {:?}", start.elapsed());
+        assert!(!mark.exists(), "{what}: the engine ran");
+        assert!(!out.exists());
+    }
+}
+
+/// R5-12: a 20 MB transcript of 3 s of speech is refused from its word count, in a few
+/// hundred megabytes (it took 1.16 GB before the refusal): under a 1 GiB address space.
+#[test]
+fn a_huge_transcript_is_judged_before_its_graph() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let words = d.join("words.txt");
+    let text = "bin blue by f nine again ".repeat(800_000);
+    std::fs::write(&words, &text).unwrap();
+    let wav = grid("bbbf9a.wav");
+    let out = d.join("out.mp4");
+    for args in [
+        vec!["say", "--audio", s(&wav), "--transcript", s(&words), "-o", s(&out)],
+        vec!["align", s(&wav), "--transcript", s(&words), "-o", s(&d.join("out.lab"))],
+    ] {
+        let start = Instant::now();
+        let (code, said) = run_with(&args, &[], 1 << 30);
+        assert_eq!(code, Some(1), "{args:?}: {said}");
+        assert!(said.contains("too long for the audio"), "{said}");
+        assert!(start.elapsed() < Duration::from_secs(10));
+    }
+}
+
+/// R5-13: a talker folder reads only regular files inside itself: `talker.json` linked to
+/// `/etc/passwd`, a part linked to another folder, a file of a part linked elsewhere — each
+/// refused, naming it.
+#[test]
+fn a_talker_reads_nothing_through_links() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let labels = common::root().join("tests/data/grid/bbbs7a.lab");
+    let grid = common::root().join("models/grid");
+    let say = |talker: &Path, named: &str| {
+        let out = d.join("out.mp4");
+        refused(
+            &["say", "--talker", s(talker), "--labels", s(&labels), "-o", s(&out)],
+            &[named, "not a plain file inside the folder"],
+        );
+        assert!(!out.exists());
+    };
+    let t = grid_talker_copy(d, "a");
+    std::fs::remove_file(t.join("talker.json")).unwrap();
+    std::os::unix::fs::symlink("/etc/passwd", t.join("talker.json")).unwrap();
+    say(&t, "talker.json");
+    let t = grid_talker_copy(d, "b");
+    std::fs::remove_dir_all(t.join("model")).unwrap();
+    std::os::unix::fs::symlink(grid.join("model"), t.join("model")).unwrap();
+    say(&t, "\"model\"");
+    let t = grid_talker_copy(d, "c");
+    std::fs::remove_file(t.join("codebook/codebook.json")).unwrap();
+    std::os::unix::fs::symlink(grid.join("codebook/codebook.json"), t.join("codebook/codebook.json")).unwrap();
+    say(&t, "codebook/codebook.json");
+    // The copy itself, without links, speaks.
+    let t = grid_talker_copy(d, "d");
+    let out = d.join("fine.mp4");
+    let (code, said) = run(&["say", "--talker", s(&t), "--labels", s(&labels), "--renderer", "cpu", "-o", s(&out)]);
+    assert_eq!(code, Some(0), "{said}");
+}
+
+/// R5-4, R5-5, R5-14: `talker build` builds only into a new or empty folder or one it made;
+/// never into (or inside) its recordings; settings no synthesis can use are refused before
+/// any work; and a rebuild keeps a part only when made from the same inputs — recordings
+/// replaced under the same names make a new corpus and codebook.
+#[test]
+fn talker_build_keeps_to_its_own_folder_and_inputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let model = common::root().join("models/grid/model");
+    let rec = d.join("rec");
+    std::fs::create_dir(&rec).unwrap();
+    let data = common::root().join("tests/data/grid");
+    let put = |name: &str, from: &str| {
+        for ext in ["mp4", "txt"] {
+            std::fs::copy(data.join(format!("{from}.{ext}")), rec.join(format!("{name}.{ext}"))).unwrap();
+        }
+    };
+    for name in ["bbbf9a", "bbbs7a", "bbwtzp"] {
+        put(name, name);
+    }
+    let build = |out: &Path, extra: &[&str]| {
+        let mut args = vec!["talker", "build", "--model", s(&model), "--recordings", s(&rec), "--name", "t"];
+        args.extend_from_slice(extra);
+        args.extend(["-o", s(out)]);
+        args.into_iter().map(String::from).collect::<Vec<_>>()
+    };
+    let refuse = |out: &Path, extra: &[&str], words: &[&str]| {
+        let args = build(out, extra);
+        let start = Instant::now();
+        refused(&args.iter().map(String::as_str).collect::<Vec<_>>(), words);
+        assert!(start.elapsed() < Duration::from_secs(10), "{args:?}");
+    };
+    // Settings refused before any work.
+    let t = d.join("t");
+    for (flag, value) in [("--smoothing", "NaN"), ("--smoothing", "1e308"), ("--top-n", "0"), ("--context", "99")] {
+        refuse(&t, &[&format!("{flag}={value}")], &[flag, "out of range"]);
+        assert!(!t.exists());
+    }
+    // A user's folder, the recordings folder, a folder inside it.
+    let mine = d.join("mine");
+    std::fs::create_dir(&mine).unwrap();
+    std::fs::write(mine.join("talker.json"), "{\"mine\": true}").unwrap();
+    refuse(&mine, &[], &["did not make", "talker.json"]);
+    assert_eq!(std::fs::read_to_string(mine.join("talker.json")).unwrap(), "{\"mine\": true}");
+    refuse(&rec, &[], &["also an input"]);
+    refuse(&rec.join("talker"), &[], &["inside the input folder"]);
+    assert_eq!(std::fs::read_dir(&rec).unwrap().count(), 6, "the recordings as they were");
+    // Built, then built again from other recordings under the same names: the corpus and
+    // the codebook follow the recordings' contents, not their names.
+    let built = |what: &str| {
+        let args = build(&t, &[]);
+        let (code, said) = run(&args.iter().map(String::as_str).collect::<Vec<_>>());
+        assert_eq!(code, Some(0), "{what}: {said}");
+        let talker = facespace::talker::Talker::load(&t).unwrap();
+        let phones = |name: &str| {
+            let s = talker.codebook.sentences.iter().find(|s| s.name == name).unwrap();
+            s.segments.iter().map(|g| g.phone).collect::<Vec<_>>()
+        };
+        (phones("bbbf9a"), phones("bbbs7a"))
+    };
+    let first = built("first");
+    assert_ne!(first.0, first.1);
+    assert_eq!(built("again, every part kept"), first);
+    put("bbbf9a", "bbbs7a");
+    put("bbbs7a", "bbbf9a");
+    assert_eq!(built("other recordings"), (first.1.clone(), first.0.clone()), "a part made from the old recordings was kept");
 }

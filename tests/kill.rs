@@ -704,3 +704,53 @@ fn killed_say_leaves_nothing_in_the_temporary_folder() {
     let left = staging(dir.path());
     assert!(left.is_empty(), "staging left behind: {left:?}");
 }
+
+/// Issue 69, R5-9: `serve` killed -9 while it speaks a typed sentence left the user's text
+/// (`speech.txt`) and its sound in the system temporary folder for good. Typed sentences'
+/// speech now lives in memory only, the text going to the engine through a pipe: after kills
+/// at spread moments of a sentence the private `TMPDIR` stays empty.
+#[test]
+fn killed_serve_leaves_nothing_in_the_temporary_folder() {
+    let _apart = common::loading();
+    if facespace::tts::available().is_none() {
+        eprintln!("skipped: no text-to-speech engine (apt-get install festival festvox-kallpc16k)");
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let text = "Please call me tomorrow morning about the shipment of maps to the island.";
+    let say = |url: &str| {
+        let host = url.trim_start_matches("http://").trim_end_matches('/');
+        let headers = format!("Host: {host}\r\nOrigin: http://{host}\r\nContent-Type: application/json\r\n");
+        let (code, body) = common::http_bytes(url, "POST", "/api/session", &headers, "{}");
+        assert_eq!(code, 200);
+        let session: serde_json::Value = serde_json::from_slice(&body).unwrap();
+        let body = serde_json::json!({"session": session["session"], "text": text, "now": 0}).to_string();
+        let url = url.to_owned();
+        std::thread::spawn(move || common::http_bytes(&url, "POST", "/api/say", &headers, &body).0)
+    };
+    let empty = |when: &str| {
+        let left: Vec<_> = std::fs::read_dir(tmp.path()).unwrap().flatten().map(|e| e.path()).collect();
+        assert!(left.is_empty(), "{when}: left in the temporary folder: {left:?}");
+    };
+    // A whole sentence, timed.
+    let (mut child, url) = common::served(tmp.path());
+    let start = Instant::now();
+    assert_eq!(say(&url).join().unwrap(), 200);
+    let full = start.elapsed();
+    let _ = child.kill();
+    let _ = child.wait();
+    empty("after a complete sentence");
+    let mut rng = common::Rng::new(69);
+    for k in 0..4 {
+        let (mut child, url) = common::served(tmp.path());
+        let pending = say(&url);
+        let at = full.mul_f64(rng.range(0.05, 0.9));
+        std::thread::sleep(at);
+        let _ = child.kill();
+        let _ = child.wait();
+        let _ = pending.join();
+        // An engine started for the sentence dies with the server (within moments).
+        std::thread::sleep(Duration::from_millis(200));
+        empty(&format!("kill {k} at {at:?}"));
+    }
+}

@@ -7,6 +7,7 @@
 use crate::common;
 
 use std::sync::OnceLock;
+use std::time::{Duration, Instant};
 
 use facespace::live::{LiveFrame, Stage};
 use facespace::phonemes::Phone;
@@ -192,6 +193,8 @@ fn the_server_streams_frames_and_refuses_bad_input() {
         ("/api/listen", json!({"session": "nobody", "rate": 16000, "pcm": [0]}), 404, "reload"),
         ("/api/say", json!({"session": other, "text": "x".repeat(700), "now": 0}), 400, "longer"),
         ("/api/say", json!({"session": other, "text": "hello", "now": -1}), 400, "`now`"),
+        // Issue 69, R5-15: a clock no phone can reach once left the session broken.
+        ("/api/say", json!({"session": other, "text": "hello", "now": 1e308}), 400, "`now`"),
         ("/api/clear", json!({"session": other, "extra": 1}), 400, "request"),
     ];
     for (path, body, status, why) in refusals {
@@ -322,7 +325,8 @@ fn typed_sentences_play_in_sync_and_stop_at_once() {
     // plateau whose lowest frame is anyone's guess.
     let text = "Bob made a map of the moor.";
     let staging = tempfile::tempdir().unwrap();
-    let (phones, _, _) = talker.speak(text, staging.path()).unwrap();
+    let wav = staging.path().join("speech.wav");
+    let (phones, _) = talker.speak(text, None, talker.aligner().unwrap(), &wav).unwrap();
     let Some((_one, mut browser, page)) = open_page(&[]) else {
         return;
     };
@@ -559,4 +563,50 @@ fn a_call_streams_through_face_space() {
         drawn.len() >= 10 && drawn.matches('c').count() * 100 >= drawn.len() * 50,
         "call frames drawn: {drawn}"
     );
+}
+
+/// Resident memory of process `pid`, bytes.
+fn resident(pid: u32) -> u64 {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap();
+    let kb: u64 = status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmRSS:"))
+        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())
+        .unwrap();
+    kb * 1024
+}
+
+/// Issue 69, R5-8: 60 clients asking for the model's appearance (19 MB) and never reading
+/// it added 1.1 GB to `serve` and stalled everyone else for about 2 s. A reply's body is now
+/// shared, not copied per client: the server grows by far less than one copy per client,
+/// and another client's request is answered within a second meanwhile.
+#[test]
+fn sixty_unread_models_cost_no_copies() {
+    use std::io::Write;
+    let _apart = common::loading();
+    let tmp = tempfile::tempdir().unwrap();
+    let (mut child, url) = common::served(tmp.path());
+    let host = url.trim_start_matches("http://").trim_end_matches('/').to_owned();
+    let (code, appearance) = common::http_bytes(&url, "GET", "/api/appearance", &format!("Host: {host}\r\n"), "");
+    assert_eq!(code, 200);
+    let before = resident(child.id());
+    let mut stalled = Vec::new();
+    for _ in 0..60 {
+        let mut s = std::net::TcpStream::connect(&host).unwrap();
+        write!(s, "GET /api/appearance HTTP/1.1\r\nHost: {host}\r\n\r\n").unwrap();
+        stalled.push(s);
+    }
+    std::thread::sleep(Duration::from_millis(500));
+    let start = Instant::now();
+    let (code, _) = common::http_bytes(&url, "GET", "/api/model", &format!("Host: {host}\r\n"), "");
+    let answered = start.elapsed();
+    std::thread::sleep(Duration::from_millis(500));
+    let grown = resident(child.id()).saturating_sub(before);
+    let _ = child.kill();
+    let _ = child.wait();
+    assert_eq!(code, 200);
+    assert!(answered < Duration::from_secs(1), "another client waited {answered:?}");
+    let copies = grown as f64 / appearance.len() as f64;
+    assert!(copies < 5.0, "the server grew by {} MB ({copies:.1} copies) for 60 unread replies", grown >> 20);
+    drop(stalled);
 }

@@ -312,14 +312,14 @@ fn ridge_alone(t: &Path) {
     std::fs::write(&json, serde_json::to_vec(&m).unwrap()).unwrap();
 }
 
-/// A copy of the talker whose big parts are links and whose footage is a real copy to damage.
+/// A copy of the talker to damage.
 fn damaged_copy(damage: impl FnOnce(&Path)) -> tempfile::TempDir {
     let dir = tempfile::tempdir().unwrap();
     let t = dir.path();
     let src = grid_talker_dir();
-    std::os::unix::fs::symlink(src.join("model"), t.join("model")).unwrap();
-    std::os::unix::fs::symlink(src.join("codebook"), t.join("codebook")).unwrap();
-    std::os::unix::fs::symlink(src.join("mouths"), t.join("mouths")).unwrap();
+    for part in ["model", "codebook", "mouths"] {
+        common::copy_tree(&src.join(part), &t.join(part));
+    }
     std::fs::create_dir(t.join("sound-to-face")).unwrap();
     for e in std::fs::read_dir(src.join("sound-to-face")).unwrap() {
         let e = e.unwrap();
@@ -420,7 +420,7 @@ fn a_damaged_talker_is_refused_naming_the_part() {
         ),
         (
             "missing model",
-            Box::new(|t| std::fs::remove_file(t.join("model")).unwrap()),
+            Box::new(|t| std::fs::remove_dir_all(t.join("model")).unwrap()),
             "its model",
         ),
     ];
@@ -432,7 +432,8 @@ fn a_damaged_talker_is_refused_naming_the_part() {
         };
         let message = err.to_string();
         assert!(message.contains(named), "{what}: {message}");
-        let out = dir.path().join("out.mp4");
+        let outside = tempfile::tempdir().unwrap();
+        let out = outside.path().join("out.mp4");
         let o = common::facespace(&[
             "say",
             "--talker",
@@ -710,7 +711,8 @@ fn a_damaged_sound_to_face_map_is_refused() {
     };
     for (what, damage, named) in cases {
         let dir = damaged_copy(|t| damage(t));
-        let out = dir.path().join("out.mp4");
+        let outside = tempfile::tempdir().unwrap();
+        let out = outside.path().join("out.mp4");
         let o = say_sound(dir.path(), &out);
         let text = common::text(&o);
         assert!(!o.status.success(), "{what}: say succeeded");
@@ -733,7 +735,8 @@ fn a_damaged_sound_to_face_map_is_refused() {
     }
     // A map of the first version (the ridge alone, before the hidden layer) still speaks.
     let dir = damaged_copy(ridge_alone);
-    let out = dir.path().join("out.mp4");
+    let outside = tempfile::tempdir().unwrap();
+    let out = outside.path().join("out.mp4");
     let o = say_sound(dir.path(), &out);
     assert!(o.status.success() && out.is_file(), "a version-1 map: {}", common::text(&o));
     let dir = damaged_copy(|_| {});

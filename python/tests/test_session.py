@@ -4,6 +4,8 @@ Recorded speech: GRID s1's test clip bbbf9a (committed in tests/data/grid)."""
 
 
 import os
+import pathlib
+import time
 
 import numpy as np
 import pytest
@@ -168,3 +170,57 @@ def test_memory_does_not_grow_with_the_speech(talker, clip):
         marks.append((spoken, rss_mb()))
     settled = next(m for s, m in marks if s >= 9)
     assert marks[-1][1] - settled < 4, marks
+
+
+def test_say_never_writes_over_its_own_recording(talker, tmp_path):
+    """Issue 69, R5-3: the CLI refused it; the package replaced the recording."""
+    wav = tmp_path / "mine.wav"
+    wav.write_bytes((pathlib.Path(__file__).resolve().parents[2] / "tests/data/grid/bbbf9a.wav").read_bytes())
+    before = wav.read_bytes()
+    with pytest.raises(facespace.FacespaceError, match="also an input"):
+        talker.say(str(wav), audio=str(wav))
+    assert wav.read_bytes() == before
+
+
+def test_an_hour_of_sound_in_one_chunk_is_refused_at_once(talker):
+    """Issue 69, R5-11: one 3 500 s chunk took 1.5 GB and 34 s; live sound comes in chunks."""
+    session = talker.session()
+    start = time.monotonic()
+    with pytest.raises(facespace.FacespaceError, match="in one chunk"):
+        session.push_audio(np.zeros(16000 * 3500, dtype=np.int16), 16000)
+    assert time.monotonic() - start < 10
+    session.push_audio(np.zeros(640, dtype=np.int16), 16000)
+
+
+def test_a_forked_child_is_told_not_left_hanging(talker, clip):
+    """Issue 69, R5-10: a child forked after a talker was loaded hung (the library's worker
+    threads are not copied by fork); it now gets an error saying what to do, at once."""
+    samples, rate = clip
+    read, write = os.pipe()
+    pid = os.fork()
+    if pid == 0:
+        os.close(read)
+        try:
+            talker.session().push_audio(samples[:640], rate)
+            message = b"no error"
+        except facespace.FacespaceError as e:
+            message = str(e).encode()
+        os.write(write, message)
+        os._exit(0)
+    os.close(write)
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline:
+        done, _ = os.waitpid(pid, os.WNOHANG)
+        if done:
+            break
+        time.sleep(0.05)
+    else:
+        os.kill(pid, 9)
+        os.waitpid(pid, 0)
+        raise AssertionError("the forked child hung")
+    message = os.read(read, 4096).decode()
+    os.close(read)
+    assert "forked" in message and "spawn" in message, message
+    # The parent goes on as before.
+    session = talker.session()
+    session.push_audio(samples[: rate // 2], rate)

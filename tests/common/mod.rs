@@ -277,3 +277,40 @@ pub fn closes_within(height: &[f64], start: f64, end: f64, fps: f64, plateau: f6
     Ok(())
 }
 
+
+/// A copy of the folder `from` at `to` (files and folders, not links: a talker reads only
+/// what is inside itself). Copies, not hard links: a link changes the committed file's
+/// change time, which a talker loaded meanwhile takes for the file changing under it.
+pub fn copy_tree(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let e = e.unwrap();
+        let target = to.join(e.file_name());
+        if e.file_type().unwrap().is_dir() {
+            copy_tree(&e.path(), &target);
+        } else {
+            std::fs::copy(e.path(), &target).unwrap();
+        }
+    }
+}
+
+/// `facespace serve` of the committed talker started as a child, with `TMPDIR` at `tmp`: the
+/// child (its log drained) and its address.
+pub fn served(tmp: &Path) -> (std::process::Child, String) {
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_facespace"))
+        .args(["serve", "--listen", "127.0.0.1:0"])
+        .env("TMPDIR", tmp)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut out = child.stdout.take().unwrap();
+    // Its first line holds the address ("… live at http://…/ (ready in …)").
+    let (mut text, mut byte) = (String::new(), [0u8; 1]);
+    while !text.ends_with('\n') {
+        assert_eq!(std::io::Read::read(&mut out, &mut byte).unwrap(), 1, "serve stopped: {text}");
+        text.push(byte[0] as char);
+    }
+    std::thread::spawn(move || std::io::copy(&mut out, &mut std::io::sink()));
+    (child, url_in(&text))
+}
