@@ -43,6 +43,9 @@ pub struct DemoArgs {
 }
 
 pub fn run(a: DemoArgs) -> Result<()> {
+    if let Some(clip) = &a.clip {
+        super::check_output(&a.output, &[clip.as_path()])?;
+    }
     let clock = std::time::Instant::now();
     let (bar, progress) = progress_bar();
     let options = DemoOptions {

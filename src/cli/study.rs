@@ -144,6 +144,10 @@ fn create(a: CreateArgs) -> Result<()> {
         .smoothing
         .or(lent.as_ref().map(|l| l.settings.smoothing))
         .unwrap_or(DEFAULT_SMOOTHING);
+    let mut inputs = vec![model_path.as_path(), codebook.as_path(), a.heldout.as_path()];
+    inputs.extend(a.talker.as_deref());
+    inputs.extend(a.weights.as_deref());
+    super::check_output(&a.output, &inputs)?;
     let model = load_model(&model_path)?;
     let cb = Codebook::load(&codebook)
         .with_context(|| format!("loading codebook {}", codebook.display()))?;
@@ -249,6 +253,7 @@ fn serve(a: ServeArgs) -> Result<()> {
 }
 
 fn analyse(a: AnalyseArgs) -> Result<()> {
+    super::check_output(&a.output, &[&a.dir])?;
     let report =
         study::analyse(&a.dir).with_context(|| format!("analysing {}", a.dir.display()))?;
     write_report(&a.output, &report)
