@@ -157,19 +157,6 @@ fn peak_rss() -> u64 {
     usage.ru_maxrss as u64 * 1024
 }
 
-fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for e in std::fs::read_dir(from).unwrap() {
-        let e = e.unwrap();
-        let target = to.join(e.file_name());
-        if e.file_type().unwrap().is_dir() {
-            copy_dir(&e.path(), &target);
-        } else {
-            std::fs::copy(e.path(), target).unwrap();
-        }
-    }
-}
-
 /// Runs `target` on mutated cases for the budget; panics naming the first case that panics,
 /// hangs or pushes the peak memory over the limit (kept under target/fuzz-failures/).
 fn fuzz(target: Target) {
@@ -189,7 +176,7 @@ fn fuzz(target: Target) {
         let seed = 0x5eed_0000 + first_case() + cases as u64;
         let mut rng = Rng::new(seed);
         let dir = work.path().join(format!("case{cases}"));
-        copy_dir(&target.seed, &dir);
+        common::copy_tree(&target.seed, &dir);
         let file =
             dir.join(target.mutable[(rng.next_u64() % target.mutable.len() as u64) as usize]);
         let mut bytes = std::fs::read(&file).unwrap();
@@ -218,7 +205,7 @@ fn fuzz(target: Target) {
                 .join("target/fuzz-failures")
                 .join(format!("{}-{seed:x}", target.name));
             let _ = std::fs::remove_dir_all(&keep);
-            copy_dir(&dir, &keep);
+            common::copy_tree(&dir, &keep);
             panic!(
                 "{}: case {cases} (seed {seed:#x}) {what}; kept in {}",
                 target.name,
@@ -365,6 +352,47 @@ fn fuzz_model_folder() {
             "appearance_variances.npy",
         ],
         read: Arc::new(|d| FaceModel::load(d).map(|_| ()).map_err(err)),
+    });
+}
+
+/// A talker folder (issue 69): its manifest (settings, part names), its footage's and its
+/// codebook's manifests mutated; every load is a talker or a typed error.
+#[test]
+fn fuzz_talker_folder() {
+    let work = tempfile::tempdir().unwrap().keep();
+    let seed = work.join("talker");
+    let rec = work.join("rec");
+    std::fs::create_dir(&rec).unwrap();
+    for name in ["bbbf9a.mp4", "bbbf9a.txt", "bbbs7a.mp4", "bbbs7a.txt"] {
+        std::fs::copy(common::root().join("tests/data/grid").join(name), rec.join(name)).unwrap();
+    }
+    let recordings = facespace::talker::build::Recordings {
+        model: common::root().join("models/grid/model"),
+        dir: rec,
+        footage_clips: 1,
+    };
+    let parts = facespace::talker::build::parts_from_recordings(&recordings, &seed, facespace::no_progress).unwrap();
+    let identity = facespace::talker::build::Identity {
+        name: "fuzz".into(),
+        settings: facespace::talker::Settings {
+            mode: facespace::talker::Mode::Blend,
+            top_n: 5,
+            context: 1,
+            smoothing: 3e-5,
+            appearance_gain: 1.0,
+            chosen_on: "given".into(),
+        },
+        voice: None,
+        recordings: "two GRID s1 test clips".into(),
+    };
+    let parts = facespace::talker::build::Parts { mouths_from: None, ..parts };
+    facespace::talker::build::build(&identity, &parts, &seed, facespace::no_progress).unwrap();
+    std::fs::remove_dir_all(seed.join("corpus")).unwrap();
+    fuzz(Target {
+        name: "talker",
+        seed,
+        mutable: vec!["talker.json", "talker.json", "talker.json", "footage/footage.json", "codebook/codebook.json"],
+        read: Arc::new(|d| facespace::talker::Talker::load(d).map(|_| ()).map_err(err)),
     });
 }
 
