@@ -778,4 +778,36 @@ mod tests {
         .unwrap();
         assert_eq!((calls, got.as_str()), (2, "2"));
     }
+
+    /// Issue 69: a destination inside a folder that is an input is refused — existing or
+    /// not, through a link to the folder too — and one beside it is not.
+    #[test]
+    fn a_destination_inside_an_input_folder_is_refused() {
+        let root = tempfile::tempdir().unwrap();
+        let input = root.path().join("talker");
+        std::fs::create_dir_all(input.join("mouths")).unwrap();
+        std::fs::write(input.join("mouths/mouths.mp4"), b"kept").unwrap();
+        let link = root.path().join("link");
+        std::os::unix::fs::symlink(&input, &link).unwrap();
+        for inside in [
+            input.join("mouths/mouths.mp4"),
+            input.join("new/deeper/out.mp4"),
+            link.join("out.mp4"),
+        ] {
+            let e = check_destination(&inside, &[&input]).unwrap_err();
+            assert!(matches!(e, DestinationError::InsideInput { .. }), "{inside:?}: {e}");
+        }
+        check_destination(&root.path().join("out.mp4"), &[&input]).unwrap();
+        check_destination(&root.path().join("talker2/out.mp4"), &[&input]).unwrap();
+    }
+
+    /// A memory file is read back through its path as written through it.
+    #[test]
+    fn a_memory_file_reads_back_by_its_path() {
+        let m = MemoryFile::new("test").unwrap();
+        std::fs::write(m.path(), b"speech").unwrap();
+        assert_eq!(std::fs::read(m.path()).unwrap(), b"speech");
+        assert!(std::fs::metadata(m.path()).unwrap().is_file());
+        assert_eq!(m.file().metadata().unwrap().len(), 6);
+    }
 }

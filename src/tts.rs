@@ -385,3 +385,53 @@ fn close_streamed_wav(wav: &File) -> std::io::Result<()> {
     f.write_all(&data.to_le_bytes())?;
     f.flush()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each cap refuses just past its value and takes it (issue 69, R5-7 and R5-17).
+    #[test]
+    fn text_is_bounded_before_any_engine() {
+        assert!(matches!(check_text(" ,. "), Err(TtsError::NoWords)));
+        assert_eq!(check_text("Hello there.").unwrap(), 10);
+        let words = |n: usize| vec!["a"; n].join(" ");
+        check_text(&words(MAX_WORDS)).unwrap();
+        assert!(matches!(check_text(&words(MAX_WORDS + 1)), Err(TtsError::TooLong { words: 1201 })));
+        let letters = |n: usize| vec!["abcdefghij"; n / 10].join(" ");
+        check_text(&letters(MAX_LETTERS)).unwrap();
+        assert!(matches!(
+            check_text(&letters(MAX_LETTERS + 10)),
+            Err(TtsError::TooManyLetters { .. })
+        ));
+        check_text(&"a".repeat(MAX_WORD_LETTERS)).unwrap();
+        assert!(matches!(
+            check_text(&"a".repeat(MAX_WORD_LETTERS + 1)),
+            Err(TtsError::WordTooLong { letters: 41 })
+        ));
+    }
+
+    /// A WAV written to a pipe gets its true sizes.
+    #[test]
+    fn a_streamed_wav_header_is_closed() {
+        let mut bytes = b"RIFF".to_vec();
+        bytes.extend(0x7fff_f000u32.to_le_bytes());
+        bytes.extend(b"WAVEfmt ");
+        bytes.extend(16u32.to_le_bytes());
+        bytes.extend([1, 0, 1, 0]);
+        bytes.extend(16_000u32.to_le_bytes());
+        bytes.extend(32_000u32.to_le_bytes());
+        bytes.extend([2, 0, 16, 0]);
+        bytes.extend(b"data");
+        bytes.extend(0x7fff_f000u32.to_le_bytes());
+        bytes.extend([0u8; 100]);
+        let mut file = tempfile::tempfile().unwrap();
+        file.write_all(&bytes).unwrap();
+        close_streamed_wav(&file).unwrap();
+        let mut back = Vec::new();
+        file.seek(SeekFrom::Start(0)).unwrap();
+        file.read_to_end(&mut back).unwrap();
+        assert_eq!(u32::from_le_bytes(back[4..8].try_into().unwrap()), 136);
+        assert_eq!(u32::from_le_bytes(back[40..44].try_into().unwrap()), 100);
+    }
+}

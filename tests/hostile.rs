@@ -1074,10 +1074,10 @@ fn outputs_never_land_on_what_the_new_commands_read() {
     same(&mouths, &kept_mouths);
     let t = facespace::talker::Talker::load(&talker).unwrap();
     let sound = facespace::talker::SayRequest::new(facespace::talker::Speech::Sound(wav.clone()));
-    let e = t.say(&sound, &wav, |_| {}).err().expect("refused").to_string();
+    let e = t.say(&sound, &wav, |_| {}).expect_err("refused").to_string();
     assert!(e.contains("also an input"), "{e}");
     same(&wav, &recording);
-    let e = t.say(&sound, &mouths, |_| {}).err().expect("refused").to_string();
+    let e = t.say(&sound, &mouths, |_| {}).expect_err("refused").to_string();
     assert!(e.contains("inside the input folder"), "{e}");
     same(&mouths, &kept_mouths);
     facespace::talker::Talker::load(&talker).unwrap().mouths().unwrap().expect("its mouths whole");

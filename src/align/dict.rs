@@ -239,3 +239,14 @@ fn parse_pron(
     }
     Ok(pron)
 }
+
+#[cfg(test)]
+mod tests {
+    /// The count is the number of words made, on text of every kind of separator.
+    #[test]
+    fn word_count_counts_the_words_made() {
+        for text in ["", "  ", "Hello, world!", "'tis the cats' toys", "a-b--c ' '' 1,250 o'clock", "ünïcode wörds—and dashes"] {
+            assert_eq!(super::word_count(text), super::words(text).len(), "{text:?}");
+        }
+    }
+}
