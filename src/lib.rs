@@ -1,5 +1,30 @@
 //! facespace — talking-face animation from independent statistical shape and appearance
-//! models (Theobald et al. \[blend\]; Liu & Ostermann \[unitsel\]; see `DESIGN.md`).
+//! models (Theobald et al. \[blend\]; Liu & Ostermann \[unitsel\]; see `docs/DESIGN.md`).
+//!
+//! # A talker says something
+//!
+//! The front door: load a talker folder (the committed GRID s1 is `models/grid`) and have it
+//! say a recording with its words — or text, phone labels, or a recording alone — into an MP4
+//! with its sound; [`live::Session`] on the same talker does it as the speech arrives.
+//!
+//! ```no_run
+//! use std::path::Path;
+//!
+//! use facespace::talker::{SayRequest, Speech, Talker};
+//!
+//! # fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! let talker = Talker::load(Path::new("models/grid"))?;
+//! let speech = Speech::Recording {
+//!     audio: "tests/data/grid/bbwtzp.mp4".into(),
+//!     words: "bin blue with t zero please".into(),
+//! };
+//! let report = talker.say(&SayRequest::new(speech), Path::new("out/bbwtzp.mp4"), |_| {})?;
+//! println!("{} frames", report.frames);
+//! # Ok(())
+//! # }
+//! ```
+//!
+//! # The stages
 //!
 //! The face-space vector ([`facespace`]: `[pose | b_s | b_a]`, a [`facespace::Frames`]
 //! sequence) is the currency every stage passes:

@@ -49,6 +49,7 @@ mod mouths;
 mod pca;
 mod phonemes;
 mod python;
+mod readme;
 mod region;
 mod shape;
 mod smooth;

@@ -1,4 +1,4 @@
-//! Issue 26: the README's "Your own talker" walkthrough, followed line by line as written —
+//! Issue 26: the "Your own talker" walkthrough (docs/OWN_TALKER.md), followed line by line as written —
 //! from a video of the talker to a synthesised sentence with its sound — on GRID speaker 1's
 //! committed clips. Each `cargo run --release --` runs this build's binary; the other lines
 //! (`cp`, `mkdir`) run in `sh`, in a folder holding links to the repository's `tests/` and
@@ -8,13 +8,13 @@ use crate::common;
 use std::path::Path;
 use std::process::{Command, Stdio};
 
-/// The commands of the README's first `sh` block under `## Your own talker`, continuation
-/// lines joined, comments dropped.
+/// The commands of docs/OWN_TALKER.md's first `sh` block under `## Your own talker`,
+/// continuation lines joined, comments dropped.
 fn walkthrough() -> Vec<String> {
-    let readme = std::fs::read_to_string(common::root().join("README.md")).unwrap();
+    let readme = std::fs::read_to_string(common::root().join("docs/OWN_TALKER.md")).unwrap();
     let section = &readme[readme
         .find("## Your own talker")
-        .expect("README has the section")..];
+        .expect("docs/OWN_TALKER.md has the section")..];
     let block = &section[section.find("```sh\n").expect("an sh block") + 6..];
     let block = &block[..block.find("```").unwrap()];
     let mut commands = Vec::new();
@@ -35,7 +35,7 @@ fn walkthrough() -> Vec<String> {
     commands
 }
 
-/// Runs one README line in `dir`; returns its output, failing the test on a non-zero exit.
+/// Runs one walkthrough line in `dir`; returns its output, failing the test on a non-zero exit.
 fn run(dir: &Path, line: &str) -> String {
     let exe = env!("CARGO_BIN_EXE_facespace");
     let command = match line.strip_prefix("cargo run --release -- ") {

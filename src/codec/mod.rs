@@ -104,7 +104,7 @@ pub enum CodecError {
     /// (The three "no face" errors name no remedy flags: a command that has them adds them,
     /// [`CodecError::is_lost_face`].)
     #[error(
-        "{path}: no face this model explains in the first frame (residual {error:.1} grey levels, a face it was built for fits under {threshold}); this model was probably built for another face: build one from your own frames (README: \"Your own talker\")"
+        "{path}: no face this model explains in the first frame (residual {error:.1} grey levels, a face it was built for fits under {threshold}); this model was probably built for another face: build one from your own frames (docs/OWN_TALKER.md)"
     )]
     NoFace {
         /// The video.
@@ -124,7 +124,7 @@ pub enum CodecError {
     },
     /// Most frames were lost.
     #[error(
-        "{path}: the face was lost on {lost} of {frames} frames (residual above {threshold} grey levels); this model was probably built for another face: build one from your own frames (README: \"Your own talker\")"
+        "{path}: the face was lost on {lost} of {frames} frames (residual above {threshold} grey levels); this model was probably built for another face: build one from your own frames (docs/OWN_TALKER.md)"
     )]
     FaceLost {
         /// The video.

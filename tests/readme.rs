@@ -1,0 +1,120 @@
+//! Issue 68: the README is short, starts with what to type, and its code blocks run as
+//! written — every `cargo run --release -- …` line of its `sh` blocks (in a folder holding
+//! links to the repository's `tests/` and `models/`, so `out/` is the test's own; `say` from
+//! text where a text-to-speech engine is installed; `serve` until it answers its page) and its
+//! Python block (the microphone's chunks and `show` given by a prelude) where the package is
+//! installed. `cargo test --release` is this run itself.
+use crate::common;
+
+use std::path::Path;
+use std::process::{Command, Stdio};
+
+/// The contents of every fenced block of `lang` in `text`.
+fn blocks(text: &str, lang: &str) -> Vec<String> {
+    let fence = format!("```{lang}\n");
+    let mut found = Vec::new();
+    let mut rest = text;
+    while let Some(at) = rest.find(&fence) {
+        let body = &rest[at + fence.len()..];
+        let end = body.find("```").expect("a closed block");
+        found.push(body[..end].to_owned());
+        rest = &body[end + 3..];
+    }
+    found
+}
+
+/// The value after `-o` in a command line.
+fn output_of(args: &str) -> Option<&str> {
+    let words: Vec<&str> = args.split_whitespace().collect();
+    words.iter().position(|w| *w == "-o").and_then(|i| words.get(i + 1)).copied()
+}
+
+fn run_line(dir: &Path, args: &str) {
+    let exe = env!("CARGO_BIN_EXE_facespace");
+    let o = Command::new("sh")
+        .args(["-c", &format!("'{exe}' {args}")])
+        .current_dir(dir)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{args}\n{}", common::text(&o));
+    if let Some(out) = output_of(args) {
+        assert!(dir.join(out).exists(), "{args}: no {out}");
+    }
+}
+
+/// `serve` as written, on any free port: its page answers.
+fn serve_line(dir: &Path, args: &str) {
+    let mut server = Command::new(env!("CARGO_BIN_EXE_facespace"))
+        .args(args.split_whitespace())
+        .args(["--listen", "127.0.0.1:0"])
+        .current_dir(dir)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut out = server.stdout.take().unwrap();
+    let (mut first, mut byte) = (String::new(), [0u8; 1]);
+    while !first.ends_with('\n') {
+        assert_eq!(std::io::Read::read(&mut out, &mut byte).unwrap(), 1, "serve stopped: {first}");
+        first.push(byte[0] as char);
+    }
+    let (code, page) = common::http(&common::url_in(&first), "GET", "/", "");
+    let _ = server.kill();
+    let _ = server.wait();
+    assert_eq!(code, 200);
+    assert!(page.contains("<html") || page.contains("<!doctype"), "{}", &page[..page.len().min(200)]);
+}
+
+#[test]
+fn the_readme_is_short_and_runs_as_written() {
+    let readme = std::fs::read_to_string(common::root().join("README.md")).unwrap();
+    let lines: Vec<&str> = readme.lines().collect();
+    assert!(lines.len() <= 150, "the README has {} lines", lines.len());
+    let say = lines.iter().position(|l| l.contains("-- say ")).expect("the README shows say");
+    assert!(say < 40, "`say` first appears at line {}", say + 1);
+    let dir = tempfile::tempdir().unwrap();
+    for linked in ["tests", "models"] {
+        std::os::unix::fs::symlink(common::root().join(linked), dir.path().join(linked)).unwrap();
+    }
+    let mut ran = 0;
+    for block in blocks(&readme, "sh") {
+        for line in block.lines() {
+            let line = line.split("  #").next().unwrap_or("").trim();
+            if line.is_empty() || line.starts_with('#') || line == "cargo test --release" {
+                continue;
+            }
+            let args = line
+                .strip_prefix("cargo run --release -- ")
+                .unwrap_or_else(|| panic!("a README line this test cannot run: {line}"));
+            match args.split_whitespace().next() {
+                Some("serve") => serve_line(dir.path(), args),
+                Some("say") if args.starts_with("say \"") && facespace::tts::available().is_none() => {
+                    eprintln!("skipped `{args}`: no text-to-speech engine (.ci/run installs Festival)");
+                }
+                _ => run_line(dir.path(), args),
+            }
+            ran += 1;
+        }
+    }
+    assert!(ran >= 4, "{ran} README commands");
+    // The Python block, where the package is installed (.ci/run installs it).
+    let python = std::env::var("FACESPACE_PYTHON").unwrap_or_else(|_| "python3".into());
+    let installed = Command::new(&python)
+        .args(["-c", "import facespace._facespace, numpy"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !installed {
+        eprintln!("skipped the Python block: no facespace package (pip install ./python)");
+        return;
+    }
+    let [code] = blocks(&readme, "python").try_into().expect("one Python block");
+    let prelude = "import wave, numpy as np\n\
+        with wave.open('tests/data/grid/bbbf9a.wav') as w:\n    \
+        pcm = np.frombuffer(w.readframes(w.getnframes()), dtype='<i2')\n\
+        microphone_chunks = [pcm[k:k + 640] for k in range(0, len(pcm), 640)]\n\
+        shown = []\n\
+        def show(image):\n    shown.append(image.shape)\n";
+    let script = format!("{prelude}{code}\nassert len(shown) >= 50 and shown[0] == (512, 512, 3), shown[:3]\n");
+    let o = Command::new(&python).args(["-c", &script]).current_dir(dir.path()).output().unwrap();
+    assert!(o.status.success(), "{}", common::text(&o));
+}
