@@ -148,6 +148,8 @@ pub struct Series<'a> {
     pub y: &'a [f64],
     /// Line colour.
     pub color: Rgb<u8>,
+    /// Drawn as dots, not a line: a series that may lie on another line stays visible.
+    pub dots: bool,
 }
 
 /// Tick positions at a "nice" step (1, 2 or 5 × 10^k) giving about five ticks in
@@ -340,20 +342,29 @@ pub fn line_plot(
     }
     axes.draw(&mut img, title, x_label, "");
     for s in series {
-        for k in 1..s.x.len().min(s.y.len()) {
-            line(
-                &mut img,
-                (axes.px(s.x[k - 1]), axes.py(s.y[k - 1])),
-                (axes.px(s.x[k]), axes.py(s.y[k])),
-                s.color,
-            );
+        let n = s.x.len().min(s.y.len());
+        for k in 0..n {
+            let at = (axes.px(s.x[k]), axes.py(s.y[k]));
+            if s.dots {
+                draw_filled_circle_mut(&mut img, (at.0.round() as i32, at.1.round() as i32), 2, s.color);
+            } else if k > 0 {
+                line(&mut img, (axes.px(s.x[k - 1]), axes.py(s.y[k - 1])), at, s.color);
+            }
         }
     }
     axes.legend(
         &mut img,
         series,
         |s| s.label,
-        |img, s, (x, y)| line(img, (x, y), (x + 20.0, y), s.color),
+        |img, s, (x, y)| {
+            if s.dots {
+                for dx in [4.0, 10.0, 16.0] {
+                    draw_filled_circle_mut(img, ((x + dx) as i32, y as i32), 2, s.color);
+                }
+            } else {
+                line(img, (x, y), (x + 20.0, y), s.color)
+            }
+        },
     );
     img
 }
@@ -404,12 +415,12 @@ pub fn scatter(
 }
 
 /// Two panels over time — the first shape and the first appearance parameter — of each
-/// `(label, frames)` series (`frames × layout.dims()` values at `fps`), with the phones as
-/// bands along the bottom.
+/// `(label, frames, dots)` series (`frames × layout.dims()` values at `fps`; `dots`: drawn as
+/// dots, for a series that may lie under a line), with the phones as bands along the bottom.
 pub fn parameter_plot(
     layout: Layout,
     fps: f64,
-    series: &[(&str, ndarray::ArrayView2<'_, f32>)],
+    series: &[(&str, ndarray::ArrayView2<'_, f32>, bool)],
     target: &[Segment],
 ) -> RgbImage {
     let spans: Vec<(f64, f64, &str)> = target
@@ -426,7 +437,7 @@ pub fn parameter_plot(
     ] {
         let cols: Vec<(Vec<f64>, Vec<f64>)> = series
             .iter()
-            .map(|(_, m)| {
+            .map(|(_, m, _)| {
                 (
                     (0..m.nrows()).map(|i| i as f64 / fps).collect(),
                     m.column(k.min(m.ncols() - 1))
@@ -440,11 +451,12 @@ pub fn parameter_plot(
             .iter()
             .zip(&cols)
             .enumerate()
-            .map(|(i, ((label, _), (x, y)))| Series {
+            .map(|(i, ((label, _, dots), (x, y)))| Series {
                 label,
                 x,
                 y,
                 color: PALETTE[i % PALETTE.len()],
+                dots: *dots,
             })
             .collect();
         panels.push(line_plot(title, "time (s)", &s, &spans, 900, 260));

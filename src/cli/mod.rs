@@ -212,11 +212,33 @@ impl RendererArg {
         edge: impl Into<facespace::render::Edge>,
     ) -> Result<Box<dyn facespace::render::Renderer + 'm>> {
         let chosen = facespace::render::choose_renderer(self.choice(), model, edge)?;
-        if let Some(note) = &chosen.note {
-            eprintln!("note: {note}");
+        if let Some(note) = chosen.note.as_deref().filter(|n| first_time_told(n)) {
+            eprintln!("note: {note} (said once on this machine)");
         }
         Ok(chosen.renderer)
     }
+}
+
+/// Whether `note` is told for the first time on this machine: a note about the machine (its
+/// only GPU is a software one) is worth one reading, not one on every run. Remembered as an
+/// empty file named by the note's hash in `$XDG_CACHE_HOME/facespace` (or `~/.cache`); where
+/// nothing can be remembered, every time.
+fn first_time_told(note: &str) -> bool {
+    let Some(cache) = std::env::var_os("XDG_CACHE_HOME")
+        .map(std::path::PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| std::path::Path::new(&h).join(".cache")))
+    else {
+        return true;
+    };
+    let hash = note
+        .bytes()
+        .fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3));
+    let marker = cache.join("facespace").join(format!("told-{hash:016x}"));
+    if marker.exists() {
+        return false;
+    }
+    let _ = std::fs::create_dir_all(cache.join("facespace")).and_then(|()| std::fs::write(&marker, b""));
+    true
 }
 
 /// Refuses `output` before any work when it is one of `inputs` (links resolved), a folder

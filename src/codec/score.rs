@@ -190,6 +190,7 @@ impl QualityReport {
                     x: &t,
                     y,
                     color: plot::PALETTE[i],
+                    dots: false,
                 }],
                 &[],
                 900,

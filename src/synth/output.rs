@@ -319,10 +319,14 @@ pub fn write(
         let json = serde_json::to_vec_pretty(&key).expect("key serialises");
         atomic::write_file(&path, &json).map_err(io(path.clone()))?;
     }
-    let mut series: Vec<(&str, ndarray::ArrayView2<'_, f32>)> =
-        variants.iter().map(|(n, f)| (*n, f.values())).collect();
+    // The unsmoothed variant as dots: at a small λ it lies on the smoothed line, which would
+    // hide it (or it the smoothed one).
+    let mut series: Vec<(&str, ndarray::ArrayView2<'_, f32>, bool)> = variants
+        .iter()
+        .map(|(n, f)| (*n, f.values(), *n == "unsmoothed"))
+        .collect();
     if let Some(real) = options.real {
-        series.push(("real", real.values()));
+        series.push(("real", real.values(), false));
     }
     let plot = plot::parameter_plot(model.layout(), fps, &series, &utterance.target);
     video::write_png(&dir.join("plot.png"), &plot)?;

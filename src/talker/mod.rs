@@ -780,7 +780,11 @@ impl Talker {
         aligner.phone_count(text).map_err(words)?;
         let voice = voice.or(self.manifest.voice.as_ref().map(|v| v.festival.as_str()));
         let spoken = crate::tts::speak_as(text, wav, voice)?;
-        let mut notes = Vec::new();
+        let mut notes = vec![format!(
+            "the text was spoken by {} in the voice {}",
+            spoken.engine.name(),
+            spoken.voice
+        )];
         if let Some(note) = spoken.note {
             let hint = self
                 .manifest
