@@ -65,6 +65,48 @@ fn serve_line(dir: &Path, args: &str) {
     assert!(page.contains("<html") || page.contains("<!doctype"), "{}", &page[..page.len().min(200)]);
 }
 
+/// Runs every `cargo run --release -- …` line of an `sh` block in `dir` (`cargo test` is this
+/// run; `say` from text only with a text-to-speech engine); gives how many.
+fn run_block(dir: &Path, block: &str) -> usize {
+    let mut ran = 0;
+    for line in block.lines() {
+        let line = line.split("  #").next().unwrap_or("").trim();
+        if line.is_empty() || line.starts_with('#') || line == "cargo test --release" {
+            continue;
+        }
+        let args = line
+            .strip_prefix("cargo run --release -- ")
+            .unwrap_or_else(|| panic!("a line this test cannot run: {line}"));
+        match args.split_whitespace().next() {
+            Some("serve") => serve_line(dir, args),
+            Some("say") if args.starts_with("say \"") && facespace::tts::available().is_none() => {
+                eprintln!("skipped `{args}`: no text-to-speech engine (.ci/run installs Festival)");
+            }
+            _ => run_line(dir, args),
+        }
+        ran += 1;
+    }
+    ran
+}
+
+/// A folder holding links to the repository's `tests/` and `models/`.
+fn workspace() -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    for linked in ["tests", "models"] {
+        std::os::unix::fs::symlink(common::root().join(linked), dir.path().join(linked)).unwrap();
+    }
+    dir
+}
+
+/// docs/TALKER.md's `say` examples run as written (one, `--labels` with `--audio`, was refused
+/// by the command line it documented).
+#[test]
+fn the_say_examples_run_as_written() {
+    let page = std::fs::read_to_string(common::root().join("docs/TALKER.md")).unwrap();
+    let block = blocks(&page, "sh").into_iter().next().expect("an sh block");
+    assert_eq!(run_block(workspace().path(), &block), 4);
+}
+
 #[test]
 fn the_readme_is_short_and_runs_as_written() {
     let readme = std::fs::read_to_string(common::root().join("README.md")).unwrap();
@@ -72,30 +114,8 @@ fn the_readme_is_short_and_runs_as_written() {
     assert!(lines.len() <= 150, "the README has {} lines", lines.len());
     let say = lines.iter().position(|l| l.contains("-- say ")).expect("the README shows say");
     assert!(say < 40, "`say` first appears at line {}", say + 1);
-    let dir = tempfile::tempdir().unwrap();
-    for linked in ["tests", "models"] {
-        std::os::unix::fs::symlink(common::root().join(linked), dir.path().join(linked)).unwrap();
-    }
-    let mut ran = 0;
-    for block in blocks(&readme, "sh") {
-        for line in block.lines() {
-            let line = line.split("  #").next().unwrap_or("").trim();
-            if line.is_empty() || line.starts_with('#') || line == "cargo test --release" {
-                continue;
-            }
-            let args = line
-                .strip_prefix("cargo run --release -- ")
-                .unwrap_or_else(|| panic!("a README line this test cannot run: {line}"));
-            match args.split_whitespace().next() {
-                Some("serve") => serve_line(dir.path(), args),
-                Some("say") if args.starts_with("say \"") && facespace::tts::available().is_none() => {
-                    eprintln!("skipped `{args}`: no text-to-speech engine (.ci/run installs Festival)");
-                }
-                _ => run_line(dir.path(), args),
-            }
-            ran += 1;
-        }
-    }
+    let dir = workspace();
+    let ran: usize = blocks(&readme, "sh").iter().map(|b| run_block(dir.path(), b)).sum();
     assert!(ran >= 4, "{ran} README commands");
     // The Python block, where the package is installed (.ci/run installs it).
     let python = std::env::var("FACESPACE_PYTHON").unwrap_or_else(|_| "python3".into());

@@ -26,10 +26,10 @@ pub struct SayArgs {
     /// A recording to speak instead of text-to-speech (WAV or MP4/M4A): aligned to its words
     /// (the text, or --transcript) and put under the video; without words its phones are
     /// recognised from the sound alone (a looser lip sync, with a note).
-    #[arg(long, conflicts_with = "labels")]
+    #[arg(long)]
     audio: Option<PathBuf>,
     /// A text file with the words of --audio.
-    #[arg(long, requires = "audio", conflicts_with = "text")]
+    #[arg(long, requires = "audio", conflicts_with_all = ["text", "labels"])]
     transcript: Option<PathBuf>,
     /// Phone timings (.lab, .TextGrid, .tsv) instead of text; with --audio, that sound goes
     /// under the video.

@@ -25,6 +25,9 @@ const FRAME_TICKS: u32 = 1000;
 /// 0.69 before encoding (BENCHMARKS.md, "What a viewer gets").
 pub const VIEWING_QP: u8 = 20;
 
+/// Seconds between keyframes (see [`Writer::create_with_qp`]).
+pub const KEYFRAME_SECONDS: f64 = 10.0;
+
 /// Encodes frames to an H.264 MP4, written beside its destination and renamed into place on
 /// [`Writer::finish`] (dropped unfinished, it leaves nothing behind).
 pub struct Writer {
@@ -76,8 +79,12 @@ impl Writer {
             .background_detection(false)
             .scene_change_detect(false)
             .adaptive_quantization(false)
+            // A keyframe every 10 s (x264's default), not every 2 s: at the same quantiser
+            // an I frame is drawn differently from the P frames before it, and the frame-to-
+            // frame change jumped 2.4× the source's at each one — a pulse a viewer sees
+            // (issue 68; GRID s1 `say`, BENCHMARKS "Keyframes").
             .intra_frame_period(IntraFramePeriod::from_num_frames(
-                ((2.0 * fps).round() as u32).max(1),
+                ((KEYFRAME_SECONDS * fps).round() as u32).max(1),
             ));
         let encoder = Encoder::with_api_config(openh264::OpenH264API::from_source(), config)?;
         let (tmp, writer) = start(path, timescale)?;
