@@ -269,9 +269,11 @@ fn grid_into(
         text: Some(words),
         beside_background: true,
     };
+    // The talker's own blend, its appearance gain included (what `say` draws).
     let blend = Blend {
         top_n: settings.top_n,
         context: settings.context,
+        appearance_gain: settings.appearance_gain,
         ..Blend::default()
     };
     let (utterance, report, unit_report) = both_modes(

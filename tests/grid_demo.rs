@@ -161,6 +161,10 @@ fn the_demo_speaks_beside_the_real_recording() {
     ] {
         assert!(out.join(f).is_file(), "missing {f}");
     }
+    // The talker's own blend, as `say` draws it: its appearance gain included (issue 68).
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["method"], "blend C=1 N=12, appearance ×1.15");
     let grid_words = std::fs::read_to_string(out.join("utterance.TextGrid")).unwrap();
     assert!(grid_words.contains("\"bin\"") && grid_words.contains("\"again\""));
     let clip = facespace::demo::grid_clip();
