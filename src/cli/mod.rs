@@ -409,13 +409,7 @@ pub struct Lent {
 }
 
 pub fn lent(talker: &std::path::Path) -> Result<Lent> {
-    use anyhow::Context;
-    let path = talker.join(facespace::talker::MANIFEST);
-    let m: facespace::talker::TalkerManifest = serde_json::from_str(
-        &facespace::manifest::read_regular_string(&path)
-            .with_context(|| format!("reading {}", path.display()))?,
-    )
-    .with_context(|| format!("{}: not a talker manifest", path.display()))?;
+    let m = facespace::talker::read_manifest(talker)?;
     let part = |name: &str| facespace::manifest::member(talker, name);
     Ok(Lent {
         model: part(&m.model)?,

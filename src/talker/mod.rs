@@ -371,6 +371,29 @@ pub struct Talker {
     median_pose: std::sync::OnceLock<crate::shape::Similarity>,
 }
 
+/// The manifest of the talker folder `dir`, checked as [`Talker::load`] checks it: only
+/// regular files inside the folder (`talker.json`, then every part it names and the files in
+/// them), its format and version, and settings a synthesis can use.
+pub fn read_manifest(dir: &Path) -> Result<TalkerManifest, TalkerError> {
+    let manifest_error = |source| TalkerError::Manifest {
+        dir: dir.into(),
+        source: Box::new(source),
+    };
+    manifest::check_confined(dir, &[MANIFEST]).map_err(manifest_error)?;
+    let m: TalkerManifest =
+        manifest::read(&dir.join(MANIFEST), FORMAT, TALKER_VERSION).map_err(manifest_error)?;
+    let parts = [Some(&m.model), Some(&m.codebook), Some(&m.footage), m.mouths.as_ref(), m.sound_to_face.as_ref()];
+    let parts: Vec<&str> = parts.into_iter().flatten().map(String::as_str).collect();
+    manifest::check_confined(dir, &parts).map_err(manifest_error)?;
+    if let Err(why) = m.settings.check("settings.", '_') {
+        return Err(manifest_error(ManifestError::Invalid {
+            path: dir.join(MANIFEST),
+            reason: why.to_string(),
+        }));
+    }
+    Ok(m)
+}
+
 /// The value kept in `cell`, loaded by `load` the first time. A failed load is not kept (the
 /// next call tries again); two threads racing both load, and one result is kept.
 fn loaded_once<T, E>(
@@ -541,21 +564,9 @@ impl Talker {
             dir: dir.into(),
             source: Box::new(source),
         };
-        // Only what lies inside the folder is read: talker.json first, then its parts.
-        manifest::check_confined(dir, &[MANIFEST]).map_err(manifest_error)?;
-        let mut m: TalkerManifest =
-            manifest::read(&dir.join(MANIFEST), FORMAT, TALKER_VERSION).map_err(manifest_error)?;
-        let parts = [Some(&m.model), Some(&m.codebook), Some(&m.footage), m.mouths.as_ref(), m.sound_to_face.as_ref()];
-        let parts: Vec<&str> = parts.into_iter().flatten().map(String::as_str).collect();
-        manifest::check_confined(dir, &parts).map_err(manifest_error)?;
+        let mut m = read_manifest(dir)?;
         if !mouths {
             m.mouths = None;
-        }
-        if let Err(why) = m.settings.check("settings.", '_') {
-            return Err(manifest_error(ManifestError::Invalid {
-                path: dir.join(MANIFEST),
-                reason: why.to_string(),
-            }));
         }
         let part = |name: &str| manifest::member(dir, name).map_err(manifest_error);
         let (model_dir, codebook_dir, footage_dir) =
