@@ -16,6 +16,9 @@ sound a frame leaves within 200 ms of its sound (BENCHMARKS "Python package": 15
 the last word for the sentence's end), which costs nothing when the TTS delivers its sound
 ahead of playback, as streaming services do.
 
+Recognition, synthesis and each picture's drawing run on worker threads (``asyncio.to_thread``),
+as the LiveKit adapter's do: the event loop only hands frames on.
+
     from pipecat.pipeline.pipeline import Pipeline
     import facespace
     from facespace.pipecat import FacespaceVideoProcessor
@@ -26,6 +29,7 @@ ahead of playback, as streaming services do.
 
 from __future__ import annotations
 
+import asyncio
 from typing import Callable, Iterator, Optional, Tuple
 
 import numpy as np
@@ -72,47 +76,56 @@ class FacespaceVideoProcessor(FrameProcessor):
         self._speech = _Speech(self._session)  # the TTS sound, handed back under its frames
         self._baseline: Optional[int] = None  # clock (ns) of the speech's first audio frame
         self._last_word_pts = 0
+        # The session's work (recognition, synthesis, drawing) runs on a worker thread, never
+        # on the event loop; one piece at a time, an interruption included.
+        self._busy = asyncio.Lock()
         self.last_frame: Optional[FaceFrame] = None
         """The last frame pushed (its index, time and whether the face was synthesised)."""
 
     async def process_frame(self, frame: Frame, direction: FrameDirection) -> None:
         await super().process_frame(frame, direction)
         if isinstance(frame, InterruptionFrame):
-            self._session.clear()
-            self._speech.drop()
-            self._baseline = None
+            async with self._busy:
+                self._session.clear()
+                self._speech.drop()
+                self._baseline = None
             await self.push_frame(frame, direction)
         elif isinstance(frame, TTSAudioRawFrame):
-            if not self._speech.active:
-                # As pipecat's word timestamp tracker sets its baseline.
-                self._baseline = max(self._last_word_pts, self.get_clock().get_time())
-            self._speech.push(frame.audio, frame.sample_rate, frame.num_channels)
-            await self._push(self._session.pull(), last=False)
+            async with self._busy:
+                if not self._speech.active:
+                    # As pipecat's word timestamp tracker sets its baseline.
+                    self._baseline = max(self._last_word_pts, self.get_clock().get_time())
+                await asyncio.to_thread(self._speech.push, frame.audio, frame.sample_rate, frame.num_channels)
+                await self._push(self._session.pull, last=False)
         elif isinstance(frame, TTSTextFrame):
             if self._words and frame.pts and self._baseline is not None:
-                self._last_word_pts = max(self._last_word_pts, frame.pts)
-                start = self._speech.origin + (frame.pts - self._baseline) / 1e9
-                try:
-                    self._session.push_words([(frame.text, start)])
-                except FacespaceError:
-                    pass  # a word out of order: its sound's phones are recognised instead
-                await self._push(self._session.pull(), last=False)
+                async with self._busy:
+                    self._last_word_pts = max(self._last_word_pts, frame.pts)
+                    start = self._speech.origin + (frame.pts - self._baseline) / 1e9
+                    try:
+                        await asyncio.to_thread(self._session.push_words, [(frame.text, start)])
+                    except FacespaceError:
+                        pass  # a word out of order: its sound's phones are recognised instead
+                    await self._push(self._session.pull, last=False)
             await self.push_frame(frame, direction)
         elif isinstance(frame, TTSStoppedFrame):
-            if self._speech.active:
-                await self._push(self._session.finish(), last=True)
-                await self._push_sound(self._speech.end())
-                self._baseline = None
+            async with self._busy:
+                if self._speech.active:
+                    await self._push(self._session.finish, last=True)
+                    await self._push_sound(self._speech.end())
+                    self._baseline = None
             await self.push_frame(frame, direction)
         else:
             await self.push_frame(frame, direction)
 
-    async def _push(self, frames: Iterator[FaceFrame], last: bool) -> None:
-        """Pushes each frame (drawn as it is taken) and the sound under it; with ``last``, all
-        the speech's remaining sound goes after its last frame."""
-        face = next(frames, None)
+    async def _push(self, settle: Callable[[], Iterator[FaceFrame]], last: bool) -> None:
+        """Settles the session (``pull`` or ``finish``) and pushes each frame, drawn as it is
+        taken, with the sound under it — the settling and every drawing on a worker thread;
+        with ``last``, all the speech's remaining sound goes after its last frame."""
+        frames = await asyncio.to_thread(settle)
+        face = await asyncio.to_thread(next, frames, None)
         while face is not None:
-            after = next(frames, None)
+            after = await asyncio.to_thread(next, frames, None)
             await self._give(face, last and after is None)
             face = after
 

@@ -149,3 +149,64 @@ def test_word_timestamps_close_the_lips_on_their_bilabials(talker, monkeypatch):
         shallow, count = shallow + len(fails), count + n
         late += closures(faces, phones, talker.fps, shift=0.12)[0]
     assert shallow <= 1 and late * 2 <= count, (shallow, late, count)
+
+
+class _Watched:
+    """The Rust session behind a facespace.LiveSession, recording which thread does its work."""
+
+    HEAVY = {"push_f32", "pull", "finish", "next_picture", "push_words", "idle_until"}
+
+    def __init__(self, inner, loop_thread):
+        self._inner, self._loop_thread, self.on_loop, self.calls = inner, loop_thread, [], 0
+
+    def __getattr__(self, name):
+        attr = getattr(self._inner, name)
+        if name not in self.HEAVY:
+            return attr
+
+        def call(*args):
+            import threading
+
+            self.calls += 1
+            if threading.get_ident() == self._loop_thread:
+                self.on_loop.append(name)
+            return attr(*args)
+
+        return call
+
+
+def test_the_event_loop_never_does_the_sessions_work(talker, clip):
+    """Issue 68: recognising, synthesising and drawing run on worker threads, as the LiveKit
+    adapter's do; the event loop only hands frames on. Every call into the session that works
+    (sound in, settling, each picture) is made off the loop's thread; the loop's longest wait
+    while frames are made is printed (a timing, not a test)."""
+    import threading
+
+    samples, rate = clip
+    face = FacespaceVideoProcessor(talker, size=(512, 512))
+    sent = [frames_mod.TTSStartedFrame(), *tts(samples, rate), frames_mod.TTSStoppedFrame()]
+
+    async def run():
+        watched = _Watched(face._session._inner, threading.get_ident())
+        face._session._inner = watched
+        lags = []
+        done = asyncio.Event()
+
+        async def tick():
+            loop = asyncio.get_running_loop()
+            while not done.is_set():
+                before = loop.time()
+                await asyncio.sleep(0.002)
+                lags.append(loop.time() - before - 0.002)
+
+        ticker = asyncio.create_task(tick())
+        down, _ = await test_utils.run_test(face, frames_to_send=sent)
+        done.set()
+        await ticker
+        return watched, down, max(lags)
+
+    watched, down, worst = asyncio.run(run())
+    images = sum(isinstance(f, frames_mod.OutputImageRawFrame) for f in down)
+    assert images >= 70 and watched.calls > images, (images, watched.calls)
+    assert watched.on_loop == [], f"on the event loop: {sorted(set(watched.on_loop))}"
+    print(f"longest event-loop wait while {images} frames were made: {worst * 1000:.1f} ms")
