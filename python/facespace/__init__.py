@@ -27,9 +27,24 @@ _MODEL = pathlib.Path(__file__).parent / "models" / "en-us"
 if _MODEL.is_dir():
     os.environ.setdefault("FACESPACE_ACOUSTIC_MODEL", str(_MODEL))
 
+from ._facespace import BUILT_FROM as _BUILT_FROM
 from ._facespace import FacespaceError, LiveSession as _LiveSession, Talker as _Talker
 
-__all__ = ["FacespaceError", "Frame", "LiveSession", "Talker"]
+__all__ = ["FacespaceError", "Frame", "LiveSession", "Talker", "default_talker"]
+
+
+def default_talker() -> pathlib.Path:
+    """The talker folder used when none is named: ``FACESPACE_TALKER`` when set, else GRID s1's
+    (``models/grid``) in the checkout the package was built from, wherever Python runs."""
+    given = os.environ.get("FACESPACE_TALKER")
+    if given:
+        return pathlib.Path(given)
+    committed = pathlib.Path(_BUILT_FROM).resolve() / "models" / "grid"
+    if committed.is_dir():
+        return committed
+    raise FacespaceError(
+        "no default talker: name a talker folder (facespace talker build), or set FACESPACE_TALKER"
+    )
 
 
 @dataclass
@@ -70,8 +85,9 @@ class _Video:
 class Talker(_Video):
     """A talker folder, loaded once per process."""
 
-    def __init__(self, path: str = "models/grid") -> None:
-        self._inner = _Talker(str(path))
+    def __init__(self, path: Optional[Union[str, os.PathLike]] = None) -> None:
+        """The talker folder ``path``; without one, :func:`default_talker`."""
+        self._inner = _Talker(str(default_talker() if path is None else path))
 
     @property
     def name(self) -> str:
@@ -93,6 +109,20 @@ class Talker(_Video):
         if size is not None:
             size = (int(size[0]), int(size[1]))
         return LiveSession(self._inner.session(str(given), size, str(fit)))
+
+    def speak(self, text: str) -> Tuple[np.ndarray, int, list]:
+        """``text`` spoken in the talker's voice (a text-to-speech engine, as :meth:`say`):
+        its sound (``int16``, mono), the rate, and its phones aligned to it (ARPAbet, start,
+        end, seconds). A session made with ``given="phones"`` turns them into frames::
+
+            samples, rate, phones = talker.speak("Please call me tomorrow.")
+            session = talker.session(given="phones")
+            session.push_phones(phones)
+            session.push_audio(samples, rate)
+            frames = list(session.pull()) + list(session.finish())
+        """
+        pcm, rate, phones = self._inner.speak(str(text))
+        return np.frombuffer(pcm, dtype="<i2"), rate, phones
 
     def say(
         self,
@@ -205,6 +235,12 @@ class LiveSession(_Video):
     def close(self) -> None:
         """Ends the session; later calls raise :class:`FacespaceError`."""
         self._inner.close()
+
+    def __enter__(self) -> "LiveSession":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
 
 
 class _Speech:

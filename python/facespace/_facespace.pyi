@@ -8,6 +8,9 @@ _Path = Union[str, PathLike[str]]
 # (index, time, RGB bytes, landmarks as little-endian float32 x, y pairs, face drawn, speaking)
 _Picture = Tuple[int, float, bytes, bytes, bool, bool]
 
+BUILT_FROM: str
+"""The checkout the package was built from."""
+
 class FacespaceError(Exception):
     """An error of the facespace library, with its message."""
 
@@ -26,6 +29,7 @@ class Talker:
         audio: Optional[_Path] = None,
         words: Optional[str] = None,
     ) -> str: ...
+    def speak(self, text: str) -> Tuple[bytes, int, List[Tuple[str, float, float]]]: ...
     def session(
         self,
         given: str = "sound",

@@ -132,6 +132,36 @@ impl Talker {
         serde_json::to_string(&report).map_err(error)
     }
 
+    /// `text` spoken in the talker's voice: its sound as int16 bytes at 16 kHz, and its
+    /// phones (ARPAbet, start, end in seconds) aligned to that sound — what a session given
+    /// phones takes.
+    fn speak(&self, py: Python<'_>, text: String) -> PyResult<(Py<PyBytes>, u32, Vec<(String, f64, f64)>)> {
+        not_forked()?;
+        let talker = self.loaded.talker;
+        let (phones, sound) = py
+            .allow_threads(|| -> Result<_, String> {
+                // In memory only: nothing of the words or their sound is left on disk.
+                let wav = facespace::atomic::MemoryFile::new("facespace-speech.wav").map_err(|e| e.to_string())?;
+                let aligner = talker.aligner().map_err(|e| e.to_string())?;
+                let (phones, _) = talker.speak(&text, None, aligner, wav.path()).map_err(|e| e.to_string())?;
+                let rate = facespace::align::frontend::SAMPLE_RATE;
+                let sound = facespace::audio::read(wav.path(), rate, facespace::align::MAX_SECONDS)
+                    .map_err(|e| e.to_string())?;
+                Ok((phones, sound))
+            })
+            .map_err(error)?;
+        let pcm: Vec<u8> = sound
+            .samples
+            .iter()
+            .flat_map(|&x| facespace::audio::to_pcm16(x).to_le_bytes())
+            .collect();
+        let phones = phones
+            .iter()
+            .map(|p| (p.phone.name().to_ascii_uppercase(), p.start, p.end))
+            .collect();
+        Ok((PyBytes::new(py, &pcm).unbind(), sound.rate, phones))
+    }
+
     /// A live session: phones recognised from its sound, or given ("phones"), or aligned to
     /// words given with their start times ("words"); pictures of `size` (width, height) fitted
     /// by `fit` ("contain" or "cover"), the footage's own size by default.
@@ -312,6 +342,9 @@ impl LiveSession {
 #[pymodule]
 fn _facespace(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("FacespaceError", m.py().get_type::<FacespaceError>())?;
+    // The checkout the package was built from: its committed GRID s1 talker is the default
+    // where it still exists.
+    m.add("BUILT_FROM", concat!(env!("CARGO_MANIFEST_DIR"), "/.."))?;
     m.add_class::<Talker>()?;
     m.add_class::<LiveSession>()?;
     Ok(())

@@ -224,3 +224,37 @@ def test_a_forked_child_is_told_not_left_hanging(talker, clip):
     # The parent goes on as before.
     session = talker.session()
     session.push_audio(samples[: rate // 2], rate)
+
+
+def test_the_default_talker_loads_from_anywhere(tmp_path, monkeypatch):
+    """Issue 68: ``facespace.Talker()`` failed outside the repository ("models/grid" is a
+    relative path); without a path it is the default talker wherever Python runs."""
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delenv("FACESPACE_TALKER", raising=False)
+    assert facespace.default_talker().is_dir()
+    assert facespace.Talker().name == "GRID s1"
+    monkeypatch.setenv("FACESPACE_TALKER", str(tmp_path / "nothing"))
+    with pytest.raises(facespace.FacespaceError):
+        facespace.Talker()
+
+
+def test_text_becomes_frames(talker):
+    """Issue 68: text → frames, not only audio: ``speak`` gives the sound and its phones, a
+    session given phones the frames, as many as the sound lasts, speaking in the middle."""
+    try:
+        samples, rate, phones = talker.speak("Please call me tomorrow morning.")
+    except facespace.FacespaceError as e:
+        if "no text-to-speech engine" in str(e):
+            pytest.skip("no text-to-speech engine (.ci/run installs Festival)")
+        raise
+    assert samples.dtype == np.int16 and rate == 16000 and len(samples) > rate
+    assert phones[0][1] == 0.0 and all(a[2] == b[1] for a, b in zip(phones, phones[1:]))
+    with talker.session(given="phones", size=(256, 256)) as session:
+        session.push_phones(phones)
+        session.push_audio(samples, rate)
+        frames = list(session.pull()) + list(session.finish())
+    assert abs(len(frames) - len(samples) / rate * talker.fps) <= 1
+    assert sum(f.speaking for f in frames) > len(frames) // 2
+    assert frames[0].image.shape == (256, 256, 3)
+    with pytest.raises(facespace.FacespaceError, match="closed"):
+        session.push_audio(samples[:640], rate)
