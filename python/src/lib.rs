@@ -135,7 +135,7 @@ impl Talker {
     /// `text` spoken in the talker's voice: its sound as int16 bytes at 16 kHz, and its
     /// phones (ARPAbet, start, end in seconds) aligned to that sound — what a session given
     /// phones takes.
-    fn speak(&self, py: Python<'_>, text: String) -> PyResult<(Py<PyBytes>, u32, Vec<(String, f64, f64)>)> {
+    fn speak(&self, py: Python<'_>, text: String) -> PyResult<Spoken> {
         not_forked()?;
         let talker = self.loaded.talker;
         let (phones, sound) = py
@@ -199,6 +199,9 @@ struct LiveSession {
 
 /// The longest side of a picture a session draws (8K).
 const MAX_SIDE: u32 = 7680;
+
+/// Speech made from text: int16 bytes, their rate, and the phones (ARPAbet, start, end).
+type Spoken = (Py<PyBytes>, u32, Vec<(String, f64, f64)>);
 
 /// A picture: (index, time, RGB bytes, landmarks as float32 x, y bytes, face drawn, speaking).
 type PictureTuple = (usize, f64, Py<PyBytes>, Py<PyBytes>, bool, bool);
