@@ -7,7 +7,7 @@
 use crate::common;
 
 use std::path::Path;
-use std::process::{Command, Stdio};
+use std::process::Command;
 
 /// The contents of every fenced block of `lang` in `text`.
 fn blocks(text: &str, lang: &str) -> Vec<String> {
@@ -44,21 +44,9 @@ fn run_line(dir: &Path, args: &str) {
 
 /// `serve` as written, on any free port: its page answers.
 fn serve_line(dir: &Path, args: &str) {
-    let mut server = Command::new(env!("CARGO_BIN_EXE_facespace"))
-        .args(args.split_whitespace())
-        .args(["--listen", "127.0.0.1:0"])
-        .current_dir(dir)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut out = server.stdout.take().unwrap();
-    let (mut first, mut byte) = (String::new(), [0u8; 1]);
-    while !first.ends_with('\n') {
-        assert_eq!(std::io::Read::read(&mut out, &mut byte).unwrap(), 1, "serve stopped: {first}");
-        first.push(byte[0] as char);
-    }
-    let (code, page) = common::http(&common::url_in(&first), "GET", "/", "");
+    let words: Vec<&str> = args.split_whitespace().collect();
+    let (mut server, url) = common::listening(&words, dir, &[]);
+    let (code, page) = common::http(&url, "GET", "/", "");
     let _ = server.kill();
     let _ = server.wait();
     assert_eq!(code, 200);

@@ -6,7 +6,7 @@
 use crate::common;
 
 use std::path::Path;
-use std::process::{Command, Stdio};
+use std::process::Command;
 
 /// The commands of docs/OWN_TALKER.md's first `sh` block under `## Your own talker`,
 /// continuation lines joined, comments dropped.
@@ -56,17 +56,8 @@ fn run(dir: &Path, line: &str) -> String {
 /// click; the next README line puts the committed marks in place instead). Only the port
 /// differs from the README: any free one, so parallel tests never collide.
 fn annotate(dir: &Path, line: &str) {
-    let args = line.strip_prefix("cargo run --release -- ").unwrap();
-    let mut server = Command::new(env!("CARGO_BIN_EXE_facespace"))
-        .args(args.split_whitespace())
-        .args(["--listen", "127.0.0.1:0"])
-        .current_dir(dir)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut out = server.stdout.take().unwrap();
-    let url = common::url_in(&common::read_until_started(&mut out));
+    let args: Vec<&str> = line.strip_prefix("cargo run --release -- ").unwrap().split_whitespace().collect();
+    let (mut server, url) = common::listening(&args, dir, &[]);
     let (code, body) = common::http(&url, "GET", "/api/frames", "");
     let _ = server.kill();
     let _ = server.wait();

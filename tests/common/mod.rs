@@ -294,23 +294,30 @@ pub fn copy_tree(from: &Path, to: &Path) {
     }
 }
 
-/// `facespace serve` of the committed talker started as a child, with `TMPDIR` at `tmp`: the
-/// child (its log drained) and its address.
-pub fn served(tmp: &Path) -> (std::process::Child, String) {
+/// The binary run with `args` and `--listen 127.0.0.1:0` in `dir` as a server: the child
+/// (its log drained) and its address, read from the first line of its output naming one.
+pub fn listening(args: &[&str], dir: &Path, env: &[(&str, &Path)]) -> (std::process::Child, String) {
     let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_facespace"))
-        .args(["serve", "--listen", "127.0.0.1:0"])
-        .env("TMPDIR", tmp)
+        .args(args)
+        .args(["--listen", "127.0.0.1:0"])
+        .current_dir(dir)
+        .envs(env.iter().copied())
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::null())
         .spawn()
         .unwrap();
     let mut out = child.stdout.take().unwrap();
-    // Its first line holds the address ("… live at http://…/ (ready in …)").
     let (mut text, mut byte) = (String::new(), [0u8; 1]);
-    while !text.ends_with('\n') {
-        assert_eq!(std::io::Read::read(&mut out, &mut byte).unwrap(), 1, "serve stopped: {text}");
+    while !(text.ends_with('\n') && text.contains("http://")) {
+        assert_eq!(std::io::Read::read(&mut out, &mut byte).unwrap(), 1, "{args:?} stopped: {text}");
         text.push(byte[0] as char);
     }
     std::thread::spawn(move || std::io::copy(&mut out, &mut std::io::sink()));
     (child, url_in(&text))
+}
+
+/// `facespace serve` of the committed talker started as a child, with `TMPDIR` at `tmp`: the
+/// child and its address.
+pub fn served(tmp: &Path) -> (std::process::Child, String) {
+    listening(&["serve"], &root(), &[("TMPDIR", tmp)])
 }

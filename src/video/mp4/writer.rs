@@ -25,8 +25,12 @@ const FRAME_TICKS: u32 = 1000;
 /// 0.69 before encoding (BENCHMARKS.md, "What a viewer gets").
 pub const VIEWING_QP: u8 = 20;
 
-/// Seconds between keyframes (see [`Writer::create_with_qp`]).
+/// Seconds between keyframes of a video for viewers ([`Writer::create`]; see there).
 pub const KEYFRAME_SECONDS: f64 = 10.0;
+
+/// Seconds between keyframes of video kept as data ([`Writer::create_with_qp`]): decoded a
+/// picture group at a time wherever a frame is wanted (a talker's recorded mouths), so short.
+pub const DATA_KEYFRAME_SECONDS: f64 = 2.0;
 
 /// Encodes frames to an H.264 MP4, written beside its destination and renamed into place on
 /// [`Writer::finish`] (dropped unfinished, it leaves nothing behind).
@@ -44,19 +48,34 @@ pub struct Writer {
 }
 
 impl Writer {
-    /// A writer at [`VIEWING_QP`]; `width` and `height` must be even (4:2:0).
+    /// A writer for viewers: at [`VIEWING_QP`], a keyframe every [`KEYFRAME_SECONDS`] (at the
+    /// same quantiser an I frame is drawn unlike the P frames before it, and the frame-to-frame
+    /// change jumped 2.4× the source's at each one — a pulse a viewer sees every 2 s; issue 68,
+    /// BENCHMARKS "Keyframes"); `width` and `height` must be even (4:2:0).
     pub fn create(path: &Path, width: u32, height: u32, fps: f64) -> Result<Self, Mp4Error> {
-        Self::create_with_qp(path, width, height, fps, VIEWING_QP)
+        Self::create_with(path, width, height, fps, VIEWING_QP, KEYFRAME_SECONDS)
     }
 
-    /// [`Writer::create`] at another quantiser for every frame (`qp`, 0–51; lower keeps more):
-    /// video kept as data, whose fine detail is the point, takes a lower one.
+    /// A writer of video kept as data, whose fine detail is the point: at another quantiser
+    /// for every frame (`qp`, 0–51; lower keeps more), a keyframe every
+    /// [`DATA_KEYFRAME_SECONDS`] so any frame is reached by decoding a short picture group.
     pub fn create_with_qp(
         path: &Path,
         width: u32,
         height: u32,
         fps: f64,
         qp: u8,
+    ) -> Result<Self, Mp4Error> {
+        Self::create_with(path, width, height, fps, qp, DATA_KEYFRAME_SECONDS)
+    }
+
+    fn create_with(
+        path: &Path,
+        width: u32,
+        height: u32,
+        fps: f64,
+        qp: u8,
+        keyframe_seconds: f64,
     ) -> Result<Self, Mp4Error> {
         if width == 0 || height == 0 || width % 2 == 1 || height % 2 == 1 {
             return Err(Mp4Error::OddSize { width, height });
@@ -79,12 +98,8 @@ impl Writer {
             .background_detection(false)
             .scene_change_detect(false)
             .adaptive_quantization(false)
-            // A keyframe every 10 s (x264's default), not every 2 s: at the same quantiser
-            // an I frame is drawn differently from the P frames before it, and the frame-to-
-            // frame change jumped 2.4× the source's at each one — a pulse a viewer sees
-            // (issue 68; GRID s1 `say`, BENCHMARKS "Keyframes").
             .intra_frame_period(IntraFramePeriod::from_num_frames(
-                ((KEYFRAME_SECONDS * fps).round() as u32).max(1),
+                ((keyframe_seconds * fps).round() as u32).max(1),
             ));
         let encoder = Encoder::with_api_config(openh264::OpenH264API::from_source(), config)?;
         let (tmp, writer) = start(path, timescale)?;
