@@ -112,8 +112,15 @@ fn gpu_frames_match_the_cpu_renderer() {
 
 /// Runs the binary with `WGPU_BACKEND` set (or not).
 fn facespace_with(backend: Option<&str>, args: &[&str]) -> (bool, String) {
+    // A cache of its own: a note about the machine's GPU is said once per cache.
+    let cache = tempfile::tempdir().unwrap();
+    facespace_cached(backend, args, cache.path())
+}
+
+/// [`facespace_with`] remembering what it was told in `cache`.
+fn facespace_cached(backend: Option<&str>, args: &[&str], cache: &std::path::Path) -> (bool, String) {
     let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_facespace"));
-    cmd.args(args);
+    cmd.args(args).env("XDG_CACHE_HOME", cache);
     match backend {
         Some(b) => cmd.env("WGPU_BACKEND", b),
         None => cmd.env_remove("WGPU_BACKEND"),
@@ -162,6 +169,13 @@ fn decode_chooses_its_renderer() {
         "{text}"
     );
     assert!(std::fs::read(p("auto.y4m")).unwrap() == cpu);
+    // The note is about the machine: said once, not on every run (issue 68).
+    let cache = tempfile::tempdir().unwrap();
+    let args = ["decode", &p("clip.fsp"), "--renderer", "auto", "-o", &p("again.y4m")];
+    let (_, first) = facespace_cached(Some("metal"), &args, cache.path());
+    let (ok, second) = facespace_cached(Some("metal"), &args, cache.path());
+    assert!(first.contains("no GPU adapter") && first.contains("said once"), "{first}");
+    assert!(ok && !second.contains("no GPU adapter"), "{second}");
 
     let (ok, text) = decode(Some("metal"), "gpu", "gpu-none.y4m");
     assert!(
