@@ -142,3 +142,21 @@ def test_the_lips_close_on_the_sounds_bilabials(talker):
         late += closures(faces, phones, talker.fps, shift=0.12)[0]
     assert count >= 6 and 3 * good >= 2 * count, (good, count)
     assert late * 2 <= count, (late, count)
+
+
+def test_the_documented_avatar_worker_is_whole(root):
+    """docs/LIVE.md's avatar worker names only what the installed livekit-agents has, and
+    defines the worker (run here up to the line that would connect to a server)."""
+    import inspect
+    import re
+
+    page = (root / "docs/LIVE.md").read_text()
+    [code] = [b for b in re.findall(r"```python\n(.*?)```", page, re.S) if "AvatarRunner" in b]
+    assert "asyncio.run(worker(" in code
+    body = code[: code.index("asyncio.run(worker(")]
+    names: dict = {}
+    exec(compile(body, "docs/LIVE.md", "exec"), names)
+    assert inspect.iscoroutinefunction(names["worker"])
+    rtc = names["rtc"]
+    assert rtc.ParticipantKind.PARTICIPANT_KIND_AGENT is not None and callable(rtc.Room)
+    assert hasattr(names["AvatarRunner"], "aclose")
