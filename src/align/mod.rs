@@ -24,8 +24,11 @@ pub use model::AcousticModel;
 
 use crate::phonemes::{Phone, Segment};
 
+/// Feature frames per second: the one definition of the front end's 10 ms frame (times are
+/// divided by it, so that times read back from files compare equal).
+pub const FRAMES_PER_SECOND: f64 = 100.0;
 /// Seconds per feature frame.
-pub const FRAME_SECONDS: f64 = 0.01;
+pub const FRAME_SECONDS: f64 = 1.0 / FRAMES_PER_SECOND;
 /// The longest recording aligned in one piece: longer ones are refused before they are
 /// decoded whole, so memory stays bounded.
 pub const MAX_SECONDS: f64 = 600.0;
@@ -826,7 +829,7 @@ fn word_fit(alignment: &Alignment, forced: &search::Path, free: &search::Path, f
         .iter()
         .map(|w| per_frame(w.start, w.end))
         .collect();
-    let overall = per_frame(0.0, frames as f64 / 100.0);
+    let overall = per_frame(0.0, frames as f64 / FRAMES_PER_SECOND);
     WordFit { words, overall }
 }
 

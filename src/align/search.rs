@@ -3,9 +3,7 @@
 
 use super::frontend::FEATURE_DIM;
 use super::model::{AcousticModel, STATES, STREAM_DIM, STREAMS, TOP_N, WordPosition};
-use super::{Alignment, TimedPhone, TimedWord};
-
-const FRAMES_PER_SECOND: f64 = 100.0;
+use super::{Alignment, FRAMES_PER_SECOND, TimedPhone, TimedWord};
 
 /// Language weight, silence probability and word insertion penalty of the reference
 /// alignment (pocketsphinx `-lw 6.5 -silprob 0.1 -wip 0.65`): an optional silence costs
