@@ -7,9 +7,9 @@
 use std::path::{Path, PathBuf};
 
 use super::footage::{Footage, FootageError};
+use super::manifest::FORMAT;
 use super::{
-    FORMAT, MANIFEST, Provenance, Settings, TALKER_VERSION, Talker, TalkerError, TalkerManifest,
-    Voice,
+    MANIFEST, Provenance, Settings, TALKER_VERSION, Talker, TalkerError, TalkerManifest, Voice,
 };
 use crate::codebook::Codebook;
 use crate::corpus::Sentence;
