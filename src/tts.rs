@@ -260,8 +260,9 @@ fn plain_voice(voice: &str) -> bool {
 
 /// Speaks `text` into the WAV `out` with the best engine installed ([`speak_into`]).
 pub fn speak_as(text: &str, out: &Path, voice: Option<&str>) -> Result<Spoken, TtsError> {
-    check_text(text)?;
-    available().ok_or(TtsError::Missing)?;
+    // Refused before the file is made.
+    let letters = check_text(text)?;
+    let engine = available().ok_or(TtsError::Missing)?;
     let file = std::fs::OpenOptions::new()
         .read(true)
         .write(true)
@@ -272,7 +273,7 @@ pub fn speak_as(text: &str, out: &Path, voice: Option<&str>) -> Result<Spoken, T
             engine: "text-to-speech",
             source,
         })?;
-    speak_into(text, &file, voice)
+    speak_checked(engine, text, letters, &file, voice)
 }
 
 /// Speaks `text` into the file `wav` (a WAV; emptied first) with the best engine installed:
@@ -284,9 +285,21 @@ pub fn speak_as(text: &str, out: &Path, voice: Option<&str>) -> Result<Spoken, T
 /// ([`check_text`]) and the engine's time bounded.
 pub fn speak_into(text: &str, wav: &File, voice: Option<&str>) -> Result<Spoken, TtsError> {
     let letters = check_text(text)?;
+    let engine = available().ok_or(TtsError::Missing)?;
+    speak_checked(engine, text, letters, wav, voice)
+}
+
+/// [`speak_into`] of text [`check_text`] took (its `letters`) with `engine`.
+fn speak_checked(
+    engine: Engine,
+    text: &str,
+    letters: usize,
+    wav: &File,
+    voice: Option<&str>,
+) -> Result<Spoken, TtsError> {
     let limit = time_limit(letters);
-    match available() {
-        Some(Engine::Festival) => {
+    match engine {
+        Engine::Festival => {
             let engine = "Festival";
             let asked = voice.unwrap_or(DEFAULT_VOICE);
             let mut tried = vec![asked];
@@ -346,7 +359,7 @@ pub fn speak_into(text: &str, wav: &File, voice: Option<&str>) -> Result<Spoken,
                 )),
             })
         }
-        Some(Engine::EspeakNg) => {
+        Engine::EspeakNg => {
             let engine = "espeak-ng";
             run(
                 engine,
@@ -362,7 +375,6 @@ pub fn speak_into(text: &str, wav: &File, voice: Option<&str>) -> Result<Spoken,
                 note: voice.map(|v| format!("no Festival here; espeak-ng spoke instead of {v}")),
             })
         }
-        None => Err(TtsError::Missing),
     }
 }
 

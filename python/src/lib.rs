@@ -140,10 +140,7 @@ impl Talker {
         let talker = self.loaded.talker;
         let (phones, sound) = py
             .allow_threads(|| -> Result<_, String> {
-                // In memory only: nothing of the words or their sound is left on disk.
-                let wav = facespace::atomic::MemoryFile::new("facespace-speech.wav").map_err(|e| e.to_string())?;
-                let aligner = talker.aligner().map_err(|e| e.to_string())?;
-                let (phones, _) = talker.speak(&text, None, aligner, wav.path()).map_err(|e| e.to_string())?;
+                let (phones, wav) = talker.speak_in_memory(&text).map_err(|e| e.to_string())?;
                 let rate = facespace::align::frontend::SAMPLE_RATE;
                 let sound = facespace::audio::read(wav.path(), rate, facespace::align::MAX_SECONDS)
                     .map_err(|e| e.to_string())?;

@@ -370,27 +370,23 @@ impl Aligner {
         if rate != frontend::SAMPLE_RATE {
             return Err(AlignError::SampleRate(rate));
         }
+        // `word_count` is the number of `dict::words` (tested), found without making them.
         let count = dict::word_count(text);
         if count == 0 {
             return Err(AlignError::NoWords);
         }
-        self.check_sound(samples, rate)?;
+        let feats = self.features(samples, rate)?;
         // Every word is at least one phone of three states, a frame each: judged from the
         // count before any word or pronunciation is made (issue 69, R5-12).
-        let frames = samples.len() / frontend::FRAME_SHIFT;
-        if count * model::STATES > frames.max(1) {
+        if count * model::STATES > feats.len() {
             return Err(AlignError::TranscriptTooLong {
                 phones: count,
                 needed: count * model::STATES,
-                frames,
+                frames: feats.len(),
             });
         }
         let words = dict::words(text);
-        if words.is_empty() {
-            return Err(AlignError::NoWords);
-        }
         let prons = self.dict.pronunciations(&words, &self.model)?;
-        let feats = self.features(samples, rate)?;
         let phones: usize = prons
             .iter()
             .map(|p| p.iter().map(Vec::len).min().unwrap_or(0))

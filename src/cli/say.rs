@@ -76,7 +76,6 @@ pub fn run(a: SayArgs) -> Result<()> {
     }
     inputs.extend(a.dicts.iter().map(|d| d.as_path()));
     super::check_output(&a.output, &inputs)?;
-    facespace::video::check_destination(&a.output)?;
     if let Some(parts) = &a.parts {
         super::check_output(parts, &inputs)?;
     }

@@ -32,7 +32,7 @@ use crate::http::{self, Answer, Reply, Request, Server};
 use crate::live::{LiveError, LiveFrame, Session, Stage};
 use crate::phonemes::Segment;
 use crate::render::{DEFAULT_FEATHER, Edge};
-use crate::talker::Talker;
+use crate::talker::{Talker, TalkerError};
 
 const PAGE: &str = include_str!("page.html");
 
@@ -414,13 +414,14 @@ impl<'t> LiveServer<'t> {
     ) -> Result<(Reply, usize), Refusal> {
         // The speech lives in memory only: a server killed mid-sentence leaves neither the
         // words nor their sound on disk (issue 69, R5-9).
-        let wav = crate::atomic::MemoryFile::new("facespace-speech.wav")
-            .map_err(|e| (500, format!("a file in memory: {e}")))?;
-        let aligner = self.talker.aligner().map_err(|e| (500, e.to_string()))?;
-        let (phones, _) = self
-            .talker
-            .speak(&body.text, None, aligner, wav.path())
-            .map_err(|e| (422, e.to_string()))?;
+        let (phones, wav) = self.talker.speak_in_memory(&body.text).map_err(|e| {
+            // The server's own failures (memory, the aligner) are 500; the text's, 422.
+            let status = match e {
+                TalkerError::Io { .. } | TalkerError::Align { .. } => 500,
+                _ => 422,
+            };
+            (status, e.to_string())
+        })?;
         let sound = crate::audio::read(wav.path(), crate::align::frontend::SAMPLE_RATE, crate::align::MAX_SECONDS)
             .map_err(|e| (500, e.to_string()))?;
         let bytes = std::fs::read(wav.path()).map_err(|e| (500, e.to_string()))?;

@@ -149,22 +149,6 @@ fn fingerprint(files: &[PathBuf], also: &[&str]) -> Result<String, TalkerError> 
     Ok(format!("{h:016x}"))
 }
 
-/// The regular files directly in `dir`, by name.
-fn files_in(dir: &Path) -> Result<Vec<PathBuf>, TalkerError> {
-    let io = |source| TalkerError::Io {
-        path: dir.to_path_buf(),
-        source,
-    };
-    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
-        .map_err(io)?
-        .flatten()
-        .filter(|e| e.file_type().is_ok_and(|t| t.is_file()))
-        .map(|e| e.path())
-        .collect();
-    files.sort();
-    Ok(files)
-}
-
 /// Refuses an output folder that is one of `inputs`, lies inside one, or holds one that is
 /// not a part this build made (those inside `out` when `out` is ours).
 fn check_output(out: &Path, inputs: &[&Path]) -> Result<(), TalkerError> {
@@ -306,7 +290,12 @@ pub fn parts_from_recordings(
     let hash = model.hash();
     // The corpus (and the codebook made from it) are kept only when made from these very
     // recordings with this model: the same names with other contents are other recordings.
-    let inputs = fingerprint(&files_in(&recordings.dir)?, &[&hash])?;
+    // Every file of the folder, as the recordings are read (links followed).
+    let files = crate::video::files_where(&recordings.dir, |_| true).map_err(|source| TalkerError::Io {
+        path: recordings.dir.clone(),
+        source,
+    })?;
+    let inputs = fingerprint(&files, &[&hash])?;
     let corpus = out.join("corpus");
     let done = crate::corpus::recorded_fps(&corpus)
         .ok()

@@ -101,6 +101,23 @@ impl Talker {
         aligner.recogniser(crate::align::frontend::SAMPLE_RATE, &lm)
     }
 
+    /// [`Talker::speak`] in the talker's own voice into a WAV that lives in memory only
+    /// ([`crate::atomic::MemoryFile`]): nothing of the words or their sound reaches the disk,
+    /// whenever the process is killed (the live page's typed sentences, the Python package).
+    pub fn speak_in_memory(
+        &self,
+        text: &str,
+    ) -> Result<(Vec<Segment>, crate::atomic::MemoryFile), TalkerError> {
+        let wav = crate::atomic::MemoryFile::new("facespace-speech.wav").map_err(|source| {
+            TalkerError::Io {
+                path: "a file in memory".into(),
+                source,
+            }
+        })?;
+        let (phones, _) = self.speak(text, None, self.aligner()?, wav.path())?;
+        Ok((phones, wav))
+    }
+
     /// `text` spoken in the talker's voice (or `voice`) into the WAV `wav`, and its phones
     /// aligned to that sound; with notes for the user (a voice that was missing). The text is
     /// checked first — its length ([`crate::tts::check_text`]) and that the aligner knows

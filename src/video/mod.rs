@@ -139,7 +139,7 @@ pub(crate) fn extension(path: &Path) -> String {
 }
 
 /// The regular files of `dir` whose lower-case extension `keep` accepts, in name order.
-fn files_where(dir: &Path, keep: impl Fn(&str) -> bool) -> std::io::Result<Vec<PathBuf>> {
+pub(crate) fn files_where(dir: &Path, keep: impl Fn(&str) -> bool) -> std::io::Result<Vec<PathBuf>> {
     let mut files: Vec<PathBuf> = std::fs::read_dir(dir)?
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.is_file() && keep(&extension(p)))
