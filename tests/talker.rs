@@ -719,7 +719,10 @@ fn a_damaged_sound_to_face_map_is_refused() {
         assert!(text.contains(named) && text.contains("sound-to-face"), "{what}: {text}");
         assert!(!text.contains("panicked"), "{what}: {text}");
         assert!(!out.exists(), "{what}: something was written");
-        // Speech with its phones never reads the map.
+        if what != "missing" {
+            continue;
+        }
+        // Speech with its phones never reads the map (not even to find it there).
         let o = common::facespace(&[
             "say",
             "--talker",
