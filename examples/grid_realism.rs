@@ -42,7 +42,7 @@ use facespace::eval::realism::{
 };
 use facespace::facespace::Frames;
 use facespace::mouths::Mouths;
-use facespace::render::sampled::SampledRenderer;
+use facespace::mouths::SampledRenderer;
 use facespace::render::{CpuRenderer, DEFAULT_FEATHER, Edge, Renderer};
 use facespace::shape::Landmarks;
 use facespace::codec::EncodeOptions;
@@ -403,15 +403,15 @@ fn save_strip(rows: &[Vec<image::RgbImage>], lips: &[[f64; 2]], first: usize, ou
     strip.save(out).unwrap();
 }
 
-/// `images` written to an MP4 as `say` writes its video (`video::mp4::Writer::create`, 25
+/// `images` written to an MP4 as `say` writes its video (`mp4_file::Writer::create`, 25
 /// fps), or at the quantiser `qp`, and decoded again.
 fn as_written(images: &[image::RgbImage], qp: Option<u8>) -> Vec<image::RgbImage> {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("drawn.mp4");
     let (w, h) = images[0].dimensions();
     let mut writer = match qp {
-        Some(qp) => facespace::video::mp4::Writer::create_with_qp(&path, w, h, 25.0, qp),
-        None => facespace::video::mp4::Writer::create(&path, w, h, 25.0),
+        Some(qp) => facespace::mp4_file::Writer::create_with_qp(&path, w, h, 25.0, qp),
+        None => facespace::mp4_file::Writer::create(&path, w, h, 25.0),
     }
     .unwrap();
     for image in images {

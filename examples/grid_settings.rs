@@ -1,11 +1,11 @@
-//! Every trial of a talker's settings choice (`eval::systems::choose_settings`, what
+//! Every trial of a talker's settings choice (`synth::systems::choose_settings`, what
 //! `talker build --validation` runs) on a validation corpus, as a table (BENCHMARKS "Say").
 //!
 //! `cargo run --release --example grid_settings -- TALKER VALIDATION_CORPUS`
 
 use std::path::PathBuf;
 
-use facespace::eval::systems::{SETTINGS_LAMBDA_GRID, TOP_N_GRID, choose_settings};
+use facespace::synth::systems::{SETTINGS_LAMBDA_GRID, TOP_N_GRID, choose_settings};
 use facespace::talker::Talker;
 use facespace::talker::build::Validation;
 

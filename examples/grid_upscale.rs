@@ -16,7 +16,7 @@ use std::path::Path;
 
 use facespace::shape::{Landmarks, read_pts, write_pts};
 use facespace::video::Source;
-use facespace::video::mp4::{AudioTrack, Writer};
+use facespace::mp4_file::{AudioTrack, Writer};
 use image::RgbImage;
 use image::imageops::{FilterType, resize};
 

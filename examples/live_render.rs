@@ -84,8 +84,11 @@ fn main() {
                             let t = Instant::now();
                             let params = talker.model.layout().split(&f.values).unwrap();
                             let pick = chooser.as_mut().filter(|_| recorded).map(|c| c.next(params));
-                            let detail = mouths.zip(pick.as_ref());
-                            renderer.render_with(params, detail, &mut canvas).unwrap();
+                            match mouths.zip(pick.as_ref()) {
+                                Some((m, pick)) => renderer.render_with(params, m.drawing(pick), &mut canvas),
+                                None => renderer.render_with(params, |_| Ok(()), &mut canvas),
+                            }
+                            .unwrap();
                             render_t += t.elapsed();
                             frames_done += 1;
                         }

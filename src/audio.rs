@@ -14,7 +14,7 @@ use symphonia::core::meta::MetadataOptions;
 use symphonia::core::probe::Hint;
 use thiserror::Error;
 
-use crate::video::system_ffmpeg;
+use crate::programs::system_ffmpeg;
 
 /// Mono samples in −1…1 at `rate` Hz.
 #[derive(Clone, Debug, PartialEq)]
@@ -128,7 +128,7 @@ fn open_checked(path: &Path) -> Result<std::fs::File, AudioError> {
         path: path.to_owned(),
         source,
     };
-    let mut file = crate::manifest::open_regular(path).map_err(io)?;
+    let mut file = crate::safe_read::open_regular(path).map_err(io)?;
     check_header(&mut file).map_err(|why| AudioError::Malformed {
         path: path.to_owned(),
         why,
@@ -171,7 +171,7 @@ fn check_header(file: &mut std::fs::File) -> Result<(), String> {
     let result = if head.len() == 12 && &head[..4] == b"RIFF" && &head[8..12] == b"WAVE" {
         check_wav(file)
     } else if head.len() >= 8 && &head[4..8] == b"ftyp" {
-        crate::video::mp4::check_structure(file).map_err(|e| e.to_string())
+        crate::mp4_file::check_structure(file).map_err(|e| e.to_string())
     } else {
         Ok(())
     };
@@ -258,7 +258,7 @@ fn is_mp4(path: &Path) -> bool {
 /// the MP4's edit list says (players and ffmpeg do the same), so that sample 0 is time 0 of
 /// the video beside it.
 fn trim_to_edit_list(path: &Path, mut audio: Audio) -> Result<Audio, AudioError> {
-    let edit = crate::video::mp4::audio_edit(path).map_err(|e| AudioError::Decode {
+    let edit = crate::mp4_file::audio_edit(path).map_err(|e| AudioError::Decode {
         path: path.to_owned(),
         packet: 0,
         why: e.to_string(),

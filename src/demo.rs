@@ -236,7 +236,7 @@ fn grid_into(
         Some(t) => t.clone(),
         None => {
             let path = clip.with_extension("txt");
-            crate::manifest::read_regular_string(&path)
+            crate::safe_read::read_regular_string(&path)
                 .map_err(|source| DemoError::Words { path, source })?
         }
     };

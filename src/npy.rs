@@ -314,7 +314,7 @@ pub fn read<T: Element>(path: &Path) -> Result<ArrayD<T>, NpyError> {
         path: path.to_owned(),
         source,
     };
-    let mut file = crate::manifest::open_regular(path).map_err(|e| {
+    let mut file = crate::safe_read::open_regular(path).map_err(|e| {
         if e.kind() == std::io::ErrorKind::InvalidInput {
             NpyError::NotAFile {
                 path: path.to_owned(),

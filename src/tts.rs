@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 
 use thiserror::Error;
 
-use crate::video::program_on_path;
+use crate::programs::program_on_path;
 
 /// The one line that installs the preferred engine on Debian/Ubuntu.
 pub const INSTALL_LINE: &str = "apt-get install festival festvox-us-slt-hts";

@@ -235,7 +235,7 @@ fn corpus_then_codebook() {
     assert!(o.status.success(), "{}", text(&o));
     // The sound (AAC in an MP4, muxed without ffmpeg) rides along in every video.
     for v in ["side_by_side.mp4", "smoothed/video.mp4"] {
-        let track = facespace::video::mp4::AudioTrack::read(&syn.join(v)).unwrap();
+        let track = facespace::mp4_file::AudioTrack::read(&syn.join(v)).unwrap();
         assert!(
             track.is_some_and(|t| !t.packets().is_empty()),
             "{v} has no sound"

@@ -42,6 +42,7 @@ mod gpu;
 mod grid_demo;
 mod hostile;
 mod kill;
+mod layers;
 mod live;
 mod live_page;
 mod model;

@@ -10,7 +10,7 @@ use facespace::facespace::Frames;
 use facespace::model::FaceModel;
 use facespace::mouths::{Chooser, Mouths, Pick};
 use facespace::phonemes::{self, PhoneMap};
-use facespace::render::sampled::SampledRenderer;
+use facespace::mouths::SampledRenderer;
 use facespace::render::{Background, CpuRenderer, DEFAULT_FEATHER, Edge, Renderer};
 use facespace::video::Source;
 use image::RgbImage;
@@ -156,7 +156,7 @@ fn picks_without_weight_draw_the_model_face() {
     let none = Pick {
         frames: [(3, 0.0), (7, 0.0)],
     };
-    cpu.render_with(frames.params(10), Some((&mouths, &none)), &mut b)
+    cpu.render_with(frames.params(10), mouths.drawing(&none), &mut b)
         .unwrap();
     assert_eq!(a, b);
     let mut chooser = Chooser::new(&mouths, &model);

@@ -3,8 +3,8 @@
 use crate::common;
 
 use facespace::corpus::demo::Split;
-use facespace::eval::systems::{LAMBDA_GRID, choose_smoothing};
-use facespace::eval::{System, evaluate};
+use facespace::synth::systems::{LAMBDA_GRID, choose_smoothing};
+use facespace::synth::systems::{System, evaluate};
 use facespace::synth::blend::Blend;
 
 #[test]
@@ -165,7 +165,7 @@ fn lip_motion_is_the_mouths_own_speed() {
 /// floor and amplitude band if any trial is, and then no trial within them correlates better.
 #[test]
 fn talker_settings_keep_the_lip_motion() {
-    use facespace::eval::systems::{SETTINGS_LAMBDA_GRID, TOP_N_GRID, choose_settings};
+    use facespace::synth::systems::{SETTINGS_LAMBDA_GRID, TOP_N_GRID, choose_settings};
     let (model, generated, cb) = common::demo_corpus_codebook();
     let validation = generated.part(Split::Validation);
     let choice = choose_settings(&model, &cb, &validation, &TOP_N_GRID, &SETTINGS_LAMBDA_GRID)

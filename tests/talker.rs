@@ -8,7 +8,7 @@ use crate::common;
 use std::path::{Path, PathBuf};
 
 use facespace::render::{CpuRenderer, DEFAULT_FEATHER, Edge, Renderer};
-use facespace::talker::footage::{DISSOLVE_FRAMES, Footage, MIN_RUN_SECONDS, Plan};
+use facespace::footage::{DISSOLVE_FRAMES, Footage, MIN_RUN_SECONDS, Plan};
 use facespace::talker::{SayRequest, Speech, Talker, TalkerError};
 use facespace::video::Source;
 use image::RgbImage;

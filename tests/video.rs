@@ -79,7 +79,7 @@ fn mp4_round_trip_keeps_count_rate_and_pixels() {
     }
     assert_eq!(leftovers(dir.path()), ["out.mp4"]);
     // A standard decoder agrees, where one is installed.
-    if let Some(ffprobe) = video::system_ffmpeg().map(|f| f.with_file_name("ffprobe"))
+    if let Some(ffprobe) = facespace::programs::system_ffmpeg().map(|f| f.with_file_name("ffprobe"))
         && ffprobe.is_file()
     {
         let out = std::process::Command::new(ffprobe)
@@ -155,7 +155,7 @@ fn audio_is_carried_from_mp4_to_mp4() {
     let back = dir.path().join("back.m4a");
     assert!(video::extract_audio(&out, &back).unwrap());
     // The same AAC packets, byte for byte, in all three files' audio tracks.
-    let packets = |p: &Path| video::mp4::AudioTrack::read(p).unwrap().unwrap().packets();
+    let packets = |p: &Path| facespace::mp4_file::AudioTrack::read(p).unwrap().unwrap().packets();
     assert_eq!(packets(&sample()), packets(&back));
     assert!(!packets(&sample()).is_empty());
     // A video without sound has none to extract.
@@ -168,7 +168,7 @@ fn audio_is_carried_from_mp4_to_mp4() {
 /// before it (so a video can be decoded in pieces side by side); elsewhere it is refused.
 #[test]
 fn decoding_from_a_sync_frame_matches_decoding_from_the_start() {
-    use facespace::video::mp4::{Mp4Error, Reader};
+    use facespace::mp4_file::{Mp4Error, Reader};
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("gops.mp4");
     // Our writer starts a picture group every ten seconds: at 10 fps, frames 0, 100 and 200.
@@ -250,8 +250,8 @@ fn bad_input_is_a_clear_error_and_leaves_nothing_behind() {
     assert!(matches!(
         Source::open(&junk),
         Err(VideoError::Mp4 {
-            source: facespace::video::mp4::Mp4Error::Container(_)
-                | facespace::video::mp4::Mp4Error::Malformed(_),
+            source: facespace::mp4_file::Mp4Error::Container(_)
+                | facespace::mp4_file::Mp4Error::Malformed(_),
             ..
         })
     ));
@@ -283,7 +283,7 @@ fn bad_input_is_a_clear_error_and_leaves_nothing_behind() {
 /// Matroska file written and read back, and an unfinished one leaves nothing.
 #[test]
 fn other_containers_through_ffmpeg() {
-    if video::system_ffmpeg().is_none() {
+    if facespace::programs::system_ffmpeg().is_none() {
         eprintln!("no ffmpeg on PATH: skipped");
         return;
     }

@@ -53,7 +53,7 @@ fn read_text(path: &Path) -> Result<String, AlignError> {
         line: 0,
         why: e.to_string(),
     };
-    let raw = crate::manifest::read_regular(path).map_err(io)?;
+    let raw = crate::safe_read::read_regular(path).map_err(io)?;
     if raw.starts_with(&[0x1f, 0x8b]) {
         let mut s = String::new();
         flate2::read::GzDecoder::new(&raw[..])

@@ -95,7 +95,7 @@ impl AcousticModel {
     pub fn load(dir: &Path) -> Result<Self, AlignError> {
         let read = |name: &str| -> Result<Vec<u8>, AlignError> {
             let path = dir.join(name);
-            let mut file = crate::manifest::open_regular(&path).map_err(|e| AlignError::Model {
+            let mut file = crate::safe_read::open_regular(&path).map_err(|e| AlignError::Model {
                 path: path.clone(),
                 why: e.to_string(),
             })?;

@@ -158,7 +158,7 @@ impl Annotator {
             (false, "/api/frames") => Ok(Reply::json(self.listing())),
             (false, p) if p.starts_with("/frames/") => {
                 self.frame(&p["/frames/".len()..]).and_then(|name| {
-                    let bytes = crate::manifest::read_inside(&self.dir, &name, MAX_FRAME_BYTES)
+                    let bytes = crate::safe_read::read_inside(&self.dir, &name, MAX_FRAME_BYTES)
                         .map_err(|e| (403, format!("{name}: {e}")))?;
                     Ok(Reply::ok(bytes, http::mime(&name)))
                 })
@@ -250,7 +250,7 @@ impl Annotator {
             // Read only as a plain file of this folder (not a link to one outside it).
             let pts_name = pts.file_name().map(|n| n.to_string_lossy().into_owned());
             let read =
-                crate::manifest::read_inside(&self.dir, &pts_name.unwrap_or_default(), 1 << 20)
+                crate::safe_read::read_inside(&self.dir, &pts_name.unwrap_or_default(), 1 << 20)
                     .map_err(|e| (403, format!("{}: {e}", pts.display())))
                     .and_then(|text| {
                         shape::parse_pts(&String::from_utf8_lossy(&text), &pts)
@@ -307,7 +307,7 @@ impl Annotator {
 
     /// A listed frame, read as a plain file of the folder.
     fn image(&self, name: &str) -> Result<image::RgbImage, String> {
-        let bytes = crate::manifest::read_inside(&self.dir, name, MAX_FRAME_BYTES)
+        let bytes = crate::safe_read::read_inside(&self.dir, name, MAX_FRAME_BYTES)
             .map_err(|e| e.to_string())?;
         image::load_from_memory(&bytes)
             .map(|i| i.to_rgb8())

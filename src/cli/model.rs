@@ -157,7 +157,7 @@ fn build(a: BuildArgs) -> Result<()> {
     super::check_output(&a.output, &inputs)?;
     let triangles = match &a.triangles {
         Some(path) => {
-            let text = facespace::manifest::read_regular_string(path)
+            let text = facespace::safe_read::read_regular_string(path)
                 .with_context(|| format!("reading {}", path.display()))?;
             Some(
                 serde_json::from_str::<Vec<Triangle>>(&text)
@@ -170,7 +170,7 @@ fn build(a: BuildArgs) -> Result<()> {
         None => None,
         Some("lower-face") => Some(Region::LowerFace),
         Some(path) => {
-            let text = facespace::manifest::read_regular_string(std::path::Path::new(path))
+            let text = facespace::safe_read::read_regular_string(std::path::Path::new(path))
                 .with_context(|| format!("reading region file {path}"))?;
             Some(Region::Landmarks(
                 serde_json::from_str(&text).with_context(|| {

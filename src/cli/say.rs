@@ -95,7 +95,7 @@ pub fn run(a: SayArgs) -> Result<()> {
         },
         (None, Some(audio), None, Some(t)) => Speech::Recording {
             audio: audio.clone(),
-            words: facespace::manifest::read_regular_string(t)
+            words: facespace::safe_read::read_regular_string(t)
                 .with_context(|| format!("reading the transcript {}", t.display()))?,
         },
         (None, Some(audio), None, None) => Speech::Sound(audio.clone()),

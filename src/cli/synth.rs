@@ -282,7 +282,7 @@ pub fn run(mut a: SynthArgs) -> Result<()> {
         (Some(t), ..) => Some(t.clone()),
         (None, Some(t), _) if a.audio.is_some() => Some(t.clone()),
         (None, None, Some(p)) => Some(
-            facespace::manifest::read_regular_string(p)
+            facespace::safe_read::read_regular_string(p)
                 .with_context(|| format!("reading the transcript {}", p.display()))?,
         ),
         _ => None,

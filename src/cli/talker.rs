@@ -228,12 +228,12 @@ fn build(a: BuildArgs) -> Result<()> {
                 codebook: codebook.clone(),
                 footage: match &a.footage_from {
                     Some(dir) => {
-                        let names = facespace::talker::footage::footage_takes(
+                        let names = facespace::footage::footage_takes(
                             &model,
                             &cb,
                             a.footage_clips,
                         )?;
-                        facespace::talker::footage::take_videos(dir, &names)
+                        facespace::footage::take_videos(dir, &names)
                             .with_context(|| format!("--footage-from {}", dir.display()))?
                     }
                     None => a.footage.clone(),

@@ -73,7 +73,7 @@ pub fn run(a: VisemesArgs) -> Result<()> {
     let words = match (&a.text, &a.transcript) {
         (Some(t), _) => Some(t.clone()),
         (None, Some(p)) => Some(
-            facespace::manifest::read_regular_string(p)
+            facespace::safe_read::read_regular_string(p)
                 .with_context(|| format!("reading the transcript {}", p.display()))?,
         ),
         (None, None) => None,

@@ -320,7 +320,7 @@ impl Clip {
             // A plain name of the folder, and a regular file: a FIFO there would block the
             // decoder (or ffmpeg) forever.
             let path = manifest::member(dir, audio)?;
-            manifest::open_regular(&path).map_err(|e| CodecError::Invalid {
+            crate::safe_read::open_regular(&path).map_err(|e| CodecError::Invalid {
                 path: path.clone(),
                 message: format!("the clip's audio: {e}"),
             })?;

@@ -153,7 +153,7 @@ pub fn recorded_fps(dir: &Path) -> Result<Option<f64>, CorpusError> {
         path: path.clone(),
         reason,
     };
-    let text = crate::manifest::read_regular_string(&path).map_err(|source| CorpusError::Io {
+    let text = crate::safe_read::read_regular_string(&path).map_err(|source| CorpusError::Io {
         path: path.clone(),
         source,
     })?;

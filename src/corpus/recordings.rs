@@ -26,7 +26,7 @@ fn align_transcript(
         reason,
     };
     let text =
-        crate::manifest::read_regular_string(transcript).map_err(|source| CorpusError::Io {
+        crate::safe_read::read_regular_string(transcript).map_err(|source| CorpusError::Io {
             path: transcript.to_owned(),
             source,
         })?;

@@ -1,19 +1,17 @@
 //! Objective measures (DESIGN §9, \[unitsel\] §6–7): of synthesised trajectories against real
 //! ones — Pearson r of the first appearance parameter (r_pca) and of the mouth height (r_h),
-//! landmark RMSE in pixels, the dynamic-time-warping cost — with the systems and baselines
-//! they compare ([`systems`]); and of video through face-space, PSNR and SSIM inside the face
-//! mask ([`quality`]).
+//! landmark RMSE in pixels, the dynamic-time-warping cost (the systems and baselines they
+//! compare are [`crate::synth::systems`], above this module); and of video through
+//! face-space, PSNR and SSIM inside the face mask ([`quality`]).
 
 pub mod mouth;
 pub mod quality;
 pub mod realism;
 pub mod seams;
-pub mod systems;
 
 use serde::Serialize;
 
 pub use quality::{face_mask, psnr_masked, ssim_masked};
-pub use systems::{System, SystemScores, evaluate};
 
 use crate::facespace::Frames;
 use crate::model::FaceModel;

@@ -1,6 +1,7 @@
 //! A live session drawn on the CPU ([`Screen`]).
 
 use super::{LiveError, LiveFrame, Session, Stage};
+use crate::render::Renderer;
 
 /// One picture of a [`Screen`]: a frame of the session drawn over its footage frame, or the
 /// footage as it is while nothing is said.
@@ -34,7 +35,7 @@ pub struct Screen<'s, 't> {
     /// Picks each drawn frame's recorded detail, when the talker keeps recorded mouths.
     chooser: Option<crate::mouths::Chooser<'t>>,
     /// The stage's loop of footage, decoded in order.
-    footage: crate::talker::footage::Shown,
+    footage: crate::footage::Shown,
     /// The next picture's index.
     next: usize,
     /// Settled frames not yet drawn.
@@ -164,9 +165,12 @@ impl<'s, 't> Screen<'s, 't> {
             Some(f) if f.index == index => {
                 let model = &self.stage.talker.model;
                 let params = model.layout().split(&f.values)?;
-                let chosen = self.chooser.as_mut().map(|c| (c.mouths(), c.next(params)));
-                let detail = chosen.as_ref().map(|(m, pick)| (*m, pick));
-                self.renderer.render_with(params, detail, &mut image)?;
+                match self.chooser.as_mut().map(|c| (c.mouths(), c.next(params))) {
+                    Some((mouths, pick)) => {
+                        self.renderer.render_with(params, mouths.drawing(&pick), &mut image)?
+                    }
+                    None => self.renderer.render_into(params, &mut image)?,
+                }
                 (true, f.speaking, model.landmarks(params)?.points)
             }
             _ => {

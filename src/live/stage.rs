@@ -11,7 +11,7 @@ use crate::talker::Talker;
 pub const STAGE_SECONDS: f64 = 120.0;
 
 /// The living frame under a live session's face: the talker's footage planned as stretches
-/// joined where they match ([`crate::talker::footage::Footage::plan`]) for [`STAGE_SECONDS`],
+/// joined where they match ([`crate::footage::Footage::plan`]) for [`STAGE_SECONDS`],
 /// then again from its start. Frame `index` of any session shows loop frame
 /// `index mod len`; while nothing is said the footage plays as it is (its own face), and a
 /// spoken frame takes that footage frame's pose, keeps all but the lips and chin where the
@@ -19,7 +19,7 @@ pub const STAGE_SECONDS: f64 = 120.0;
 /// frame. One stage serves every session of a talker.
 pub struct Stage<'t> {
     pub(super) talker: &'t Talker,
-    plan: crate::talker::footage::Plan,
+    plan: crate::footage::Plan,
     poses: Vec<crate::shape::Similarity>,
     pub(super) landmarks: Vec<crate::shape::Landmarks>,
     articulators: Option<Vec<u32>>,
@@ -69,7 +69,7 @@ impl<'t> Stage<'t> {
     }
 
     /// The plan of the loop.
-    pub fn plan(&self) -> &crate::talker::footage::Plan {
+    pub fn plan(&self) -> &crate::footage::Plan {
         &self.plan
     }
 

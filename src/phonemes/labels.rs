@@ -10,7 +10,7 @@ pub use super::textgrid::{parse_textgrid, read_textgrid};
 
 /// A file's text: UTF-8 (a byte-order mark dropped) or, as Praat may write, UTF-16.
 pub(super) fn read_text(path: &Path) -> Result<String, PhonemeError> {
-    let bytes = crate::manifest::read_regular(path).map_err(|source| PhonemeError::Io {
+    let bytes = crate::safe_read::read_regular(path).map_err(|source| PhonemeError::Io {
         path: path.into(),
         source,
     })?;

@@ -7,7 +7,6 @@
 //! caller consumes the frames in order, so memory does not grow with the sequence.
 
 mod composite;
-pub mod sampled;
 pub mod scale;
 #[cfg(feature = "gpu")]
 pub mod gpu;
@@ -47,9 +46,10 @@ pub enum RenderError {
     /// The background video failed.
     #[error(transparent)]
     Video(#[from] VideoError),
-    /// The recorded mouths' video could not be decoded.
+    /// The detail added to the model's texture failed (the recorded mouths' video could not
+    /// be decoded: [`CpuRenderer::render_with`]).
     #[error(transparent)]
-    Mouths(#[from] Box<crate::mouths::MouthsError>),
+    Detail(Box<dyn std::error::Error + Send + Sync>),
     /// The background video ended before the frames did.
     #[error("{path}: the background video has {frames} frames, fewer than the {needed} to render")]
     BackgroundTooShort {
@@ -90,7 +90,7 @@ pub trait Renderer: Sync {
     -> Result<(), RenderError>;
 
     /// Draws frame `t` of the sequence `frames` onto `canvas`: its point alone, unless the
-    /// renderer draws a sequence ([`sampled::SampledRenderer`]).
+    /// renderer draws a sequence ([`crate::mouths::SampledRenderer`]).
     fn render_frame(
         &self,
         frames: &Frames,
@@ -165,23 +165,21 @@ impl Renderer for CpuRenderer<'_> {
         params: FaceParams<'_>,
         canvas: &mut RgbImage,
     ) -> Result<(), RenderError> {
-        self.render_with(params, None, canvas)
+        self.render_with(params, |_| Ok(()), canvas)
     }
 }
 
 impl CpuRenderer<'_> {
-    /// [`Renderer::render_into`], with recorded detail added to the model's texture when
-    /// `detail` is given ([`crate::mouths`]).
+    /// [`Renderer::render_into`], with `detail` added to the model's texture (mask pixels ×
+    /// RGB) before it is warped: how the recorded mouths, a layer above, draw their detail.
     pub fn render_with(
         &self,
         params: FaceParams<'_>,
-        detail: Option<(&crate::mouths::Mouths, &crate::mouths::Pick)>,
+        detail: impl FnOnce(&mut [f32]) -> Result<(), RenderError>,
         canvas: &mut RgbImage,
     ) -> Result<(), RenderError> {
         let mut r = self.model.reconstruct(params)?;
-        if let Some((mouths, pick)) = detail {
-            mouths.add_detail(pick, &mut r.texture).map_err(Box::new)?;
-        }
+        detail(&mut r.texture)?;
         let (frame, points) = (&self.model.frame, &r.landmarks.points);
         match &self.alpha {
             Some(alpha) => {
@@ -281,8 +279,17 @@ pub enum Background {
         /// Rendered frames handed out so far.
         next: usize,
     },
-    /// A talker's living frame: stretches of its footage, decoded as they are shown.
-    Footage(Box<crate::talker::footage::Shown>),
+    /// Frames made as they are shown (a talker's living frame: stretches of its footage).
+    Frames(Box<dyn FrameSource>),
+}
+
+/// Frames a [`Background`] plays one after another, made as they are shown: what a layer
+/// above (a talker's footage) gives the renderer without the renderer knowing it.
+pub trait FrameSource: Send {
+    /// The size of every frame.
+    fn size(&self) -> (u32, u32);
+    /// The next frame.
+    fn next_frame(&mut self) -> Result<RgbImage, RenderError>;
 }
 
 impl Background {
@@ -311,7 +318,7 @@ impl Background {
             Background::Still(image) => image.dimensions(),
             Background::Video(source) => (source.info().width, source.info().height),
             Background::Loop { frames, .. } => frames.first().map_or((0, 0), |f| f.dimensions()),
-            Background::Footage(shown) => shown.size(),
+            Background::Frames(source) => source.size(),
         }
     }
 
@@ -337,8 +344,8 @@ impl Background {
                         })
                 })
                 .collect::<Result<_, _>>()?,
-            Background::Footage(shown) => (0..n)
-                .map(|_| shown.next_frame())
+            Background::Frames(source) => (0..n)
+                .map(|_| source.next_frame())
                 .collect::<Result<_, _>>()?,
             Background::Loop { frames, next } => {
                 let out = (*next..*next + n)

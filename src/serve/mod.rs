@@ -481,7 +481,7 @@ impl<'t> LiveServer<'t> {
 }
 
 /// Every footage frame as JPEG (quality 92), the clips decoded side by side.
-fn footage_jpegs(footage: &crate::talker::footage::Footage) -> Result<Vec<Vec<u8>>, ServeError> {
+fn footage_jpegs(footage: &crate::footage::Footage) -> Result<Vec<Vec<u8>>, ServeError> {
     use rayon::prelude::*;
     let clips: Vec<Vec<Vec<u8>>> = (0..footage.clips.len())
         .into_par_iter()

@@ -17,7 +17,7 @@ pub fn read_landmarks(path: &Path) -> Result<Landmarks, ShapeError> {
 
 /// Reads a menpo `.ljson` file.
 pub fn read_ljson(path: &Path) -> Result<Landmarks, ShapeError> {
-    let text = crate::manifest::read_regular_string(path).map_err(|source| ShapeError::Io {
+    let text = crate::safe_read::read_regular_string(path).map_err(|source| ShapeError::Io {
         path: path.into(),
         source,
     })?;

@@ -8,7 +8,7 @@ use crate::atomic;
 
 /// Reads an iBUG `.pts` file (`version: 1`, `n_points: N`, `{`, N lines `x y`, `}`).
 pub fn read_pts(path: &Path) -> Result<Landmarks, ShapeError> {
-    let text = crate::manifest::read_regular_string(path).map_err(|source| ShapeError::Io {
+    let text = crate::safe_read::read_regular_string(path).map_err(|source| ShapeError::Io {
         path: path.into(),
         source,
     })?;

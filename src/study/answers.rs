@@ -103,7 +103,7 @@ pub fn check_response(trial: &Trial, response: &Response) -> Result<(), String> 
 /// line (a crash in mid-write, never acknowledged) was left out.
 pub fn read(dir: &Path, manifest: &Manifest) -> Result<(Vec<Answer>, Option<String>), StudyError> {
     let path = dir.join(ANSWERS);
-    let text = match crate::manifest::read_regular_string(&path) {
+    let text = match crate::safe_read::read_regular_string(&path) {
         Ok(t) => t,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok((Vec::new(), None)),
         Err(source) => return Err(StudyError::Io { path, source }),

@@ -287,7 +287,7 @@ impl Manifest {
     pub fn load(dir: &Path) -> Result<Manifest, StudyError> {
         let path = dir.join(MANIFEST);
         let text =
-            crate::manifest::read_regular_string(&path).map_err(|source| StudyError::Io {
+            crate::safe_read::read_regular_string(&path).map_err(|source| StudyError::Io {
                 path: path.clone(),
                 source,
             })?;

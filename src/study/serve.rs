@@ -166,7 +166,7 @@ fn answer(
             log.fetch(viewer, token, id)?;
             let folder = dir.join(STIMULI);
             let bytes =
-                crate::manifest::read_inside(&folder, &name, MAX_STIMULUS).map_err(|e| {
+                crate::safe_read::read_inside(&folder, &name, MAX_STIMULUS).map_err(|e| {
                     Refusal {
                         status: 500,
                         message: format!("{}: {e}", folder.join(&name).display()),

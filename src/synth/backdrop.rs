@@ -63,7 +63,7 @@ pub struct Backdrop {
     pub tracker_hash: String,
     /// For footage (a talker's, or a video shorter than the utterance): which frame is shown
     /// when, and where stretches join.
-    pub plan: Option<crate::talker::footage::Plan>,
+    pub plan: Option<crate::footage::Plan>,
     frames: Frames,
 }
 
@@ -71,7 +71,7 @@ pub struct Backdrop {
 enum Frames {
     Still(RgbImage),
     Video(std::path::PathBuf),
-    Footage(crate::talker::footage::Shown),
+    Footage(crate::footage::Shown),
 }
 
 impl Backdrop {
@@ -81,15 +81,15 @@ impl Backdrop {
         Ok(match &self.frames {
             Frames::Still(image) => Background::Still(image.clone()),
             Frames::Video(path) => Background::Video(Box::new(Source::open(path)?)),
-            Frames::Footage(shown) => Background::Footage(Box::new(shown.fresh())),
+            Frames::Footage(shown) => Background::Frames(Box::new(shown.fresh())),
         })
     }
 
     /// A talker's living frame: the footage frames `plan` shows, with the poses, landmarks
     /// and face-space points tracked when the talker was built (nothing is tracked now).
     pub fn footage(
-        footage: &crate::talker::footage::Footage,
-        plan: &crate::talker::footage::Plan,
+        footage: &crate::footage::Footage,
+        plan: &crate::footage::Plan,
     ) -> Result<Backdrop, crate::facespace::FacespaceError> {
         let layout = footage.tracked.layout();
         let mut rows = Vec::with_capacity(plan.frames.len() * layout.dims());
@@ -282,7 +282,7 @@ impl Backdrop {
             values.resize(start + dims, 0.0);
             tracker.project_into(&image, &t.landmarks, &mut values[start..])?;
             landmarks.push(t.landmarks.clone());
-            thumbs.push(crate::talker::footage::thumbnail(&image));
+            thumbs.push(crate::footage::thumbnail(&image));
             Ok(())
         })?;
         let tracked = crate::facespace::Frames::from_rows(tracker.layout(), fps, values)
@@ -317,7 +317,7 @@ impl Backdrop {
             PoseMode::Replay => {
                 // Shorter than the speech: extended as a talker's footage is — stretches
                 // joined where they match, never played backwards.
-                let footage = crate::talker::footage::Footage::of_video(
+                let footage = crate::footage::Footage::of_video(
                     path,
                     size,
                     tracker_hash,

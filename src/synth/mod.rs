@@ -11,6 +11,7 @@ pub mod output;
 pub mod pareto;
 pub mod random;
 pub mod smooth;
+pub mod systems;
 pub mod unit;
 pub mod viterbi;
 

@@ -656,7 +656,7 @@ impl WeightsFile {
     /// Reads and checks a weights file.
     pub fn read(path: &std::path::Path) -> Result<Self, WeightsError> {
         let text =
-            crate::manifest::read_regular_string(path).map_err(|source| WeightsError::Io {
+            crate::safe_read::read_regular_string(path).map_err(|source| WeightsError::Io {
                 path: path.into(),
                 source,
             })?;

@@ -6,7 +6,7 @@
 
 use std::path::{Path, PathBuf};
 
-use super::footage::{Footage, FootageError};
+use crate::footage::{Footage, FootageError};
 use super::manifest::FORMAT;
 use super::{
     MANIFEST, Provenance, Settings, TALKER_VERSION, Talker, TalkerError, TalkerManifest, Voice,
@@ -127,7 +127,7 @@ fn fingerprint(files: &[PathBuf], also: &[&str]) -> Result<String, TalkerError> 
         };
         let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         eat(name.as_bytes());
-        let mut file = crate::manifest::open_regular(path).map_err(io)?;
+        let mut file = crate::safe_read::open_regular(path).map_err(io)?;
         loop {
             // Whole reads of the buffer, so the words fall alike however the file is read.
             let mut filled = 0;
@@ -258,7 +258,7 @@ pub struct Identity {
 /// (`T/corpus/`, kept: an interrupted build resumes after it), the codebook (appearance
 /// re-centred per sentence, re-lit to the footage when spoken) and, from the
 /// `footage_clips` recordings whose head sat as it usually does and alike
-/// ([`super::footage::footage_takes`]), the idle footage.
+/// ([`crate::footage::footage_takes`]), the idle footage.
 #[derive(Clone, Debug)]
 pub struct Recordings {
     /// The whole-face (or lower-face region) model of the talker.
@@ -360,12 +360,12 @@ pub fn parts_from_recordings(
             cb
         }
     };
-    let names = super::footage::footage_takes(&model, &codebook, recordings.footage_clips)
+    let names = crate::footage::footage_takes(&model, &codebook, recordings.footage_clips)
         .map_err(|source| TalkerError::Model {
             dir: dir.clone(),
             source: Box::new(source),
         })?;
-    let footage = super::footage::take_videos(&recordings.dir, &names).map_err(|source| {
+    let footage = crate::footage::take_videos(&recordings.dir, &names).map_err(|source| {
         TalkerError::Footage {
             dir: dir.clone(),
             source: Box::new(source),
@@ -595,12 +595,12 @@ pub fn build(
             done: 0,
             total: 1,
         });
-        let choice = crate::eval::systems::choose_settings(
+        let choice = crate::synth::systems::choose_settings(
             &model,
             &codebook,
             &v.sentences,
-            &crate::eval::systems::TOP_N_GRID,
-            &crate::eval::systems::SETTINGS_LAMBDA_GRID,
+            &crate::synth::systems::TOP_N_GRID,
+            &crate::synth::systems::SETTINGS_LAMBDA_GRID,
         )?;
         if let Some(choice) = choice {
             settings = Settings::chosen(&choice, &v.about, settings.appearance_gain);

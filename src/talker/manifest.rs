@@ -86,7 +86,7 @@ impl Settings {
     /// The blend settings chosen on validation sentences (`split`: which, in words), with
     /// the appearance gain given.
     pub fn chosen(
-        choice: &crate::eval::systems::SettingsChoice,
+        choice: &crate::synth::systems::SettingsChoice,
         split: &str,
         appearance_gain: f64,
     ) -> Self {

@@ -14,7 +14,6 @@
 //! the request and the pipeline in `perform`.
 
 pub mod build;
-pub mod footage;
 mod hearing;
 mod manifest;
 mod perform;
@@ -38,7 +37,7 @@ use crate::render::RenderError;
 use crate::synth::SynthError;
 use crate::synth::output::OutputError;
 use crate::video::VideoError;
-use footage::{Footage, FootageError};
+use crate::footage::{Footage, FootageError};
 
 /// What can go wrong with a talker.
 #[derive(Debug, Error)]

@@ -5,10 +5,10 @@ use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
-use super::footage::Plan;
+use crate::footage::Plan;
 use super::{Talker, TalkerError};
 use crate::phonemes::{PhoneMap, Segment};
-use crate::render::sampled::SampledRenderer;
+use crate::mouths::SampledRenderer;
 use crate::render::{DEFAULT_FEATHER, Edge, RendererChoice};
 use crate::synth::backdrop::Backdrop;
 use crate::synth::output::OutputOptions;

@@ -5,7 +5,7 @@
 //! An AAC track is carried from an MP4 input to an MP4 output; other audio needs ffmpeg.
 
 mod export;
-pub mod mp4;
+use crate::mp4_file as mp4;
 mod sink;
 mod source;
 pub mod y4m;
@@ -175,10 +175,10 @@ pub fn read_frame(path: &Path) -> Result<RgbImage, VideoError> {
     })
 }
 
-/// Reads one image file as RGB, opened as a regular file only ([`crate::manifest::open_regular`]:
+/// Reads one image file as RGB, opened as a regular file only ([`crate::safe_read::open_regular`]:
 /// a FIFO would block, a device never end); the format from the extension, else the content.
 pub fn read_image(path: &Path) -> Result<RgbImage, image::ImageError> {
-    let file = crate::manifest::open_regular(path).map_err(image::ImageError::IoError)?;
+    let file = crate::safe_read::open_regular(path).map_err(image::ImageError::IoError)?;
     let mut reader = image::ImageReader::new(std::io::BufReader::new(file));
     match image::ImageFormat::from_path(path) {
         Ok(format) => reader.set_format(format),
@@ -217,20 +217,6 @@ pub fn side_by_side(left: &RgbImage, right: &RgbImage) -> RgbImage {
     out
 }
 
-/// A system ffmpeg on PATH, if any (detected at run time, never required).
-pub fn system_ffmpeg() -> Option<PathBuf> {
-    program_on_path("ffmpeg")
-}
-
-/// The first file named `program` in a folder of PATH.
-pub fn program_on_path(program: &str) -> Option<PathBuf> {
-    std::env::var_os("PATH").and_then(|paths| {
-        std::env::split_paths(&paths)
-            .map(|p| p.join(program))
-            .find(|p| p.is_file())
-    })
-}
-
 /// The AAC track to mux: straight from an MP4/M4A (its edit list kept), else the sound
 /// decoded (WAV and AAC in Rust, other formats through a system ffmpeg) and encoded as AAC
 /// in Rust — no ffmpeg needed for WAV.
@@ -254,7 +240,14 @@ pub(crate) fn audio_track(audio: &Path) -> Result<mp4::AudioTrack, VideoError> {
             reason: "no audio samples".into(),
         });
     }
-    mp4::AudioTrack::encode(&sound).map_err(mp4)
+    // Rates AAC does not have are resampled to 48 kHz.
+    let sound = if mp4::AAC_RATES.contains(&sound.rate) {
+        sound
+    } else {
+        crate::audio::resample(&sound, 48_000)
+    };
+    let pcm: Vec<i16> = sound.samples.iter().map(|&x| crate::audio::to_pcm16(x)).collect();
+    mp4::AudioTrack::encode(&pcm, sound.rate).map_err(mp4)
 }
 
 /// Lifts the audio of `input` into `out` (an `.m4a`): copied from an MP4's AAC track, or

@@ -7,7 +7,8 @@ use std::process::{Child, ChildStdin, Command, Stdio};
 
 use image::RgbImage;
 
-use super::{VideoError, audio_track, extension, io_error, mp4, system_ffmpeg, write_png, y4m};
+use super::{VideoError, audio_track, extension, io_error, mp4, write_png, y4m};
+use crate::programs::system_ffmpeg;
 use crate::atomic;
 
 /// Frames written to a folder of PNGs, a `.y4m`, an MP4, or (through a system ffmpeg) any
@@ -150,7 +151,7 @@ impl Sink {
                 let ffmpeg = system_ffmpeg().ok_or_else(|| VideoError::NeedsFfmpeg(path.into()))?;
                 if let Some(a) = audio {
                     // Never hand ffmpeg a FIFO or device: it would block or never end.
-                    crate::manifest::open_regular(a).map_err(io_error(a))?;
+                    crate::safe_read::open_regular(a).map_err(io_error(a))?;
                 }
                 // Staged and locked like every other output: a killed run's file is ours
                 // to clean, and it is renamed into place only once ffmpeg succeeds.

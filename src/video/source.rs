@@ -7,7 +7,8 @@ use std::process::{Child, ChildStdout, Command, Stdio};
 
 use image::RgbImage;
 
-use super::{VideoError, extension, frame_files, io_error, mp4, read_frame, system_ffmpeg, y4m};
+use super::{VideoError, extension, frame_files, io_error, mp4, read_frame, y4m};
+use crate::programs::system_ffmpeg;
 
 /// What a source knows of itself before its frames are read.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -61,13 +62,13 @@ impl Source {
                 frames: Some(files.len()),
             };
             (info, SourceKind::Frames(files, Some(first)))
-        } else if let Err(e) = crate::manifest::open_regular(path) {
+        } else if let Err(e) = crate::safe_read::open_regular(path) {
             // Missing, or a FIFO or device (which would block or never end).
             return Err(io_error(path)(e));
         } else {
             match extension(path).as_str() {
                 "y4m" => {
-                    let file = crate::manifest::open_regular(path).map_err(io_error(path))?;
+                    let file = crate::safe_read::open_regular(path).map_err(io_error(path))?;
                     let r = y4m::Reader::new(BufReader::new(file)).map_err(y4m_error)?;
                     (r.info(), SourceKind::Y4m(r))
                 }

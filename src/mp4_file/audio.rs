@@ -27,25 +27,21 @@ pub struct AudioTrack {
 }
 
 /// AAC's sampling frequencies (ISO/IEC 14496-3 Table 1.18), ascending.
-const AAC_RATES: [u32; 9] = [
+pub const AAC_RATES: [u32; 9] = [
     8_000, 11_025, 12_000, 16_000, 22_050, 24_000, 32_000, 44_100, 48_000,
 ];
 
 impl AudioTrack {
-    /// Encodes mono samples as AAC-LC (CBR, 48 kb/s below 32 kHz, else 64 kb/s; rates AAC
-    /// does not have are resampled to 48 kHz), with an edit list that drops the encoder's
-    /// delay and the padding of the last frame: decoded, the track is `audio` sample for
-    /// sample in time.
-    pub fn encode(audio: &crate::audio::Audio) -> Result<Self, Mp4Error> {
+    /// Encodes mono 16-bit PCM at one of [`AAC_RATES`] as AAC-LC (CBR, 48 kb/s below 32 kHz,
+    /// else 64 kb/s), with an edit list that drops the encoder's delay and the padding of the
+    /// last frame: decoded, the track is `pcm` sample for sample in time.
+    pub fn encode(pcm: &[i16], rate: u32) -> Result<Self, Mp4Error> {
         use fdk_aac::enc::{
             AudioObjectType, BitRate, ChannelMode, Encoder, EncoderParams, Transport,
         };
-        let audio = if AAC_RATES.contains(&audio.rate) {
-            std::borrow::Cow::Borrowed(audio)
-        } else {
-            std::borrow::Cow::Owned(crate::audio::resample(audio, 48_000))
-        };
-        let rate = audio.rate;
+        if !AAC_RATES.contains(&rate) {
+            return Err(Mp4Error::AudioCodec(format!("{rate} Hz is not an AAC sampling rate")));
+        }
         let codec = |e: fdk_aac::enc::EncoderError| Mp4Error::AudioCodec(format!("{e:?}"));
         let encoder = Encoder::new(EncoderParams {
             bit_rate: BitRate::Cbr(if rate < 32_000 { 48_000 } else { 64_000 }),
@@ -58,14 +54,9 @@ impl AudioTrack {
         let info = encoder.info().map_err(codec)?;
         let frame = info.frameLength as usize;
         let delay = info.nDelay as u64;
-        let pcm: Vec<i16> = audio
-            .samples
-            .iter()
-            .map(|&x| crate::audio::to_pcm16(x))
-            .collect();
         // Zeros after the end flush the encoder's delay line (the crate cannot signal the end).
         let padded_len = (pcm.len() + delay as usize).div_ceil(frame) * frame + frame;
-        let mut input = pcm.clone();
+        let mut input = pcm.to_vec();
         input.resize(padded_len, 0);
         let mut out = vec![0u8; info.maxOutBufBytes.max(8192) as usize];
         let mut samples = Vec::new();

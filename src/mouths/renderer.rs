@@ -1,12 +1,12 @@
-//! The mouth drawn from recorded frames (issue 38, [`crate::mouths`]): the CPU renderer with
-//! each frame's recorded detail, chosen for the whole sequence before it is drawn.
+//! The mouth drawn from recorded frames (issue 38): the CPU renderer with each frame's
+//! recorded detail, chosen for the whole sequence before it is drawn.
 
 use image::RgbImage;
 
-use super::{CpuRenderer, Edge, RenderError, Renderer};
+use super::{Chooser, Mouths, Pick};
 use crate::facespace::{FaceParams, Frames};
 use crate::model::FaceModel;
-use crate::mouths::{Chooser, Mouths, Pick};
+use crate::render::{CpuRenderer, Edge, RenderError, Renderer};
 
 /// Draws a sequence's faces with the recorded detail [`Chooser`] picked for each frame.
 pub struct SampledRenderer<'m> {
@@ -57,7 +57,7 @@ impl<'m> SampledRenderer<'m> {
 
 impl Renderer for SampledRenderer<'_> {
     fn model(&self) -> &FaceModel {
-        self.cpu.model
+        self.cpu.model()
     }
 
     /// A point alone has no place in the sequence: the model's own face, as
@@ -72,8 +72,10 @@ impl Renderer for SampledRenderer<'_> {
         t: usize,
         canvas: &mut RgbImage,
     ) -> Result<(), RenderError> {
-        let detail = self.picks.get(t).map(|pick| (self.mouths, pick));
-        self.cpu.render_with(frames.params(t), detail, canvas)
+        match self.picks.get(t) {
+            Some(pick) => self.cpu.render_with(frames.params(t), self.mouths.drawing(pick), canvas),
+            None => self.cpu.render_into(frames.params(t), canvas),
+        }
     }
 
     fn describe(&self) -> String {

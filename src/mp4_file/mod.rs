@@ -14,7 +14,7 @@ use std::path::Path;
 
 use thiserror::Error;
 
-pub use audio::{AudioTrack, Edit, audio_edit};
+pub use audio::{AAC_RATES, AudioTrack, Edit, audio_edit};
 pub use reader::Reader;
 pub use writer::Writer;
 
@@ -99,7 +99,7 @@ pub fn check_structure(file: &mut File) -> Result<(), Mp4Error> {
 }
 
 fn open(path: &Path) -> Result<Mp4File, Mp4Error> {
-    let mut file = crate::manifest::open_regular(path)?;
+    let mut file = crate::safe_read::open_regular(path)?;
     boxes::check(&mut file)?;
     let size = file.metadata()?.len();
     file.rewind()?;

@@ -711,6 +711,16 @@ pub struct Shown {
     readers: Vec<(usize, Source, usize)>,
 }
 
+impl crate::render::FrameSource for Shown {
+    fn size(&self) -> (u32, u32) {
+        Shown::size(self)
+    }
+
+    fn next_frame(&mut self) -> Result<RgbImage, crate::render::RenderError> {
+        Ok(Shown::next_frame(self)?)
+    }
+}
+
 impl Shown {
     /// The frame size.
     pub fn size(&self) -> (u32, u32) {

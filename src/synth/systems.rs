@@ -4,16 +4,16 @@
 
 use serde::Serialize;
 
-use super::mouth::{MouthPc, flicker, inner_mouth_height, lip_motion};
-use super::{Scores, landmarks, mean_scores, pearson, score, standard_deviation};
+use super::blend::Blend;
+use super::graph::Graph;
+use super::random::RandomLips;
+use super::unit::UnitSelection;
+use super::{Pose, Request, Smoothing, SynthError, Synthesiser, synthesise};
 use crate::codebook::Codebook;
 use crate::corpus::Sentence;
+use crate::eval::mouth::{MouthPc, flicker, inner_mouth_height, lip_motion};
+use crate::eval::{Scores, landmarks, mean_scores, pearson, score, standard_deviation};
 use crate::model::FaceModel;
-use crate::synth::blend::Blend;
-use crate::synth::graph::Graph;
-use crate::synth::random::RandomLips;
-use crate::synth::unit::UnitSelection;
-use crate::synth::{Pose, Request, Smoothing, SynthError, Synthesiser, synthesise};
 
 /// The smoothing weights tried on the validation split.
 pub const LAMBDA_GRID: [f64; 7] = [1e-6, 3e-6, 1e-5, 3e-5, 1e-4, 3e-4, 1e-3];
@@ -234,7 +234,7 @@ pub fn choose_smoothing(
     let lambda = grid
         .iter()
         .min_by(|a, b| a.1.dtw.total_cmp(&b.1.dtw))
-        .map_or(crate::synth::DEFAULT_SMOOTHING, |g| g.0);
+        .map_or(super::DEFAULT_SMOOTHING, |g| g.0);
     Ok(SmoothingChoice { lambda, grid })
 }
 

@@ -19,6 +19,8 @@
 //! own appearance parameters, for its detail) and `keys.npy` (frames × 40: its lips in
 //! reference-frame pixels).
 
+mod renderer;
+
 use std::path::{Path, PathBuf};
 
 use image::RgbImage;
@@ -32,9 +34,11 @@ use crate::facespace::FaceParams;
 use crate::manifest::{self, ManifestError};
 use crate::model::FaceModel;
 use crate::shape::Similarity;
-use crate::video::mp4::Reader;
+use crate::mp4_file::Reader;
 use crate::video::{Source, VideoError};
 use crate::{Progress, npy};
+
+pub use renderer::SampledRenderer;
 
 /// The mouths folder format this build writes and reads.
 pub const MOUTHS_VERSION: u32 = 1;
@@ -349,7 +353,7 @@ impl Mouths {
                     source,
                 };
                 let mut sink =
-                    crate::video::mp4::Writer::create_with_qp(&video, w, h, codebook.fps, QP)
+                    crate::mp4_file::Writer::create_with_qp(&video, w, h, codebook.fps, QP)
                         .map_err(mp4_error)?;
                 for image in kept.iter().flat_map(|k| &k.0) {
                     sink.write(image).map_err(mp4_error)?;
@@ -550,6 +554,18 @@ impl Mouths {
         let detail = detail.as_ref().map_err(|reason| inconsistent(reason.clone()))?;
         let n = self.pixels.len();
         Ok(&detail[(k - piece.first) * n..][..n])
+    }
+
+    /// `pick`'s detail as [`CpuRenderer::render_with`](crate::render::CpuRenderer::render_with)
+    /// adds it to the model's texture.
+    pub fn drawing<'a>(
+        &'a self,
+        pick: &'a Pick,
+    ) -> impl FnOnce(&mut [f32]) -> Result<(), crate::render::RenderError> + 'a {
+        move |texture| {
+            self.add_detail(pick, texture)
+                .map_err(|e| crate::render::RenderError::Detail(Box::new(e)))
+        }
     }
 
     /// Adds `pick`'s detail to `texture` (mask pixels × RGB): the same luma step on each
