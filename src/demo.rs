@@ -3,9 +3,10 @@
 //! **GRID s1** (the default, recorded): a test-split sentence that is not in the codebook is
 //! aligned from its own sound and words, synthesised by top-N blending (the talker's N and λ,
 //! chosen by `talker build` on GRID's validation split) and by unit selection from the codebook of his 741
-//! kept training sentences, drawn over the sentence's own video (its tracked pose replayed,
-//! the synthesis re-lit to its lighting), and written with its sound: smoothed, unsmoothed,
-//! the blind A/B side-by-side, and the real recording beside the synthesis.
+//! kept training sentences, drawn by his talker as `say` draws ([`crate::talker::Talker::say_parts_into`]:
+//! his recorded mouths, his appearance gain) over the sentence's own video (its tracked pose
+//! replayed, the synthesis re-lit to its lighting), and written with its sound: smoothed,
+//! unsmoothed, the blind A/B side-by-side, and the real recording beside the synthesis.
 //!
 //! **FGNet** (`--talker fgnet`, generated): build a lower-face region model from the
 //! talker's training frames, generate the demo corpus from its real face-space points, build
@@ -24,12 +25,12 @@ use crate::corpus::demo::{self as generator, CorpusOptions, GenerateError, Split
 use crate::mesh::Region;
 use crate::model::{BuildOptions, FaceModel, ModelError, load_training_set};
 use crate::phonemes::{self, PhonemeError};
-use crate::render::{DEFAULT_FEATHER, Edge, RenderError, RendererChoice, choose_renderer};
+use crate::render::{DEFAULT_FEATHER, RenderError, RendererChoice, choose_renderer};
 use crate::synth::backdrop::{Backdrop, BackdropError, PoseMode};
 use crate::synth::blend::Blend;
 use crate::synth::output::{self, OutputError, OutputOptions, Report};
 use crate::synth::unit::UnitSelection;
-use crate::synth::{GENERATED_SMOOTHING, Request, Smoothing, SynthError, synthesise};
+use crate::synth::{GENERATED_SMOOTHING, Request, Smoothing, SynthError};
 
 /// The FGNet demo utterance; it must not be one of the corpus sentences.
 pub const DEMO_TEXT: &str = "A brave pilot found the hidden map.";
@@ -240,53 +241,36 @@ fn grid_into(
                 .map_err(|source| DemoError::Words { path, source })?
         }
     };
-    // Speech in: the recording's own sound, aligned with its words, times the face.
-    let align_error = |source| DemoError::Align {
-        path: clip.clone(),
-        source,
-    };
-    let alignment = crate::align::Aligner::load_default(&[])
-        .and_then(|a| a.align_file(&clip, &words))
-        .map_err(align_error)?;
-    let target = alignment.segments();
-    let (backdrop, fps) = replayed_backdrop(model, &clip, &target)?;
-    let request = Request {
-        pose: backdrop.pose.clone(),
-        ..Request::new(target, fps, Smoothing::Ab(settings.smoothing))
-    };
-    // Over his own take only the lips and jaw are drawn: the eyes stay the video's.
-    let chosen = choose_renderer(
-        options.renderer,
-        model,
-        Edge::Articulators(DEFAULT_FEATHER),
-    )?;
-    let renderer = chosen.renderer.as_ref();
+    // Speech in: the recording's own sound with its words, drawn by his talker over the
+    // sentence's own take (its tracked poses replayed, the synthesis anchored and re-lit to
+    // it, his recorded mouths): blend and unit selection, each smoothed and not.
     let words = words.trim();
-    let output_options = OutputOptions {
-        audio: Some(&clip),
+    let request = |method| crate::talker::SayRequest {
+        renderer: options.renderer,
+        canvas: crate::talker::Canvas::Video {
+            path: clip.clone(),
+            pose: PoseMode::Replay,
+        },
+        method,
+        smoothing: Some(Smoothing::Ab(settings.smoothing)),
         seed: 1,
-        real: Some(&backdrop.tracked),
-        text: Some(words),
+        real: crate::talker::Real::Canvas,
         beside_background: true,
+        ..crate::talker::SayRequest::new(crate::talker::Speech::Recording {
+            audio: clip.clone(),
+            words: words.to_owned(),
+        })
     };
-    // The talker's own blend, its appearance gain included (what `say` draws).
-    let blend = Blend {
-        top_n: settings.top_n,
-        context: settings.context,
-        appearance_gain: settings.appearance_gain,
-        ..Blend::default()
-    };
-    let (utterance, report, unit_report) = both_modes(
-        w,
-        &blend,
-        cb,
-        model,
-        &backdrop,
-        request,
-        renderer,
-        &output_options,
-        &mut progress,
-    )?;
+    let (said, report) = talker.say_parts_into(&request(None), w, &mut progress)?;
+    let unit = crate::talker::Method::Unit(UnitSelection::default());
+    let (_, unit_report) = talker.say_parts_into(&request(Some(unit)), &w.join("unit"), &mut progress)?;
+    // The words and phones as aligned, for a look in Praat.
+    let alignment = crate::align::Aligner::load_default(&[])
+        .and_then(|a| a.align_file(&clip, words))
+        .map_err(|source| DemoError::Align {
+            path: clip.clone(),
+            source,
+        })?;
     alignment.write(&w.join("utterance.TextGrid"))?;
     // The main verb: the same recording and words through `say`, over his idle footage (not
     // the sentence's own take) — what `facespace say --audio CLIP --text WORDS` writes.
@@ -311,9 +295,9 @@ fn grid_into(
         ),
         text: words.to_owned(),
         background: clip.clone(),
-        phones: utterance.target.len(),
-        frames: utterance.synthesis.frames.len(),
-        renderer_note: chosen.note.clone(),
+        phones: said.phones,
+        frames: report.frames,
+        renderer_note: None,
         report,
         unit_report,
         files: [
@@ -495,9 +479,7 @@ fn both_modes(
         [(blend, w.to_path_buf()), (&unit, w.join("unit"))];
     let mut done = Vec::with_capacity(2);
     for (synthesiser, dir) in modes {
-        let mut utterance = synthesise(synthesiser, cb, request.clone())?;
-        backdrop.anchor_region(model, &mut utterance)?;
-        backdrop.match_lighting(model, cb, &mut utterance);
+        let utterance = backdrop.synthesise(synthesiser, cb, model, request.clone())?;
         let report = output::write(
             &dir,
             renderer,

@@ -180,6 +180,26 @@ fn the_demo_speaks_beside_the_real_recording() {
         .map(|f| facespace::video::read_frame(f).unwrap())
         .collect();
     assert_eq!(synthesised.len(), recorded.len());
+    // The demo's blend is `say`'s pipeline (issue 68): the same recording and words drawn by
+    // the talker over the same take give the demo's smoothed frames, pixel for pixel.
+    let talker = facespace::talker::Talker::load(&common::root().join("models/grid")).unwrap();
+    let words = std::fs::read_to_string(clip.with_extension("txt")).unwrap();
+    let request = facespace::talker::SayRequest {
+        canvas: facespace::talker::Canvas::Video { path: clip.clone(), pose: PoseMode::Replay },
+        renderer: facespace::render::RendererChoice::Cpu,
+        ..facespace::talker::SayRequest::new(facespace::talker::Speech::Recording {
+            audio: clip.clone(),
+            words: words.trim().to_owned(),
+        })
+    };
+    let said = tmp.path().join("said");
+    let (report, _) = talker.say_parts(&request, &said, facespace::no_progress).unwrap();
+    assert!(report.renderer.contains("recorded"), "{}", report.renderer);
+    let frames = facespace::video::frame_files(&said.join("frames")).unwrap();
+    assert_eq!(frames.len(), synthesised.len());
+    for (t, (f, s)) in frames.iter().zip(&synthesised).enumerate() {
+        assert!(facespace::video::read_frame(f).unwrap() == *s, "frame {t} differs from say's");
+    }
     // Over the face: each half is nearer its own source than the other half is (both
     // halves went through one more encoding, which alone costs 2–3 grey levels).
     let face = |i: &image::RgbImage| image::imageops::crop_imm(i, 110, 100, 140, 150).to_image();

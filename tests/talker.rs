@@ -170,13 +170,14 @@ fn say_draws_only_the_mouth_over_real_footage() {
     let step = median_step(f, &footage);
     for name in ["bbbs7a", "bbwtzp"] {
         let (p, images) = performed(name);
-        assert_eq!(images.len(), p.plan.frames.len());
+        let plan = p.plan.as_ref().expect("footage is planned");
+        assert_eq!(images.len(), plan.frames.len());
         assert_eq!(images[0].dimensions(), f.size, "the talker's own framing");
         for (t, image) in images.iter().enumerate() {
-            if !p.plan.is_pure(t) {
+            if !plan.is_pure(t) {
                 continue;
             }
-            let g = p.plan.frames[t];
+            let g = plan.frames[t];
             let points = &f.landmarks[g].points;
             let eyes: Vec<_> = points[17..27].iter().chain(&points[36..48]).collect();
             let (x0, x1) = eyes.iter().fold((f64::MAX, f64::MIN), |(a, b), q| (a.min(q[0]), b.max(q[0])));
@@ -203,7 +204,7 @@ fn say_draws_only_the_mouth_over_real_footage() {
                 panic!("{name} frame {t}: {differing} eye-region pixels not footage frame {g}'s (worst {worst:?}; box x {x0:.0}–{x1:.0}, y {y0:.0}–{y1:.0})");
             }
         }
-        for &j in &p.plan.joins {
+        for &j in &plan.joins {
             for t in j..(j + DISSOLVE_FRAMES + 1).min(images.len()) {
                 let d = difference(&images[t - 1], &images[t]);
                 assert!(

@@ -21,7 +21,7 @@ mod weights;
 
 use std::path::PathBuf;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use facespace::codec::{EncodeOptions, TrackingSummary};
 use facespace::fit::{DEFAULT_REINIT_ERROR, FitOptions};
@@ -399,22 +399,39 @@ impl Refusals {
     }
 }
 
-/// The parts and settings a `--talker` lends (read from its manifest only: the parts are
-/// loaded below as if named by their flags).
-pub struct Lent {
-    pub model: PathBuf,
-    pub codebook: PathBuf,
-    pub settings: facespace::talker::Settings,
-    pub voice: Option<String>,
-}
-
-pub fn lent(talker: &std::path::Path) -> Result<Lent> {
-    let m = facespace::talker::read_manifest(talker)?;
-    let part = |name: &str| facespace::manifest::member(talker, name);
-    Ok(Lent {
-        model: part(&m.model)?,
-        codebook: part(&m.codebook)?,
-        settings: m.settings,
-        voice: m.voice.map(|v| v.festival),
-    })
+/// The speech a command line asks for (`say` and `synth --talker` read it the same way):
+/// phone labels (with a recording under them, or silent), a recording with its words (given,
+/// or in a transcript file), a recording alone, or text; `None` when none is given.
+pub fn speech_of(
+    labels: Option<&std::path::Path>,
+    tier: Option<&str>,
+    phone_map: Option<&std::path::Path>,
+    audio: Option<&std::path::Path>,
+    text: Option<&str>,
+    transcript: Option<&std::path::Path>,
+) -> Result<Option<facespace::talker::Speech>> {
+    use facespace::talker::Speech;
+    Ok(Some(match (labels, audio, text, transcript) {
+        (Some(labels), audio, ..) => Speech::Labels {
+            labels: labels.into(),
+            tier: tier.map(str::to_owned),
+            map: match phone_map {
+                Some(p) => facespace::phonemes::PhoneMap::read(p)?,
+                None => facespace::phonemes::PhoneMap::default(),
+            },
+            audio: audio.map(Into::into),
+        },
+        (None, Some(audio), Some(words), _) => Speech::Recording {
+            audio: audio.into(),
+            words: words.to_owned(),
+        },
+        (None, Some(audio), None, Some(t)) => Speech::Recording {
+            audio: audio.into(),
+            words: facespace::safe_read::read_regular_string(t)
+                .with_context(|| format!("reading the transcript {}", t.display()))?,
+        },
+        (None, Some(audio), None, None) => Speech::Sound(audio.into()),
+        (None, None, Some(text), _) => Speech::Text(text.to_owned()),
+        (None, None, None, _) => return Ok(None),
+    }))
 }

@@ -4,8 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use facespace::phonemes::PhoneMap;
-use facespace::talker::{SayRequest, Speech, Talker};
+use facespace::talker::{SayRequest, Talker};
 
 use super::{RendererArg, progress_bar};
 
@@ -79,29 +78,15 @@ pub fn run(a: SayArgs) -> Result<()> {
     if let Some(parts) = &a.parts {
         super::check_output(parts, &inputs)?;
     }
-    let speech = match (&a.labels, &a.audio, &a.text, &a.transcript) {
-        (Some(labels), audio, ..) => Speech::Labels {
-            labels: labels.clone(),
-            tier: a.tier.clone(),
-            map: match &a.phone_map {
-                Some(p) => PhoneMap::read(p)?,
-                None => PhoneMap::default(),
-            },
-            audio: audio.clone(),
-        },
-        (None, Some(audio), Some(words), _) => Speech::Recording {
-            audio: audio.clone(),
-            words: words.clone(),
-        },
-        (None, Some(audio), None, Some(t)) => Speech::Recording {
-            audio: audio.clone(),
-            words: facespace::safe_read::read_regular_string(t)
-                .with_context(|| format!("reading the transcript {}", t.display()))?,
-        },
-        (None, Some(audio), None, None) => Speech::Sound(audio.clone()),
-        (None, None, Some(text), _) => Speech::Text(text.clone()),
-        (None, None, None, _) => anyhow::bail!("say what? give text, --audio with its words, or --labels"),
-    };
+    let speech = super::speech_of(
+        a.labels.as_deref(),
+        a.tier.as_deref(),
+        a.phone_map.as_deref(),
+        a.audio.as_deref(),
+        a.text.as_deref(),
+        a.transcript.as_deref(),
+    )?
+    .context("say what? give text, --audio with its words, or --labels")?;
     let clock = std::time::Instant::now();
     let talker = Talker::load(&a.talker)
         .with_context(|| format!("loading the talker {}", super::shown(&a.talker)))?;

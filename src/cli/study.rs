@@ -129,20 +129,23 @@ const DEFAULT_CONDITIONS: [&str; 8] = [
 ];
 
 fn create(a: CreateArgs) -> Result<()> {
-    let lent = a.talker.as_deref().map(super::lent).transpose()?;
+    // A talker lends its model, codebook and settings (its manifest checked as a talker's).
+    let manifest = a.talker.as_deref().map(facespace::talker::read_manifest).transpose()?;
+    let part = |name: &str| facespace::manifest::member(a.talker.as_deref().expect("a talker"), name);
+    let lent = |name: Option<&String>| name.map(|n| part(n)).transpose();
     let model_path = a
         .model
         .clone()
-        .or(lent.as_ref().map(|l| l.model.clone()))
+        .or(lent(manifest.as_ref().map(|m| &m.model))?)
         .unwrap_or_else(|| super::committed_path(super::DEMO_MODEL_SHOWN).expect("infallible"));
     let codebook = a
         .codebook
         .clone()
-        .or(lent.as_ref().map(|l| l.codebook.clone()))
+        .or(lent(manifest.as_ref().map(|m| &m.codebook))?)
         .context("give --codebook (or --talker)")?;
     let smoothing = a
         .smoothing
-        .or(lent.as_ref().map(|l| l.settings.smoothing))
+        .or(manifest.as_ref().map(|m| m.settings.smoothing))
         .unwrap_or(DEFAULT_SMOOTHING);
     let mut inputs = vec![model_path.as_path(), codebook.as_path(), a.heldout.as_path()];
     inputs.extend(a.talker.as_deref());
@@ -155,8 +158,8 @@ fn create(a: CreateArgs) -> Result<()> {
     let mut names = a.conditions.clone().unwrap_or_else(|| {
         DEFAULT_CONDITIONS.iter().map(|c| c.to_string()).collect()
     });
-    if let (None, Some(l)) = (&a.conditions, &lent) {
-        let own = format!("blend-n{}", l.settings.top_n);
+    if let (None, Some(m)) = (&a.conditions, &manifest) {
+        let own = format!("blend-n{}", m.settings.top_n);
         if !names.contains(&own) {
             names.push(own);
         }

@@ -15,6 +15,7 @@ use facespace::synth::graph::Graph;
 use facespace::synth::output::{self, OutputOptions};
 use facespace::synth::unit::{UnitSelection, WeightsFile};
 use facespace::synth::{self, DEFAULT_SMOOTHING, Pose, Request, Smoothing, synthesise};
+use facespace::talker::{Canvas, Method, Real, SayRequest, Speech, Talker};
 use facespace::{align, audio, corpus, video};
 
 /// Whether a background path is a single image (else a video or frame folder).
@@ -63,11 +64,16 @@ pub struct SynthArgs {
     /// model, models/demo/model).
     #[arg(long)]
     model: Option<PathBuf>,
-    /// A talker folder (`talker build`): its model, codebook and settings (N, C, λ, appearance gain) and its
-    /// voice for --say are the defaults; the flags override them. Without it and without
-    /// --codebook, the default talker (`models/grid`, as `say`).
-    #[arg(long)]
+    /// A talker folder (`talker build`), drawn as `say` draws it (its recorded mouths, voice,
+    /// ear and word check; over its idle footage unless --background is given), its settings
+    /// (N, C, λ) overridden by the flags. Without it and without --codebook, the default
+    /// talker (`models/grid`, as `say`).
+    #[arg(long, conflicts_with_all = ["model", "codebook", "track_model"])]
     talker: Option<PathBuf>,
+    /// With a talker: draw the appearance model's mouth even where it keeps recorded mouths
+    /// (the A/B baseline).
+    #[arg(long)]
+    model_mouth: bool,
     /// The codebook to synthesise from (`codebook build`; default: the talker's).
     #[arg(long)]
     codebook: Option<PathBuf>,
@@ -192,21 +198,141 @@ pub fn run(mut a: SynthArgs) -> Result<()> {
     if a.talker.is_none() && a.codebook.is_none() {
         a.talker = Some(super::committed_path(super::say::DEFAULT_TALKER)?);
     }
-    let lent = a.talker.as_deref().map(super::lent).transpose()?;
-    if let Some(l) = &lent {
-        a.model = a.model.take().or(Some(l.model.clone()));
-        a.codebook = a.codebook.take().or(Some(l.codebook.clone()));
+    match a.talker.clone() {
+        Some(talker) => with_talker(a, &talker),
+        None => from_codebook(a),
     }
-    let settings = lent.as_ref().map(|l| &l.settings);
-    let top_n = a
-        .top_n
-        .or(settings.map(|s| s.top_n))
-        .unwrap_or(facespace::synth::blend::DEFAULT_TOP_N);
-    let context = a.context.or(settings.map(|s| s.context)).unwrap_or(1);
-    let lambda = a
-        .smoothing
-        .or(settings.map(|s| s.smoothing))
-        .unwrap_or(DEFAULT_SMOOTHING);
+}
+
+/// `synth --talker T`: the talker's own pipeline ([`Talker::say_parts`], as `say` draws —
+/// recorded mouths, appearance gain, ear, word check), varied by the flags.
+fn with_talker(a: SynthArgs, dir: &std::path::Path) -> Result<()> {
+    for (given, flag) in [(&a.model, "--model"), (&a.codebook, "--codebook"), (&a.track_model, "--track-model")] {
+        if given.is_some() {
+            anyhow::bail!(
+                "{flag} with --talker: a talker draws with its own model and codebook; give --codebook (and --model) without --talker to synthesise from another codebook"
+            );
+        }
+    }
+    let talker = Talker::load(dir).with_context(|| format!("loading the talker {}", super::shown(dir)))?;
+    let settings = &talker.manifest.settings;
+    let speech = match (&a.say, &a.text, &a.audio) {
+        (Some(text), ..) => Speech::Text(text.clone()),
+        // Words without a recording: durations from the codebook, silent.
+        (None, Some(text), None) if a.labels.is_none() => Speech::Phones {
+            phones: phonemes::text_to_segments(text, &talker.codebook.mean_durations())?,
+            audio: None,
+        },
+        _ => super::speech_of(
+            a.labels.as_deref(),
+            a.tier.as_deref(),
+            a.phone_map.as_deref(),
+            a.audio.as_deref(),
+            a.text.as_deref(),
+            a.transcript.as_deref(),
+        )?
+        .context("give --labels, --text, --transcript, --audio or --say")?,
+    };
+    let blend = Blend {
+        context: a.context.unwrap_or(settings.context),
+        top_n: a.top_n.unwrap_or(settings.top_n),
+        preserve_variance: !a.plain_average,
+        appearance_gain: settings.appearance_gain,
+    };
+    let lambda = a.smoothing.unwrap_or(settings.smoothing);
+    facespace::talker::Settings { top_n: blend.top_n, context: blend.context, smoothing: lambda, ..settings.clone() }
+        .check("--", '-')?;
+    let request = SayRequest {
+        dicts: a.dicts.clone(),
+        renderer: a.renderer.choice(),
+        seed: a.seed,
+        accept_mismatch: a.accept_mismatch,
+        model_mouth: a.model_mouth,
+        canvas: match &a.background {
+            None => Canvas::Footage,
+            Some(p) if is_image(p) => Canvas::Image(p.clone()),
+            Some(p) => Canvas::Video { path: p.clone(), pose: pose_mode(a.pose) },
+        },
+        method: Some(match a.mode {
+            Mode::Blend => Method::Blend(blend),
+            Mode::Unit => Method::Unit(match &a.weights {
+                Some(p) => WeightsFile::read(p)?.unit_selection(),
+                None => UnitSelection::default(),
+            }),
+            Mode::Graph => Method::Graph(Graph::default()),
+        }),
+        smoothing: Some(smoothing(a.smooth, lambda)),
+        fps: a.fps,
+        strict: a.strict,
+        real: a.real.clone().map_or(Real::None, Real::File),
+        beside_background: a.beside_background,
+        ..SayRequest::new(speech)
+    };
+    let clock = std::time::Instant::now();
+    let (bar, progress) = progress_bar();
+    let (said, report) = talker
+        .say_parts(&request, &a.output, progress)
+        .map_err(|e| match (&e, &a.background) {
+            (facespace::talker::TalkerError::Backdrop(_), Some(p)) => {
+                super::tracking_context("background", p, BACKGROUND_REMEDY)(e.into())
+            }
+            _ => anyhow::Error::from(e),
+        })
+        .with_context(|| format!("{} synthesising into {}", talker.manifest.name, a.output.display()))?;
+    bar.finish_and_clear();
+    for note in &said.notes {
+        println!("note: {note}");
+    }
+    println!(
+        "synthesised {} phones, {} frames at {} fps in {:.1} s ({}; pose {}; {}) → {}",
+        said.phones,
+        report.frames,
+        said.fps,
+        clock.elapsed().as_secs_f64(),
+        report.method,
+        report.pose,
+        said.renderer,
+        a.output.display()
+    );
+    list_written(&a.output);
+    Ok(())
+}
+
+fn pose_mode(pose: PoseArg) -> PoseMode {
+    match pose {
+        PoseArg::Hold => PoseMode::Hold,
+        PoseArg::Replay => PoseMode::Replay,
+    }
+}
+
+fn smoothing(smooth: Smooth, lambda: f64) -> Smoothing {
+    match smooth {
+        Smooth::On => Smoothing::On(lambda),
+        Smooth::Off => Smoothing::Off,
+        Smooth::Ab => Smoothing::Ab(lambda),
+    }
+}
+
+/// What a synthesis folder holds, for the user.
+fn list_written(dir: &std::path::Path) {
+    let mut written: Vec<String> = std::fs::read_dir(dir)
+        .map(|d| {
+            d.flatten()
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .filter(|n| !n.starts_with('.'))
+                .collect()
+        })
+        .unwrap_or_default();
+    written.sort();
+    println!("wrote to {}: {}", dir.display(), written.join(", "));
+}
+
+/// `synth --codebook CB`: a codebook with no talker (no footage, recorded mouths or ear), drawn
+/// on plain grey or over a background.
+fn from_codebook(a: SynthArgs) -> Result<()> {
+    let top_n = a.top_n.unwrap_or(facespace::synth::blend::DEFAULT_TOP_N);
+    let context = a.context.unwrap_or(1);
+    let lambda = a.smoothing.unwrap_or(DEFAULT_SMOOTHING);
     let codebook_path = a
         .codebook
         .clone()
@@ -268,8 +394,7 @@ pub fn run(mut a: SynthArgs) -> Result<()> {
             facespace::align::Aligner::load_default(&a.dicts)?
                 .phone_count(text)
                 .context("--say")?;
-            let voice = lent.as_ref().and_then(|l| l.voice.as_deref());
-            let spoken = facespace::tts::speak_as(text, &wav, voice).context("--say")?;
+            let spoken = facespace::tts::speak_as(text, &wav, None).context("--say")?;
             if let Some(note) = &spoken.note {
                 eprintln!("note: {note}");
             }
@@ -338,17 +463,13 @@ pub fn run(mut a: SynthArgs) -> Result<()> {
         Some(p) => Some(corpus::read_frames(p, model.layout(), fps)?),
         None => None,
     };
-    let smoothing = match a.smooth {
-        Smooth::On => Smoothing::On(lambda),
-        Smooth::Off => Smoothing::Off,
-        Smooth::Ab => Smoothing::Ab(lambda),
-    };
+    let smoothing = smoothing(a.smooth, lambda);
     let synthesiser: Box<dyn Synthesiser> = match a.mode {
         Mode::Blend => Box::new(Blend {
             context,
             top_n,
             preserve_variance: !a.plain_average,
-            appearance_gain: settings.map_or(1.0, |s| s.appearance_gain),
+            appearance_gain: 1.0,
         }),
         Mode::Unit => Box::new(match &a.weights {
             Some(p) => WeightsFile::read(p)?.unit_selection(),
@@ -378,15 +499,11 @@ pub fn run(mut a: SynthArgs) -> Result<()> {
             })?)
         }
         Some(p) => {
-            let mode = match a.pose {
-                PoseArg::Hold => PoseMode::Hold,
-                PoseArg::Replay => PoseMode::Replay,
-            };
             let (bar, progress) = progress_bar();
             let b = Backdrop::video(
                 tracker,
                 p,
-                mode,
+                pose_mode(a.pose),
                 frames,
                 &EncodeOptions::default(),
                 progress,
@@ -397,12 +514,12 @@ pub fn run(mut a: SynthArgs) -> Result<()> {
         }
         None => None,
     };
-    let request = Request {
-        pose: backdrop.as_ref().map_or(Pose::Codebook, |b| b.pose.clone()),
-        ..Request::new(target, fps, smoothing)
-    };
+    let request = Request::new(target, fps, smoothing);
     let clock = std::time::Instant::now();
-    let mut utterance = synthesise(synthesiser.as_ref(), &cb, request)?;
+    let utterance = match &backdrop {
+        Some(b) => b.synthesise(synthesiser.as_ref(), &cb, &model, request)?,
+        None => synthesise(synthesiser.as_ref(), &cb, Request { pose: Pose::Codebook, ..request })?,
+    };
     let borrowed: Vec<String> = utterance
         .synthesis
         .phones
@@ -421,10 +538,6 @@ pub fn run(mut a: SynthArgs) -> Result<()> {
             codebook_path.display(),
             borrowed.join(", ")
         );
-    }
-    if let Some(b) = &backdrop {
-        b.anchor_region(&model, &mut utterance)?;
-        b.match_lighting(&model, &cb, &mut utterance);
     }
     let synth_ms = clock.elapsed().as_secs_f64() * 1e3;
     // Over a real face only the lips and jaw are drawn: the eyes stay the frame's own.
@@ -477,15 +590,6 @@ pub fn run(mut a: SynthArgs) -> Result<()> {
     for w in &report.warnings {
         println!("  warning: {w}");
     }
-    let mut written: Vec<String> = std::fs::read_dir(&a.output)
-        .map(|d| {
-            d.flatten()
-                .map(|e| e.file_name().to_string_lossy().into_owned())
-                .filter(|n| !n.starts_with('.'))
-                .collect()
-        })
-        .unwrap_or_default();
-    written.sort();
-    println!("wrote to {}: {}", a.output.display(), written.join(", "));
+    list_written(&a.output);
     Ok(())
 }

@@ -1,5 +1,8 @@
 //! The mouth drawn from recorded frames (issue 38): the CPU renderer with each frame's
-//! recorded detail, chosen for the whole sequence before it is drawn.
+//! recorded detail, chosen for a whole sequence before any of its frames is drawn (each
+//! sequence its own: the smoothed and unsmoothed variants of an A/B pick apart).
+
+use std::sync::{Arc, Mutex};
 
 use image::RgbImage;
 
@@ -12,14 +15,26 @@ use crate::render::{CpuRenderer, Edge, RenderError, Renderer};
 pub struct SampledRenderer<'m> {
     cpu: CpuRenderer<'m>,
     mouths: &'m Mouths,
-    picks: Vec<Pick>,
+    switch_cost: f32,
+    /// The picks of each sequence seen, by [`sequence_key`]; the first is the one given.
+    picks: Mutex<Vec<(SequenceKey, Arc<Vec<Pick>>)>>,
+}
+
+/// A sequence's identity: its length and a hash of its values (cheap beside drawing it).
+type SequenceKey = (usize, u64);
+
+fn sequence_key(frames: &Frames) -> SequenceKey {
+    use std::hash::{Hash, Hasher};
+    let mut hash = std::collections::hash_map::DefaultHasher::new();
+    frames.values().iter().for_each(|v| v.to_bits().hash(&mut hash));
+    (frames.len(), hash.finish())
 }
 
 impl<'m> SampledRenderer<'m> {
     /// A renderer of `frames` (the sequence [`Renderer::render_batch`] will be given) in
     /// `model`'s faces, meeting the canvas as `edge` says, with `mouths`' detail.
     pub fn new(model: &'m FaceModel, edge: Edge, mouths: &'m Mouths, frames: &Frames) -> Self {
-        Self::with_chooser(model, edge, mouths, frames, Chooser::new(mouths, model))
+        Self::with_switch_cost(model, edge, mouths, frames, super::SWITCH_COST)
     }
 
     /// [`SampledRenderer::new`] whose chooser leaves a run at `switch_cost` pixels.
@@ -30,28 +45,33 @@ impl<'m> SampledRenderer<'m> {
         frames: &Frames,
         switch_cost: f32,
     ) -> Self {
-        let chooser = Chooser::with_switch_cost(mouths, model, switch_cost);
-        Self::with_chooser(model, edge, mouths, frames, chooser)
-    }
-
-    fn with_chooser(
-        model: &'m FaceModel,
-        edge: Edge,
-        mouths: &'m Mouths,
-        frames: &Frames,
-        mut chooser: Chooser<'m>,
-    ) -> Self {
-        let picks = frames.iter().map(|p| chooser.next(p)).collect();
-        SampledRenderer {
+        let renderer = SampledRenderer {
             cpu: CpuRenderer::with_edge(model, edge),
             mouths,
-            picks,
-        }
+            switch_cost,
+            picks: Mutex::new(Vec::new()),
+        };
+        renderer.picks_of(frames);
+        renderer
     }
 
-    /// The detail chosen for each frame.
-    pub fn picks(&self) -> &[Pick] {
-        &self.picks
+    /// The detail chosen for each frame of `frames`, chosen now if this sequence is new.
+    fn picks_of(&self, frames: &Frames) -> Arc<Vec<Pick>> {
+        let key = sequence_key(frames);
+        let mut seen = self.picks.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((_, picks)) = seen.iter().find(|(k, _)| *k == key) {
+            return picks.clone();
+        }
+        let mut chooser = Chooser::with_switch_cost(self.mouths, self.cpu.model(), self.switch_cost);
+        let picks: Arc<Vec<Pick>> = Arc::new(frames.iter().map(|p| chooser.next(p)).collect());
+        seen.push((key, picks.clone()));
+        picks
+    }
+
+    /// The detail chosen for each frame of the sequence the renderer was made for.
+    pub fn picks(&self) -> Vec<Pick> {
+        let seen = self.picks.lock().unwrap_or_else(|e| e.into_inner());
+        seen.first().map(|(_, p)| p.to_vec()).unwrap_or_default()
     }
 }
 
@@ -72,10 +92,27 @@ impl Renderer for SampledRenderer<'_> {
         t: usize,
         canvas: &mut RgbImage,
     ) -> Result<(), RenderError> {
-        match self.picks.get(t) {
+        match self.picks_of(frames).get(t) {
             Some(pick) => self.cpu.render_with(frames.params(t), self.mouths.drawing(pick), canvas),
             None => self.cpu.render_into(frames.params(t), canvas),
         }
+    }
+
+    fn render_batch(
+        &self,
+        frames: &Frames,
+        start: usize,
+        canvases: &mut [RgbImage],
+    ) -> Result<(), RenderError> {
+        use rayon::prelude::*;
+        let picks = self.picks_of(frames);
+        canvases.par_iter_mut().enumerate().try_for_each(|(k, canvas)| {
+            let t = start + k;
+            match picks.get(t) {
+                Some(pick) => self.cpu.render_with(frames.params(t), self.mouths.drawing(pick), canvas),
+                None => self.cpu.render_into(frames.params(t), canvas),
+            }
+        })
     }
 
     fn describe(&self) -> String {

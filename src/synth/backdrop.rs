@@ -37,6 +37,12 @@ pub enum BackdropError {
     /// The background video could not be read.
     #[error(transparent)]
     Video(#[from] VideoError),
+    /// The synthesis failed.
+    #[error(transparent)]
+    Synth(#[from] super::SynthError),
+    /// The synthesis could not be fitted to the background's face.
+    #[error("fitting the synthesis to the background's face: {0}")]
+    Anchor(#[from] crate::model::ModelError),
 }
 
 /// Where the pose comes from when the background is a video.
@@ -125,6 +131,38 @@ impl Backdrop {
             plan: Some(plan.clone()),
             frames: Frames::Footage(footage.shown(plan)),
         })
+    }
+
+    /// `request` synthesised by `synthesiser` from `codebook` at this background's poses and
+    /// fitted to it ([`Backdrop::fit`]): what every utterance drawn over a real frame goes
+    /// through (`say`, which may first draw the lips from the sound, `synth`, the demo).
+    pub fn synthesise(
+        &self,
+        synthesiser: &dyn super::Synthesiser,
+        codebook: &crate::codebook::Codebook,
+        model: &FaceModel,
+        request: super::Request,
+    ) -> Result<super::Utterance, BackdropError> {
+        let request = super::Request {
+            pose: self.pose.clone(),
+            ..request
+        };
+        let mut utterance = super::synthesise(synthesiser, codebook, request)?;
+        self.fit(model, codebook, &mut utterance)?;
+        Ok(utterance)
+    }
+
+    /// Fits a synthesis to this background: everything but the lips and chin anchored to its
+    /// face ([`Backdrop::anchor_region`]), re-lit to its take ([`Backdrop::match_lighting`]).
+    pub fn fit(
+        &self,
+        model: &FaceModel,
+        codebook: &crate::codebook::Codebook,
+        utterance: &mut super::Utterance,
+    ) -> Result<(), BackdropError> {
+        self.anchor_region(model, utterance)?;
+        self.match_lighting(model, codebook, utterance);
+        Ok(())
     }
 
     /// For a model that knows its articulators ([`FaceModel::articulators`]: a region model,

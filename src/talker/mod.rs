@@ -8,9 +8,9 @@
 //!   drawn over, only the lips and jaw replaced.
 //!
 //! [`Talker::say`] is the pipeline from speech (text, a recording with its words, phone labels
-//! or phones) to a video with sound: `say` and the Python package call it, and the demo for its
-//! `say.mp4`; `synth --talker`, the demo's other videos and `study create` still assemble their
-//! own (issue 68). The manifest and its check are in `manifest`, hearing speech in `hearing`,
+//! or phones) to a video with sound, and [`Talker::say_parts`] the same into a folder of parts:
+//! `say`, `synth --talker`, the GRID demo and the Python package call them, varying only what
+//! a [`SayRequest`] says (the canvas, the method, the smoothing, the model's mouth for A/B). The manifest and its check are in `manifest`, hearing speech in `hearing`,
 //! the request and the pipeline in `perform`.
 
 pub mod build;
@@ -22,7 +22,7 @@ pub use manifest::{
     MANIFEST, MAX_APPEARANCE_GAIN, MAX_TOP_N, Mode, Provenance, Settings, TALKER_VERSION,
     TalkerManifest, Voice, read_manifest,
 };
-pub use perform::{Performance, SayReport, SayRequest, Speech};
+pub use perform::{Canvas, Method, Performance, Real, SayReport, SayRequest, Speech};
 
 use std::path::{Path, PathBuf};
 
@@ -108,6 +108,19 @@ pub enum TalkerError {
     /// Text-to-speech failed (no engine: the install line).
     #[error(transparent)]
     Tts(#[from] crate::tts::TtsError),
+    /// A strict request for phones the codebook lacks ([`SayRequest::strict`]).
+    #[error(
+        "strict: the codebook of talker {dir} has no example of {phones}; build it from sentences that have them, or let it borrow the nearest phones"
+    )]
+    Borrowed {
+        /// The talker folder.
+        dir: PathBuf,
+        /// The phones, where they fall and what would stand in.
+        phones: String,
+    },
+    /// The real trajectory to plot could not be read.
+    #[error("the real trajectory: {0}")]
+    Real(Box<crate::corpus::CorpusError>),
     /// The speech could not be aligned with its words.
     #[error("aligning {path}: {source}")]
     Align {

@@ -5,14 +5,18 @@ use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
-use crate::footage::Plan;
 use super::{Talker, TalkerError};
-use crate::phonemes::{PhoneMap, Segment};
+use crate::codec::EncodeOptions;
+use crate::footage::Plan;
 use crate::mouths::SampledRenderer;
+use crate::phonemes::{PhoneMap, Segment};
 use crate::render::{DEFAULT_FEATHER, Edge, RendererChoice};
-use crate::synth::backdrop::Backdrop;
-use crate::synth::output::OutputOptions;
-use crate::synth::{Request, Smoothing, SynthError, Utterance};
+use crate::synth::backdrop::{Backdrop, PoseMode};
+use crate::synth::blend::Blend;
+use crate::synth::graph::Graph;
+use crate::synth::output::{OutputOptions, Report};
+use crate::synth::unit::UnitSelection;
+use crate::synth::{Request, Smoothing, SynthError, Synthesiser, Utterance};
 use crate::video::Sink;
 use crate::{Progress, atomic};
 
@@ -53,6 +57,67 @@ pub enum Speech {
     },
 }
 
+/// What the face is drawn over.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub enum Canvas {
+    /// The talker's idle footage: a living frame as long as the speech.
+    #[default]
+    Footage,
+    /// A video of the talker (a sentence's own take, say), tracked with the talker's model:
+    /// its poses replayed frame by frame (a video shorter than the speech extended by joining
+    /// its stretches where they match), or its first frame's held; its frame rate is the
+    /// output's.
+    Video {
+        /// The video.
+        path: PathBuf,
+        /// Where the pose comes from.
+        pose: PoseMode,
+    },
+    /// An image of the talker, its pose held.
+    Image(PathBuf),
+}
+
+/// How an utterance is synthesised when not by the talker's own settings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Method {
+    /// Top-N context blending with these settings.
+    Blend(Blend),
+    /// Frame-level unit selection.
+    Unit(UnitSelection),
+    /// The dynamic-phoneme graph.
+    Graph(Graph),
+}
+
+impl Method {
+    fn synthesiser(self) -> Box<dyn Synthesiser> {
+        match self {
+            Method::Blend(b) => Box::new(b),
+            Method::Unit(u) => Box::new(u),
+            Method::Graph(g) => Box::new(g),
+        }
+    }
+}
+
+/// A real trajectory to plot against the synthesis in the parts folder.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub enum Real {
+    /// None.
+    #[default]
+    None,
+    /// A trajectory file (`.npy`, as `track` and `encode` write).
+    File(PathBuf),
+    /// The canvas video's own face, as tracked (a sentence drawn over its own take).
+    Canvas,
+}
+
+/// How a parts folder is written: staged and swapped in whole, or straight into a folder
+/// the caller stages.
+#[derive(Clone, Copy)]
+enum Staged {
+    Swapped,
+    ByCaller,
+}
+
 /// What to say and how.
 #[derive(Clone, Debug)]
 pub struct SayRequest {
@@ -74,6 +139,21 @@ pub struct SayRequest {
     /// Draw the appearance model's mouth even when the talker keeps recorded mouths (the A/B
     /// baseline of [`crate::mouths`]).
     pub model_mouth: bool,
+    /// What the face is drawn over.
+    pub canvas: Canvas,
+    /// How to synthesise (default: the talker's settings).
+    pub method: Option<Method>,
+    /// Smoothing (default: on, with the talker's λ); [`Smoothing::Ab`] writes both variants
+    /// and a blind side-by-side into the parts.
+    pub smoothing: Option<Smoothing>,
+    /// Output frame rate (default: the canvas video's, else the footage's).
+    pub fps: Option<f64>,
+    /// Refuse a phone the codebook lacks instead of borrowing the nearest one present.
+    pub strict: bool,
+    /// The parts: a real trajectory plotted against the synthesis.
+    pub real: Real,
+    /// The parts: also `beside_background.mp4`, the canvas as it is beside the synthesis.
+    pub beside_background: bool,
 }
 
 impl SayRequest {
@@ -88,6 +168,13 @@ impl SayRequest {
             Speech::Phones { audio, .. } => audio.iter().map(PathBuf::as_path).collect(),
         };
         inputs.extend(self.dicts.iter().map(PathBuf::as_path));
+        match &self.canvas {
+            Canvas::Footage => {}
+            Canvas::Video { path, .. } | Canvas::Image(path) => inputs.push(path),
+        }
+        if let Real::File(path) = &self.real {
+            inputs.push(path);
+        }
         inputs
     }
 
@@ -102,6 +189,13 @@ impl SayRequest {
             parts: None,
             accept_mismatch: false,
             model_mouth: false,
+            canvas: Canvas::Footage,
+            method: None,
+            smoothing: None,
+            fps: None,
+            strict: false,
+            real: Real::None,
+            beside_background: false,
         }
     }
 }
@@ -112,12 +206,15 @@ pub struct Performance {
     pub target: Vec<Segment>,
     /// The words, when there were words.
     pub words: Option<String>,
-    /// The synthesis, anchored to the footage's face and re-lit to it.
+    /// The synthesis, anchored to the canvas's face and re-lit to it.
     pub utterance: Utterance,
-    /// Which footage frames are shown.
-    pub plan: Plan,
-    /// The living frame.
+    /// Which footage frames are shown (none for a still, or a video at least as long as the
+    /// speech).
+    pub plan: Option<Plan>,
+    /// What the face is drawn over, with its poses.
     pub backdrop: Backdrop,
+    /// The frame size.
+    pub size: (u32, u32),
     /// The speech under the video, if any.
     pub sound: Option<PathBuf>,
     /// Notes for the user (a voice that was missing, phones borrowed).
@@ -143,6 +240,8 @@ pub struct SayReport {
     pub phones: usize,
     /// The synthesiser.
     pub method: String,
+    /// Where the pose came from.
+    pub pose: String,
     /// Output frames where the living frame joins two stretches, and what each join costs
     /// against the footage's median step.
     pub joins: Vec<usize>,
@@ -157,10 +256,10 @@ pub struct SayReport {
 }
 
 impl Talker {
-    /// Everything up to the pixels: phones from the speech, the synthesis by the talker's
-    /// settings, the living frame as long as the speech, the synthesis anchored to the
-    /// footage's face (only lips and chin its own) and re-lit to it. Speech from text is made
-    /// in `staging`.
+    /// Everything up to the pixels: phones from the speech, the synthesis (by the talker's
+    /// settings unless the request says otherwise), the canvas (by default a living frame of
+    /// the footage as long as the speech), the synthesis anchored to the canvas's face (only
+    /// lips and chin its own) and re-lit to it. Speech from text is made in `staging`.
     pub fn perform(
         &self,
         request: &SayRequest,
@@ -168,21 +267,56 @@ impl Talker {
     ) -> Result<Performance, TalkerError> {
         let mut notes = Vec::new();
         let (target, words, sound, heard) = self.phones(request, staging, &mut notes)?;
-        let fps = self.footage.fps;
+        let fps = match (request.fps, &request.canvas) {
+            (Some(fps), _) => fps,
+            (None, Canvas::Video { path, .. }) => crate::video::Source::open(path)?.info().fps,
+            _ => self.footage.fps,
+        };
         crate::synth::validate_request(&target, fps)?;
         let n = crate::synth::frame_count(&target, fps);
         if let Some(sound) = &sound {
             crate::synth::output::check_sound(sound, n as f64 / fps)?;
         }
-        let plan = self.footage.best_plan(n, request.seed);
-        let backdrop = Backdrop::footage(&self.footage, &plan).map_err(SynthError::from)?;
+        let backdrop = match &request.canvas {
+            Canvas::Footage => {
+                let plan = self.footage.best_plan(n, request.seed);
+                Backdrop::footage(&self.footage, &plan).map_err(SynthError::from)?
+            }
+            Canvas::Video { path, pose } => Backdrop::video(
+                &self.model,
+                path,
+                *pose,
+                n,
+                &EncodeOptions::default(),
+                crate::no_progress,
+            )?,
+            Canvas::Image(path) => Backdrop::still(&self.model, path)?,
+        };
+        let size = match &request.canvas {
+            Canvas::Footage => self.footage.size,
+            _ => backdrop.background()?.size(),
+        };
         let settings = &self.manifest.settings;
-        let synthesiser = settings.synthesiser();
+        let synthesiser = match request.method {
+            Some(method) => method.synthesiser(),
+            None => settings.synthesiser(),
+        };
+        let smoothing = request.smoothing.unwrap_or(Smoothing::On(settings.smoothing));
         let req = Request {
             pose: backdrop.pose.clone(),
-            ..Request::new(target.clone(), fps, Smoothing::On(settings.smoothing))
+            ..Request::new(target.clone(), fps, smoothing)
         };
         let mut utterance = crate::synth::synthesise(synthesiser.as_ref(), &self.codebook, req)?;
+        let borrowed: Vec<String> = (utterance.synthesis.phones.iter())
+            .filter(|p| p.used != p.phone)
+            .map(|p| format!("/{}/ at {:.2} s (nearest present: /{}/)", p.phone, p.start, p.used))
+            .collect();
+        if request.strict && !borrowed.is_empty() {
+            return Err(TalkerError::Borrowed {
+                dir: self.dir.clone(),
+                phones: borrowed.join(", "),
+            });
+        }
         // Without words the talker's map, when it has one, draws the lips from the sound (it
         // is loaded only then: `say` from text or labels never reads it).
         if let Speech::Sound(audio) = &request.speech {
@@ -198,34 +332,68 @@ impl Talker {
                 self.heard_by()?
             ));
         }
-        backdrop
-            .anchor_region(&self.model, &mut utterance)
-            .map_err(|source| TalkerError::Model {
-                dir: self.dir.clone(),
-                source: Box::new(source),
-            })?;
-        backdrop.match_lighting(&self.model, &self.codebook, &mut utterance);
+        backdrop.fit(&self.model, &self.codebook, &mut utterance)?;
         notes.extend(utterance.synthesis.warnings.iter().cloned());
         Ok(Performance {
             target,
             words,
             utterance,
-            plan,
+            plan: backdrop.plan.clone(),
             backdrop,
+            size,
             sound,
             notes,
         })
     }
 
-    /// Says `request` into the MP4 `out` (with its sound, in the footage's framing), written
+    /// Says `request` into the MP4 `out` (with its sound, in the canvas's framing), written
     /// atomically; with [`SayRequest::parts`] also the folder of parts. The one pipeline
-    /// behind `say`.
+    /// behind `say`, `synth --talker`, the demo and the Python package.
     pub fn say(
         &self,
         request: &SayRequest,
         out: &Path,
-        mut progress: impl FnMut(Progress),
+        progress: impl FnMut(Progress),
     ) -> Result<SayReport, TalkerError> {
+        crate::video::check_destination(out)?;
+        let parts = request.parts.as_deref().map(|p| (p, Staged::Swapped));
+        self.draw(request, Some(out), parts, progress).map(|(report, _)| report)
+    }
+
+    /// Says `request` into the folder of parts `folder` only (the synthesis as video and
+    /// frames, both variants and a blind side-by-side under [`Smoothing::Ab`], the
+    /// trajectory, plot and report: what `synth` writes); the report's `video` is the folder.
+    pub fn say_parts(
+        &self,
+        request: &SayRequest,
+        folder: &Path,
+        progress: impl FnMut(Progress),
+    ) -> Result<(SayReport, Report), TalkerError> {
+        let (report, parts) = self.draw(request, None, Some((folder, Staged::Swapped)), progress)?;
+        Ok((report, parts.expect("parts were asked for")))
+    }
+
+    /// [`Talker::say_parts`] written straight into `folder`, which the caller stages (the
+    /// demo, which swaps in its whole output when everything is written).
+    pub fn say_parts_into(
+        &self,
+        request: &SayRequest,
+        folder: &Path,
+        progress: impl FnMut(Progress),
+    ) -> Result<(SayReport, Report), TalkerError> {
+        let (report, parts) = self.draw(request, None, Some((folder, Staged::ByCaller)), progress)?;
+        Ok((report, parts.expect("parts were asked for")))
+    }
+
+    /// [`Talker::perform`], then the pixels: into the MP4 `out` and the parts folder `parts`,
+    /// each when given.
+    fn draw(
+        &self,
+        request: &SayRequest,
+        out: Option<&Path>,
+        parts: Option<(&Path, Staged)>,
+        mut progress: impl FnMut(Progress),
+    ) -> Result<(SayReport, Option<Report>), TalkerError> {
         let io = |path: &Path| {
             let path = path.to_path_buf();
             move |source| TalkerError::Io { path, source }
@@ -233,12 +401,11 @@ impl Talker {
         // Never over the request's own inputs or into the talker's folder (issue 69, R5-2/3).
         let mut inputs = request.inputs();
         inputs.push(&self.dir);
-        atomic::check_destination(out, &inputs)?;
-        crate::video::check_destination(out)?;
-        if let Some(parts) = &request.parts {
-            atomic::check_destination(parts, &inputs)?;
+        for destination in out.iter().chain(parts.as_ref().map(|(p, _)| p)) {
+            atomic::check_destination(destination, &inputs)?;
         }
-        let staging = atomic::StagingDir::new(atomic::parent_of(out)).map_err(io(out))?;
+        let first = out.or(parts.map(|(p, _)| p)).expect("somewhere to write");
+        let staging = atomic::StagingDir::new(atomic::parent_of(first)).map_err(io(first))?;
         // The recorded mouths decode (about a second) while the speech is heard and synthesised.
         let (performance, mouths) = std::thread::scope(|scope| {
             let mouths = scope.spawn(|| {
@@ -251,12 +418,8 @@ impl Talker {
         let performance = performance?;
         let edge = Edge::Articulators(DEFAULT_FEATHER);
         let mut notes = performance.notes.clone();
-        let frames = performance
-            .utterance
-            .variants()
-            .first()
-            .map(|(_, f)| (*f).clone())
-            .ok_or(SynthError::Empty)?;
+        let variants = performance.utterance.variants();
+        let frames = *variants.first().map(|(_, f)| f).ok_or(SynthError::Empty)?;
         // With recorded mouths the CPU draws, and no GPU is looked for.
         let (sampled, chosen);
         let renderer: &dyn crate::render::Renderer = match mouths? {
@@ -264,7 +427,7 @@ impl Talker {
                 if request.renderer == RendererChoice::Gpu {
                     notes.push("recorded mouths are drawn on the CPU (--model-mouth draws on the GPU)".into());
                 }
-                sampled = SampledRenderer::new(&self.model, edge, m, &frames);
+                sampled = SampledRenderer::new(&self.model, edge, m, frames);
                 &sampled
             }
             None => {
@@ -273,34 +436,53 @@ impl Talker {
                 chosen.renderer.as_ref()
             }
         };
-        let size = self.footage.size;
+        let size = performance.size;
         let sound = performance.sound.as_deref();
-        let mut sink = Sink::create(out, size.0, size.1, frames.fps(), sound)?;
-        crate::render::stream(
-            renderer,
-            &frames,
-            performance.backdrop.background()?,
-            |image| sink.write(&image).map_err(TalkerError::from),
-            &mut progress,
-        )?;
-        let written = sink.finish()?;
-        if let Some(parts) = &request.parts {
-            crate::synth::output::write_folder(
-                parts,
+        let mut written = frames.len();
+        if let Some(out) = out {
+            let mut sink = Sink::create(out, size.0, size.1, frames.fps(), sound)?;
+            crate::render::stream(
                 renderer,
-                &performance.utterance,
+                frames,
                 performance.backdrop.background()?,
-                &OutputOptions {
+                |image| sink.write(&image).map_err(TalkerError::from),
+                &mut progress,
+            )?;
+            written = sink.finish()?;
+        }
+        let parts_report = match parts {
+            Some((parts, staged)) => {
+                let real = match &request.real {
+                    Real::None => None,
+                    Real::File(path) => Some(
+                        crate::corpus::read_frames(path, self.model.layout(), frames.fps())
+                            .map_err(|e| TalkerError::Real(Box::new(e)))?,
+                    ),
+                    Real::Canvas => Some(performance.backdrop.tracked.clone()),
+                };
+                let options = OutputOptions {
                     audio: sound,
                     seed: request.seed,
                     text: performance.words.as_deref(),
-                    ..OutputOptions::default()
-                },
-                &mut progress,
-            )?;
-        }
-        Ok(SayReport {
-            video: out.into(),
+                    real: real.as_ref(),
+                    beside_background: request.beside_background,
+                };
+                let background = performance.backdrop.background()?;
+                let utterance = &performance.utterance;
+                Some(match staged {
+                    Staged::Swapped => crate::synth::output::write_folder(
+                        parts, renderer, utterance, background, &options, &mut progress,
+                    )?,
+                    Staged::ByCaller => crate::synth::output::write(
+                        parts, renderer, utterance, background, &options, &mut progress,
+                    )?,
+                })
+            }
+            None => None,
+        };
+        let plan = performance.plan.as_ref();
+        let report = SayReport {
+            video: out.unwrap_or(first).into(),
             frames: written,
             fps: frames.fps(),
             size,
@@ -308,11 +490,13 @@ impl Talker {
             words: performance.words.clone(),
             phones: performance.target.len(),
             method: performance.utterance.method.clone(),
-            joins: performance.plan.joins.clone(),
-            join_costs: performance.plan.join_costs.clone(),
-            median_step: performance.plan.median_step,
+            pose: performance.utterance.pose.clone(),
+            joins: plan.map(|p| p.joins.clone()).unwrap_or_default(),
+            join_costs: plan.map(|p| p.join_costs.clone()).unwrap_or_default(),
+            median_step: plan.map_or(0.0, |p| p.median_step),
             renderer: renderer.describe(),
             notes,
-        })
+        };
+        Ok((report, parts_report))
     }
 }
