@@ -910,7 +910,7 @@ fn synth_takes_a_talkers_settings() {
     let grid = common::root().join("models/grid");
     let talker = dir.path().join("talker");
     std::fs::create_dir(&talker).unwrap();
-    for part in ["model", "codebook", "footage"] {
+    for part in ["model", "codebook", "footage", "mouths", "sound-to-face"] {
         common::copy_tree(&grid.join(part), &talker.join(part));
     }
     let manifest = std::fs::read_to_string(grid.join("talker.json")).unwrap();

@@ -355,6 +355,10 @@ impl Talker {
         out: &Path,
         progress: impl FnMut(Progress),
     ) -> Result<SayReport, TalkerError> {
+        // Over an input is the first refusal (issue 69), then a format that is no video.
+        let mut inputs = request.inputs();
+        inputs.push(&self.dir);
+        atomic::check_destination(out, &inputs)?;
         crate::video::check_destination(out)?;
         let parts = request.parts.as_deref().map(|p| (p, Staged::Swapped));
         self.draw(request, Some(out), parts, progress).map(|(report, _)| report)
