@@ -47,7 +47,7 @@ use facespace::render::{CpuRenderer, DEFAULT_FEATHER, Edge, Renderer};
 use facespace::shape::Landmarks;
 use facespace::codec::EncodeOptions;
 use facespace::synth::backdrop::{Backdrop, PoseMode};
-use facespace::synth::{Request, Smoothing, synthesise};
+use facespace::synth::{Request, Smoothing};
 use facespace::talker::Talker;
 
 struct Drawn {
@@ -172,17 +172,22 @@ fn main() {
         .unwrap();
         // The phones synthesised with `settings` over the clip's own video.
         let over_own_with = |settings: &facespace::talker::Settings| {
-            let request = Request {
-                pose: own.pose.clone(),
-                ..Request::new(p.target.clone(), 25.0, Smoothing::On(settings.smoothing))
-            };
-            let mut utterance =
-                synthesise(settings.synthesiser().as_ref(), &talker.codebook, request).unwrap();
-            own.anchor_region(model, &mut utterance).unwrap();
-            own.match_lighting(model, &talker.codebook, &mut utterance);
-            utterance
+            let request = Request::new(p.target.clone(), 25.0, Smoothing::On(settings.smoothing));
+            own.synthesise(settings.synthesiser().as_ref(), &talker.codebook, model, request).unwrap()
         };
-        let over_own = over_own_with(settings);
+        // Over its own video as `synth --talker T --background CLIP` draws it (the talker's
+        // pipeline with the clip as its canvas).
+        let over_own = {
+            let request = facespace::talker::SayRequest {
+                accept_mismatch: true,
+                canvas: facespace::talker::Canvas::Video { path: clip.clone(), pose: PoseMode::Replay },
+                ..facespace::talker::SayRequest::new(facespace::talker::Speech::Recording {
+                    audio: clip.clone(),
+                    words: grid::words(&grid, id),
+                })
+            };
+            talker.perform(&request, staging.path()).unwrap().utterance
+        };
         let real_marks: Vec<Vec<[f64; 2]>> = own.landmarks.iter().map(|l| l.points.clone()).collect();
         let mut drawn = vec![draw(&real_images[..n], &real_marks[..n])];
         // Rows of the README's strip: the recording, then each system over its own video.
