@@ -177,3 +177,8 @@ pub struct Progress {
 
 /// A progress callback that ignores every report.
 pub fn no_progress(_: Progress) {}
+
+/// The Rust examples of docs/ compile as doctests (issue 68: every code block runs in a test).
+#[cfg(doctest)]
+#[doc = include_str!("../docs/LIVE.md")]
+struct LiveDoc;
