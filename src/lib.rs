@@ -10,7 +10,7 @@
 //! ```no_run
 //! use std::path::Path;
 //!
-//! use facespace::talker::{SayRequest, Speech, Talker};
+//! use facespace::{SayRequest, Speech, Talker};
 //!
 //! # fn main() -> Result<(), Box<dyn std::error::Error>> {
 //! let talker = Talker::load(Path::new("models/grid"))?;
@@ -38,10 +38,13 @@
 //! 3. [`corpus`]: labelled sentences (and the generated demo corpus); [`phonemes`]: phone set,
 //!    label files, text → phones; [`trajectory`]: PCHIP trajectories; [`codebook`]: the
 //!    trajectories indexed by phone, with S and M.
-//! 4. [`synth`]: synthesisers behind one trait, smoothing, and the writer of an utterance;
-//!    [`render`]: renderers behind one trait and the streaming render of a sequence;
-//!    [`eval`]: objective measures and the systems they compare; [`demo`]: the whole
-//!    pipeline on the committed demo model.
+//! 4. [`synth`]: synthesisers behind one trait, smoothing, the writer of an utterance and the
+//!    systems a held-out evaluation compares; [`render`]: renderers behind one trait and the
+//!    streaming render of a sequence; [`eval`]: objective measures; [`mouths`]: a talker's
+//!    recorded mouths; [`footage`]: its idle footage and living frame.
+//! 5. [`talker`]: a talker folder and the one pipeline, [`Talker::say`]; [`live`]: a session
+//!    on a talker as the speech arrives; [`align`], [`sound_to_face`], [`tts`]: speech in and
+//!    out. [`demo`], [`study`], [`annotate`], [`serve`] are the applications built on them.
 //!
 //! The library never prints: long work reports through a [`Progress`] callback.
 //!
@@ -121,6 +124,9 @@
 //! ```
 
 #![warn(missing_docs)]
+
+pub use live::{Screen, Session, Stage};
+pub use talker::{SayRequest, Speech, Talker};
 
 pub mod align;
 pub mod annotate;
