@@ -68,6 +68,14 @@ impl<'m> SampledRenderer<'m> {
         picks
     }
 
+    /// Frame `t` of `frames` with its pick's detail (the model's face alone past the picks).
+    fn draw(&self, picks: &[Pick], frames: &Frames, t: usize, canvas: &mut RgbImage) -> Result<(), RenderError> {
+        match picks.get(t) {
+            Some(pick) => self.cpu.render_with(frames.params(t), self.mouths.drawing(pick), canvas),
+            None => self.cpu.render_into(frames.params(t), canvas),
+        }
+    }
+
     /// The detail chosen for each frame of the sequence the renderer was made for.
     pub fn picks(&self) -> Vec<Pick> {
         let seen = self.picks.lock().unwrap_or_else(|e| e.into_inner());
@@ -92,12 +100,10 @@ impl Renderer for SampledRenderer<'_> {
         t: usize,
         canvas: &mut RgbImage,
     ) -> Result<(), RenderError> {
-        match self.picks_of(frames).get(t) {
-            Some(pick) => self.cpu.render_with(frames.params(t), self.mouths.drawing(pick), canvas),
-            None => self.cpu.render_into(frames.params(t), canvas),
-        }
+        self.draw(&self.picks_of(frames), frames, t, canvas)
     }
 
+    /// The picks looked up once for the batch, not once a frame.
     fn render_batch(
         &self,
         frames: &Frames,
@@ -106,13 +112,10 @@ impl Renderer for SampledRenderer<'_> {
     ) -> Result<(), RenderError> {
         use rayon::prelude::*;
         let picks = self.picks_of(frames);
-        canvases.par_iter_mut().enumerate().try_for_each(|(k, canvas)| {
-            let t = start + k;
-            match picks.get(t) {
-                Some(pick) => self.cpu.render_with(frames.params(t), self.mouths.drawing(pick), canvas),
-                None => self.cpu.render_into(frames.params(t), canvas),
-            }
-        })
+        canvases
+            .par_iter_mut()
+            .enumerate()
+            .try_for_each(|(k, canvas)| self.draw(&picks, frames, start + k, canvas))
     }
 
     fn describe(&self) -> String {

@@ -373,8 +373,7 @@ impl Talker {
         folder: &Path,
         progress: impl FnMut(Progress),
     ) -> Result<(SayReport, Report), TalkerError> {
-        let (report, parts) = self.draw(request, None, Some((folder, Staged::Swapped)), progress)?;
-        Ok((report, parts.expect("parts were asked for")))
+        self.parts(request, folder, Staged::Swapped, progress)
     }
 
     /// [`Talker::say_parts`] written straight into `folder`, which the caller stages (the
@@ -385,7 +384,17 @@ impl Talker {
         folder: &Path,
         progress: impl FnMut(Progress),
     ) -> Result<(SayReport, Report), TalkerError> {
-        let (report, parts) = self.draw(request, None, Some((folder, Staged::ByCaller)), progress)?;
+        self.parts(request, folder, Staged::ByCaller, progress)
+    }
+
+    fn parts(
+        &self,
+        request: &SayRequest,
+        folder: &Path,
+        staged: Staged,
+        progress: impl FnMut(Progress),
+    ) -> Result<(SayReport, Report), TalkerError> {
+        let (report, parts) = self.draw(request, None, Some((folder, staged)), progress)?;
         Ok((report, parts.expect("parts were asked for")))
     }
 
