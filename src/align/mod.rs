@@ -99,9 +99,11 @@ pub enum AlignError {
     NoPath,
     /// A transcript that does not fit its recording ([`WordFit::matches`]).
     #[error(
-        "the words do not seem to be what is said (fit {overall:+.2} nats/frame, least {least}; worst: {worst}) — fix the transcript, leave out the words to recognise the phones from the sound, or accept them anyway (--accept-mismatch)"
+        "the words do not seem to be what is said, as {judge} hears them (fit {overall:+.2} nats/frame, least {least}; worst: {worst}) — fix the transcript, leave out the words to recognise the phones from the sound, or accept them anyway (--accept-mismatch)"
     )]
     WordsDoNotMatch {
+        /// Which model judged: [`GENERAL_JUDGE`], or a talker's ear beside it.
+        judge: &'static str,
         /// The whole recording's fit ([`WordFit::overall`], or a talker's ear's).
         overall: f64,
         /// The least a matching transcript has ([`LEAST_OVERALL_FIT`], or the ear's).
@@ -200,6 +202,10 @@ pub struct Aligner {
 /// a build that runs away from its source tree (a Python wheel) carries its own copy.
 pub const MODEL_DIR_VAR: &str = "FACESPACE_ACOUSTIC_MODEL";
 
+/// Who judges given words when no talker's ear may: the general acoustic model
+/// ([`WordFit::matches`]).
+pub const GENERAL_JUDGE: &str = "the general acoustic model";
+
 /// A model folder's pronunciations that its (American) dictionary lacks, such as the letter Z
 /// said "zed": read after the dictionary, as `--dict` files are.
 pub const VARIANTS: &str = "variants.dict";
@@ -274,6 +280,22 @@ impl Aligner {
             .iter()
             .map(|p| p.iter().map(Vec::len).min().unwrap_or(0))
             .sum())
+    }
+
+    /// The phones of every pronunciation of `text`'s words (a word's variants all counted).
+    pub fn phones_of(&self, text: &str) -> Result<Vec<crate::phonemes::Phone>, AlignError> {
+        let words = dict::words(text);
+        if words.is_empty() {
+            return Err(AlignError::NoWords);
+        }
+        let prons = self.dict.pronunciations(&words, &self.model)?;
+        Ok(prons
+            .iter()
+            .flatten()
+            .flatten()
+            .filter_map(|&ci| self.model.ci_names.get(usize::from(ci)))
+            .filter_map(|name| crate::phonemes::Phone::parse(name))
+            .collect())
     }
 
     /// Reads the sound of `path` (WAV, MP4/M4A, or through ffmpeg anything it reads) and
@@ -352,6 +374,7 @@ impl Aligner {
         let (alignment, fit) = self.align_checked(samples, rate, words, &lm())?;
         if !fit.matches() {
             return Err(AlignError::WordsDoNotMatch {
+                judge: GENERAL_JUDGE,
                 overall: fit.overall,
                 least: LEAST_OVERALL_FIT,
                 worst: fit.worst_words(&alignment.words, 3),

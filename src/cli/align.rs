@@ -70,9 +70,16 @@ pub fn run(a: AlignArgs) -> Result<()> {
             let aligning = || format!("aligning {}", a.audio.display());
             let (samples, rate) = (&speech.samples, speech.rate);
             // The fit as the talker's ear hears it, where it has one: (fit, least, matches).
-            let by_ear = match map {
-                Some(map) => map.align_checked(&aligner, samples, rate, text).with_context(aligning)?,
-                None => None,
+            // Only where the ear may judge these words, and finds a path through them (as
+            // `say` decides: Talker::hear_words).
+            let by_ear = match (&talker, map) {
+                (Some(t), Some(map)) if t.ear_judges(&aligner, text)? => {
+                    match map.align_checked(&aligner, samples, rate, text) {
+                        Err(align::AlignError::NoPath) => None,
+                        found => found.with_context(aligning)?,
+                    }
+                }
+                _ => None,
             };
             let (alignment, checked) = match by_ear {
                 Some((alignment, f, general)) => {

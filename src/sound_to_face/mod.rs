@@ -30,8 +30,8 @@ mod network;
 mod phones;
 
 pub use phones::{
-    GENERAL_FIT_WEIGHT, LEAST_FIT, LOOP_PENALTY, LOOP_WEIGHT, PhoneClassifier, WORST_WORD_WEIGHT, ear_fit,
-    ear_matches, frame_labels,
+    EAR_JUDGE, EAR_LEAST_EXAMPLES, GENERAL_FIT_WEIGHT, LEAST_FIT, LOOP_PENALTY, LOOP_WEIGHT, PhoneClassifier,
+    WORST_WORD_WEIGHT, ear_fit, ear_matches, frame_labels,
 };
 
 use std::path::Path;
@@ -651,7 +651,8 @@ impl SoundToFace {
         self.recognise_through(aligner, samples, rate, &lm)
     }
 
-    /// The phones of `text` aligned to `samples` at `rate` (16 kHz), refused when the words
+    /// The phones of `text` aligned to `samples` at `rate` (16 kHz) by the general acoustic
+    /// model, refused when the words
     /// do not fit the sound as the talker's own classifier and the general model hear it
     /// ([`ear_fit`] under [`LEAST_FIT`]: [`AlignError::WordsDoNotMatch`] naming the worst
     /// words); `None` for a map without a classifier.
@@ -667,6 +668,7 @@ impl SoundToFace {
         };
         if !ear_matches(&fit, &general) {
             return Err(AlignError::WordsDoNotMatch {
+                judge: EAR_JUDGE,
                 overall: ear_fit(&fit, &general),
                 least: LEAST_FIT,
                 worst: fit.worst_words(&alignment.words, 3),

@@ -44,6 +44,15 @@ pub const GENERAL_FIT_WEIGHT: f64 = 0.75;
 /// Least [`ear_fit`] of words that match their sound, nats per frame.
 pub const LEAST_FIT: f64 = -0.040;
 
+/// Who judges given words where a talker's ear may ([`ear_matches`]).
+pub const EAR_JUDGE: &str = "the talker's own ear beside the general acoustic model";
+
+/// Fewest examples of a phone in the talker's recordings for its ear to judge words holding
+/// it (issue 66): a classifier learnt on none or a handful of a phone cannot say whether it
+/// was said, so words with such a phone are judged by the general model alone. A floor set
+/// before any measurement, not tuned: GRID s1 has hundreds of every phone his words hold.
+pub const EAR_LEAST_EXAMPLES: usize = 5;
+
 /// How well words fit their sound, heard by the classifier (`ear`) and by the general
 /// acoustic model (`general`): the ear's whole-recording fit plus [`WORST_WORD_WEIGHT`] times
 /// its worst word's (one wrong word among right ones pulls the whole little, itself much),

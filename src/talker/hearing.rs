@@ -49,10 +49,14 @@ impl Talker {
     }
 
     /// The phones of the recording `audio` aligned to its `words` by `aligner` (the talker's
-    /// own: [`Self::aligner`]), refused — unless `accept_mismatch` — when the words do not
-    /// fit the sound, as the talker's own ear and the general model together hear it where it
-    /// has an ear (far surer than the general model's fit alone, BENCHMARKS "The talker's own
-    /// ear").
+    /// own: [`Self::aligner`]; always the general acoustic model's alignment), refused —
+    /// unless `accept_mismatch` — when the words do not fit the sound. The talker's own ear
+    /// judges beside the general model (far surer on its own voice and words, BENCHMARKS "The
+    /// talker's own ear") only where it can: every phone of the words has at least
+    /// [`crate::sound_to_face::EAR_LEAST_EXAMPLES`] examples in its recordings, and the ear
+    /// finds a path through them; otherwise the general model's rule decides (issue 66: an
+    /// ear learnt on one talker's few words refused true transcripts of other words). The
+    /// refusal names which judged.
     pub fn hear_words(
         &self,
         aligner: &crate::align::Aligner,
@@ -67,13 +71,34 @@ impl Talker {
         };
         let (samples, rate) = (&sound.samples, sound.rate);
         if let Some(map) = self.sound_to_face()?.filter(|_| !accept_mismatch)
-            && let Some(phones) = map.hear_words(aligner, samples, rate, words).map_err(failed)?
+            && self.ear_judges(aligner, words)?
         {
-            return Ok(phones);
+            match map.hear_words(aligner, samples, rate, words) {
+                Ok(Some(phones)) => return Ok(phones),
+                // The ear found no path through words it has too little of: the general
+                // model's rule decides.
+                Ok(None) | Err(crate::align::AlignError::NoPath) => {}
+                Err(e) => return Err(failed(e)),
+            }
         }
         aligner
             .hear(samples, rate, Some(words), accept_mismatch)
             .map_err(failed)
+    }
+
+    /// Whether the talker's own ear may judge `words` beside the general model: it has an
+    /// ear, and has heard enough of every phone of the words
+    /// ([`crate::sound_to_face::EAR_LEAST_EXAMPLES`] examples each in its codebook).
+    pub fn ear_judges(&self, aligner: &crate::align::Aligner, words: &str) -> Result<bool, TalkerError> {
+        if !self.sound_to_face()?.is_some_and(|m| m.hears_phones()) {
+            return Ok(false);
+        }
+        let least = crate::sound_to_face::EAR_LEAST_EXAMPLES;
+        Ok(aligner.phones_of(words).is_ok_and(|phones| {
+            phones.iter().all(|p| {
+                *p == crate::phonemes::Phone::SIL || self.codebook.occurrences.get(p.index()).is_some_and(|o| o.len() >= least)
+            })
+        }))
     }
 
     /// The talker's own aligner (the committed dictionary), loaded on first use and kept.
