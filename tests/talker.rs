@@ -810,3 +810,23 @@ fn the_ear_judges_only_words_whose_phones_it_has_heard() {
         .to_string();
     assert!(e.contains("do not seem to be what is said"), "{e}");
 }
+
+/// Issue 66: text as agents write it — money, counts, a date, a clock time — is spoken and
+/// aligned, the engine and the aligner hearing the same words ("one thousand two hundred
+/// fifty dollars", "twenty twenty four", "seven thirty p m").
+#[test]
+fn numbers_money_and_times_are_spoken() {
+    if facespace::tts::available().is_none() {
+        eprintln!("skipped: no text-to-speech engine (.ci/run installs Festival)");
+        return;
+    }
+    let talker = talker();
+    let dir = tempfile::tempdir().unwrap();
+    let text = "I paid $1,250 for 3 maps on March 14th, 2024 at 7:30 pm.";
+    let (phones, _) = talker.speak(text, None, talker.aligner().unwrap(), &dir.path().join("s.wav")).unwrap();
+    let spoken: Vec<&str> = phones.iter().map(|p| p.phone.name()).filter(|p| *p != "sil").collect();
+    // "thousand" (th aw z ah n d) and "fourteenth" (… t iy n th) among them.
+    let joined = spoken.join(" ");
+    assert!(joined.contains("th aw z ah n d") && joined.contains("t iy n th"), "{joined}");
+    assert!(spoken.len() > 60, "{} phones", spoken.len());
+}

@@ -233,7 +233,7 @@ fn out_of_dictionary(missing: &[String]) -> String {
     }
     if !numbers.is_empty() {
         parts.push(format!(
-            "numbers are not read yet: {}; write them in words (\"2\" as \"two\")",
+            "digits that are not a number, money, a percentage, an ordinal or a clock time: {}; write them in words (\"B2B\" as \"B to B\")",
             crate::options::clipped_list(&numbers)
         ));
     }
@@ -271,7 +271,7 @@ impl Aligner {
     /// words cannot be aligned (none, or some not in the dictionary): checked before a
     /// text-to-speech engine runs, so text that cannot be aligned never costs its speech.
     pub fn phone_count(&self, text: &str) -> Result<usize, AlignError> {
-        let words = dict::words(text);
+        let words = dict::words(&crate::phonemes::spoken::written_out(text));
         if words.is_empty() {
             return Err(AlignError::NoWords);
         }
@@ -284,7 +284,7 @@ impl Aligner {
 
     /// The phones of every pronunciation of `text`'s words (a word's variants all counted).
     pub fn phones_of(&self, text: &str) -> Result<Vec<crate::phonemes::Phone>, AlignError> {
-        let words = dict::words(text);
+        let words = dict::words(&crate::phonemes::spoken::written_out(text));
         if words.is_empty() {
             return Err(AlignError::NoWords);
         }
@@ -408,6 +408,9 @@ impl Aligner {
                 frames: feats.len(),
             });
         }
+        // Numbers, money and times as they are spoken (after the count: a huge transcript is
+        // refused before anything is made of it).
+        let text = &crate::phonemes::spoken::written_out(text);
         let words = dict::words(text);
         let prons = self.dict.pronunciations(&words, &self.model)?;
         let phones: usize = prons

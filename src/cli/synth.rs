@@ -391,6 +391,8 @@ fn from_codebook(a: SynthArgs) -> Result<()> {
             let wav = spoken.path().join("speech.wav");
             // Words the aligner cannot time are refused before any engine runs.
             facespace::tts::check_text(text).context("--say")?;
+            let text = &facespace::phonemes::spoken::written_out(text);
+            facespace::tts::check_text(text).context("--say")?;
             facespace::align::Aligner::load_default(&a.dicts)?
                 .phone_count(text)
                 .context("--say")?;

@@ -53,6 +53,7 @@ const PAUSE: f64 = 0.15;
 /// indexed like [`super::PHONES`]). Silence opens and closes the utterance and marks `, . ; : ? !`.
 /// Every word missing from the dictionary is listed in one error.
 pub fn text_to_segments(text: &str, durations: &[f64; 40]) -> Result<Vec<Segment>, PhonemeError> {
+    let text = &super::spoken::written_out(text);
     let mut phones = vec![Phone::SIL];
     let mut missing = Vec::new();
     let mut words = 0;

@@ -8,6 +8,7 @@
 
 pub mod dictionary;
 pub mod labels;
+pub mod spoken;
 mod textgrid;
 pub use textgrid::{Tier, format_textgrid};
 

@@ -144,8 +144,9 @@ impl Talker {
     }
 
     /// `text` spoken in the talker's voice (or `voice`) into the WAV `wav`, and its phones
-    /// aligned to that sound; with notes for the user (a voice that was missing). The text is
-    /// checked first — its length ([`crate::tts::check_text`]) and that the aligner knows
+    /// aligned to that sound; with notes for the user (a voice that was missing). Numbers,
+    /// money, ordinals, clock times and years are written out in words first
+    /// ([`crate::phonemes::spoken`]). The text is checked first — its length ([`crate::tts::check_text`]) and that the aligner knows
     /// every word — so text that cannot be timed never runs an engine.
     pub fn speak(
         &self,
@@ -157,6 +158,10 @@ impl Talker {
         let words = |source| TalkerError::Words {
             source: Box::new(source),
         };
+        // Numbers, money and times written out, so the engine and the aligner say the same
+        // words (issue 66); checked before and after (the first bounds the writing out).
+        crate::tts::check_text(text)?;
+        let text = &crate::phonemes::spoken::written_out(text);
         crate::tts::check_text(text)?;
         aligner.phone_count(text).map_err(words)?;
         let voice = voice.or(self.manifest.voice.as_ref().map(|v| v.festival.as_str()));
