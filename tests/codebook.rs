@@ -547,3 +547,25 @@ fn the_median_pose_is_the_middle_of_every_frames_pose() {
         assert_eq!(m, f64::from(all[all.len() / 2]), "pose value {k}");
     }
 }
+
+/// Issue 67: what a codebook lacks — its absent phones, and the mouth shapes (viseme classes)
+/// none of its phones shows. A codebook of /m/, /p/ and /aa/ lacks /b/ but shows the
+/// lips-together shape (/b/ borrows from /m p/); it lacks every phone of the rounded /uw/'s
+/// class, so that shape is absent whole.
+#[test]
+fn a_codebook_names_the_phones_and_mouth_shapes_it_lacks() {
+    let sentences = [("m", [0.0, 1.0, 2.0]), ("p", [0.1, 1.0, 2.0]), ("aa", [3.0, -1.0, 0.0])]
+        .iter()
+        .map(|(p, v)| constant_sentence(p, *v))
+        .collect();
+    let cb = Codebook::build(sentences, 25.0, LAYOUT, None, SimilarityOptions::default(), &mut facespace::no_progress)
+        .unwrap();
+    let (phones, shapes) = cb.absent();
+    assert!(phones.contains(&ph("b")) && !phones.contains(&ph("m")) && !phones.contains(&ph("aa")));
+    assert_eq!(phones.len(), Phone::all().count() - 3 - usize::from(!cb.occurrences[Phone::SIL.index()].is_empty()));
+    assert!(!shapes.iter().any(|c| c.contains(&ph("b"))), "/b/'s shape is shown by /m p/");
+    assert!(shapes.iter().any(|c| c.contains(&ph("uw"))));
+    for class in &shapes {
+        assert!(class.iter().all(|p| phones.contains(p) && p.viseme() == class[0].viseme()));
+    }
+}

@@ -282,6 +282,13 @@ impl Aligner {
             .sum())
     }
 
+    /// Whether `text`'s words could fit `seconds` of sound at all (every word at least one
+    /// phone of three states, a frame each), counted without making them: a huge transcript
+    /// is refused before anything is built from it (issue 69, R5-12).
+    pub fn could_fit(text: &str, seconds: f64) -> bool {
+        dict::word_count(text) * model::STATES <= (seconds * FRAMES_PER_SECOND).ceil() as usize
+    }
+
     /// The phones of every pronunciation of `text`'s words (a word's variants all counted).
     pub fn phones_of(&self, text: &str) -> Result<Vec<crate::phonemes::Phone>, AlignError> {
         let words = dict::words(&crate::phonemes::spoken::written_out(text));

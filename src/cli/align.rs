@@ -73,7 +73,7 @@ pub fn run(a: AlignArgs) -> Result<()> {
             // Only where the ear may judge these words, and finds a path through them (as
             // `say` decides: Talker::hear_words).
             let by_ear = match (&talker, map) {
-                (Some(t), Some(map)) if t.ear_judges(&aligner, text)? => {
+                (Some(t), Some(map)) if Aligner::could_fit(text, speech.seconds()) && t.ear_judges(&aligner, text)? => {
                     match map.align_checked(&aligner, samples, rate, text) {
                         Err(align::AlignError::NoPath) => None,
                         found => found.with_context(aligning)?,

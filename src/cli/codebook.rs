@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
 use facespace::codebook::{Codebook, SimilarityOptions};
-use facespace::phonemes::{PHONES, Phone, PhoneMap};
+use facespace::phonemes::{PHONES, PhoneMap};
 use facespace::{plot, video};
 
 use super::{load_model, progress_bar};
@@ -177,12 +177,10 @@ fn info(cb: &Codebook) {
         cb.layout,
         cb.model_hash.as_deref().unwrap_or("unknown")
     );
-    let absent: Vec<&str> = Phone::all()
-        .filter(|p| cb.occurrences[p.index()].is_empty())
-        .map(|p| p.name())
-        .collect();
+    let (absent, _) = cb.absent();
     if !absent.is_empty() {
-        println!("  absent      {}", absent.join(" "));
+        let names: Vec<&str> = absent.iter().map(|p| p.name()).collect();
+        println!("  absent      {}", names.join(" "));
     }
     // S without the shape parameters, to show what shape changes.
     let without = Codebook {

@@ -251,6 +251,16 @@ fn build(a: BuildArgs) -> Result<()> {
     let talker = facespace::talker::build::build(&identity, &parts, &a.output, progress)?;
     bar.finish_and_clear();
     println!("settings: {}", talker.manifest.settings.chosen_on);
+    let (phones, shapes) = talker.codebook.absent();
+    let names = |ps: &[facespace::phonemes::Phone]| ps.iter().map(|p| p.name()).collect::<Vec<_>>().join(" ");
+    if !phones.is_empty() {
+        let shapes: Vec<String> = shapes.iter().map(|c| format!("/{}/", names(c))).collect();
+        println!(
+            "the recordings never say {}{}: their lips are borrowed from the nearest phones present (record sentences with them to complete the talker)",
+            names(&phones),
+            if shapes.is_empty() { String::new() } else { format!(" — no mouth shape of {}", shapes.join(", ")) }
+        );
+    }
     let f = &talker.footage;
     println!(
         "talker {} → {} in {:.1} s: {} codebook sentences; footage {} clips, {} frames ({:.1} s, median step {:.2} grey levels)",

@@ -447,6 +447,21 @@ impl Codebook {
             .collect()
     }
 
+    /// The phones its sentences never say, and the mouth shapes (viseme classes, each named
+    /// by its phones) none of them shows: what synthesis must borrow from the nearest present
+    /// (issue 67: `talker build` reports it, so a recording can be completed).
+    pub fn absent(&self) -> (Vec<Phone>, Vec<Vec<Phone>>) {
+        let absent: Vec<Phone> = Phone::all().filter(|p| self.occurrences[p.index()].is_empty()).collect();
+        let mut classes: Vec<Vec<Phone>> = Vec::new();
+        for p in Phone::all() {
+            let class: Vec<Phone> = Phone::all().filter(|q| q.viseme() == p.viseme()).collect();
+            if class.iter().all(|q| absent.contains(q)) && !classes.contains(&class) {
+                classes.push(class);
+            }
+        }
+        (absent, classes)
+    }
+
     /// S recomputed with other options (the same trajectories), e.g. without the shape.
     pub fn similarity_with(&self, options: &SimilarityOptions) -> Array2<f64> {
         let other = Codebook {

@@ -70,7 +70,9 @@ impl Talker {
             source: Box::new(e),
         };
         let (samples, rate) = (&sound.samples, sound.rate);
+        // (Words that cannot fit the sound are refused by the general model from their count.)
         if let Some(map) = self.sound_to_face()?.filter(|_| !accept_mismatch)
+            && crate::align::Aligner::could_fit(words, sound.seconds())
             && self.ear_judges(aligner, words)?
         {
             match map.hear_words(aligner, samples, rate, words) {
