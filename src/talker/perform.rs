@@ -146,7 +146,8 @@ pub struct SayRequest {
     /// Smoothing (default: on, with the talker's λ); [`Smoothing::Ab`] writes both variants
     /// and a blind side-by-side into the parts.
     pub smoothing: Option<Smoothing>,
-    /// Output frame rate (default: the canvas video's, else the footage's).
+    /// Output frame rate over a video or an image (default: the video's, else the footage's);
+    /// over the footage its own rate always (a note says so when another was asked for).
     pub fps: Option<f64>,
     /// Refuse a phone the codebook lacks instead of borrowing the nearest one present.
     pub strict: bool,
@@ -268,9 +269,16 @@ impl Talker {
         let mut notes = Vec::new();
         let (target, words, sound, heard) = self.phones(request, staging, &mut notes)?;
         let fps = match (request.fps, &request.canvas) {
+            // The footage plays at its own rate: frame k of the video is footage frame k.
+            (Some(fps), Canvas::Footage) => {
+                if fps != self.footage.fps {
+                    notes.push(format!("the footage plays at its own {} fps, not {fps}", self.footage.fps));
+                }
+                self.footage.fps
+            }
             (Some(fps), _) => fps,
             (None, Canvas::Video { path, .. }) => crate::video::Source::open(path)?.info().fps,
-            _ => self.footage.fps,
+            (None, _) => self.footage.fps,
         };
         crate::synth::validate_request(&target, fps)?;
         let n = crate::synth::frame_count(&target, fps);
