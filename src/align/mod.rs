@@ -271,15 +271,20 @@ impl Aligner {
     /// words cannot be aligned (none, or some not in the dictionary): checked before a
     /// text-to-speech engine runs, so text that cannot be aligned never costs its speech.
     pub fn phone_count(&self, text: &str) -> Result<usize, AlignError> {
+        Ok(self
+            .pronunciations_of(text)?
+            .iter()
+            .map(|p| p.iter().map(Vec::len).min().unwrap_or(0))
+            .sum())
+    }
+
+    /// Every pronunciation (CI phone ids) of each word of `text`, numbers written out.
+    fn pronunciations_of(&self, text: &str) -> Result<Vec<Vec<Vec<u8>>>, AlignError> {
         let words = dict::words(&crate::phonemes::spoken::written_out(text));
         if words.is_empty() {
             return Err(AlignError::NoWords);
         }
-        let prons = self.dict.pronunciations(&words, &self.model)?;
-        Ok(prons
-            .iter()
-            .map(|p| p.iter().map(Vec::len).min().unwrap_or(0))
-            .sum())
+        self.dict.pronunciations(&words, &self.model)
     }
 
     /// Whether `text`'s words could fit `seconds` of sound at all (every word at least one
@@ -291,12 +296,8 @@ impl Aligner {
 
     /// The phones of every pronunciation of `text`'s words (a word's variants all counted).
     pub fn phones_of(&self, text: &str) -> Result<Vec<crate::phonemes::Phone>, AlignError> {
-        let words = dict::words(&crate::phonemes::spoken::written_out(text));
-        if words.is_empty() {
-            return Err(AlignError::NoWords);
-        }
-        let prons = self.dict.pronunciations(&words, &self.model)?;
-        Ok(prons
+        Ok(self
+            .pronunciations_of(text)?
             .iter()
             .flatten()
             .flatten()
