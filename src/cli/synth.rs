@@ -207,7 +207,8 @@ pub fn run(mut a: SynthArgs) -> Result<()> {
 /// `synth --talker T`: the talker's own pipeline ([`Talker::say_parts`], as `say` draws —
 /// recorded mouths, appearance gain, ear, word check), varied by the flags.
 fn with_talker(a: SynthArgs, dir: &std::path::Path) -> Result<()> {
-    for (given, flag) in [(&a.model, "--model"), (&a.codebook, "--codebook"), (&a.track_model, "--track-model")] {
+    // (With --talker given, clap refuses these; with the default talker, this does.)
+    for (given, flag) in [(&a.model, "--model"), (&a.track_model, "--track-model")] {
         if given.is_some() {
             anyhow::bail!(
                 "{flag} with --talker: a talker draws with its own model and codebook; give --codebook (and --model) without --talker to synthesise from another codebook"

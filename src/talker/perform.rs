@@ -363,11 +363,6 @@ impl Talker {
         out: &Path,
         progress: impl FnMut(Progress),
     ) -> Result<SayReport, TalkerError> {
-        // Over an input is the first refusal (issue 69), then a format that is no video.
-        let mut inputs = request.inputs();
-        inputs.push(&self.dir);
-        atomic::check_destination(out, &inputs)?;
-        crate::video::check_destination(out)?;
         let parts = request.parts.as_deref().map(|p| (p, Staged::Swapped));
         self.draw(request, Some(out), parts, progress).map(|(report, _)| report)
     }
@@ -424,6 +419,10 @@ impl Talker {
         inputs.push(&self.dir);
         for destination in out.iter().chain(parts.as_ref().map(|(p, _)| p)) {
             atomic::check_destination(destination, &inputs)?;
+        }
+        // Over an input is the first refusal (issue 69), then a format that is no video.
+        if let Some(out) = out {
+            crate::video::check_destination(out)?;
         }
         let first = out.or(parts.map(|(p, _)| p)).expect("somewhere to write");
         let staging = atomic::StagingDir::new(atomic::parent_of(first)).map_err(io(first))?;
